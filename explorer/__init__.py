@@ -1,0 +1,1 @@
+"""The Phase Explorer application: Qt GUI, integrator worker thread, CLI and exports."""
