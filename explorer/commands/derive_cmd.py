@@ -1,0 +1,126 @@
+"""``derive SCENE``: Lagrange's and Hamilton's equations, for a person or as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import sympy
+
+from explorer.commands.errors import user_errors
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "derive", help="derive the equations of motion of a scene (catalogue name or .toml)"
+    )
+    parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def run(args: argparse.Namespace) -> int:
+    from systems.mechanics import derive
+    from systems.scene import load_scene
+
+    with user_errors():
+        scene = load_scene(args.scene)
+        mechanics = derive(scene)
+        report = derivation_report(mechanics)
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(readable(mechanics))
+    return 0
+
+
+def _text(expr) -> str | None:
+    return None if expr is None else str(expr)
+
+
+def derivation_report(mechanics) -> dict:
+    """The derivation as JSON-ready data; every expression a string sympify reads back."""
+    from systems.mechanics import DerivationError
+
+    scene = mechanics.scene
+    try:
+        accelerations = dict(
+            zip(scene.coordinates, map(_text, mechanics.accelerations()), strict=True)
+        )
+    except DerivationError:
+        accelerations = None
+    names = list(scene.coordinates) + list(scene.momentum_names)
+    return {
+        "title": scene.title,
+        "coordinates": list(scene.coordinates),
+        "parameters": scene.parameter_values,
+        "lagrangian": _text(mechanics.lagrangian),
+        "accelerations": accelerations,
+        "momenta": None
+        if mechanics.momenta is None
+        else dict(zip(scene.coordinates, map(_text, mechanics.momenta), strict=True)),
+        "hamiltonian": _text(mechanics.hamiltonian),
+        "hamilton_equations": dict(
+            zip(names, map(_text, mechanics.hamilton_equations), strict=True)
+        ),
+        "cyclic": list(mechanics.cyclic),
+        "conserved": {name: _text(expr) for name, expr in mechanics.conserved.items()},
+        "classification": mechanics.classification.as_dict(),
+    }
+
+
+def _block(title: str, rows: list[tuple[str, object]], scene) -> list[str]:
+    from systems.display import for_display
+
+    lines = ["", title, "-" * len(title)]
+    for label, expr in rows:
+        shown = for_display(expr, scene)
+        art = sympy.pretty(shown, use_unicode=True, wrap_line=False).splitlines() or [""]
+        head = f"{label}: " if isinstance(expr, sympy.Eq) else f"{label} = "
+        middle = len(art) // 2
+        for i, line in enumerate(art):
+            lines.append((head if i == middle else " " * len(head)) + line)
+    return lines
+
+
+def readable(mechanics) -> str:
+    """The derivation laid out for a person, with sympy's pretty printer."""
+    from systems.display import display_names
+
+    scene = mechanics.scene
+    shown = display_names(scene)
+    params = ", ".join(f"{shown[k]} = {v:g}" for k, v in scene.parameters) or "none"
+    lines = [scene.title, "=" * len(scene.title)]
+    if scene.description:
+        lines.append(scene.description)
+    coordinates = ", ".join(shown[q] for q in scene.coordinates)
+    lines.append(f"coordinates: {coordinates}; parameters: {params}")
+    if scene.enabled_effects():
+        lines.append(f"effects on: {', '.join(scene.enabled_effects())}")
+    if mechanics.lagrangian is not None:
+        lines += _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
+        equations = [(f"({i + 1})", eq) for i, eq in enumerate(mechanics.lagrange_equations())]
+        lines += _block("Lagrange's equations", equations, scene)
+        try:
+            accelerations = zip(scene.coordinates, mechanics.accelerations(), strict=True)
+            rows = [(shown[f"{q}_ddot"], a) for q, a in accelerations]
+            lines += _block("Accelerations", rows, scene)
+        except ValueError:
+            pass
+    if mechanics.momenta is not None:
+        rows = [(shown[p], m) for p, m in zip(scene.momentum_names, mechanics.momenta, strict=True)]
+        lines += _block("Generalized momenta p = dL/dq̇", rows, scene)
+    lines += _block("Hamiltonian", [("H", mechanics.hamiltonian)], scene)
+    names = list(scene.coordinates) + list(scene.momentum_names)
+    rows = [
+        (f"d{shown[name]}/dt", expr)
+        for name, expr in zip(names, mechanics.hamilton_equations, strict=True)
+    ]
+    lines += _block("Hamilton's equations", rows, scene)
+    lines += ["", "Classification", "--------------"]
+    lines += [f"- {sentence}" for sentence in mechanics.classification.describe()]
+    cyclic = ", ".join(shown[q] for q in mechanics.cyclic) or "none"
+    lines.append(f"- cyclic coordinates: {cyclic}")
+    if mechanics.conserved:
+        rows = [(shown.get(name, name), expr) for name, expr in mechanics.conserved.items()]
+        lines += _block("Conserved quantities", rows, scene)
+    return "\n".join(lines)

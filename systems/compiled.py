@@ -1,0 +1,358 @@
+"""Compilation: the derived expressions a caller asks for -> numba kernels.
+
+Each wanted function is printed from sympy (after common-subexpression elimination) as
+plain scalar Python, placed in the scene's generated kernel module together with the
+stepper templates (``systems.codegen``), and compiled by numba with ``nogil=True`` and an
+on-disk cache. Parameters are an array argument, so changing a parameter value needs no
+recompilation. What was not asked for is neither printed nor compiled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from types import ModuleType
+
+import numpy as np
+import sympy
+from sympy.printing.pycode import PythonCodePrinter
+
+from systems.codegen import build_module
+from systems.mechanics import DerivationError, Mechanics
+
+WANTS = frozenset(
+    {"rhs", "hamiltonian", "velocities", "momenta", "separable", "drawing", "lagrangian"}
+)
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledSystem:
+    """Fast numerical functions of one derived system.
+
+    Attributes
+    ----------
+    mechanics : Mechanics
+    kernels : module
+        The generated module: scalar system functions and the stepper templates.
+    parameters : ndarray, shape (k,)
+        Parameter values in ``parameter_names`` order (the array ``P`` of the kernels).
+    wanted : frozenset of str
+    build_seconds : float
+        Time spent printing and importing the kernel module (numba compiles on first call).
+    """
+
+    mechanics: Mechanics
+    kernels: ModuleType
+    parameter_names: tuple[str, ...]
+    parameters: np.ndarray
+    wanted: frozenset[str]
+    point_names: tuple[str, ...] = ()
+    build_seconds: float = 0.0
+    _numeric: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.mechanics.n
+
+    def with_parameters(self, values: Sequence[float] | dict[str, float]) -> CompiledSystem:
+        """The same kernels with other parameter values (no recompilation)."""
+        if isinstance(values, dict):
+            current = dict(zip(self.parameter_names, self.parameters, strict=True))
+            unknown = set(values) - set(current)
+            if unknown:
+                raise KeyError(f"unknown parameter {sorted(unknown)[0]!r}")
+            current.update(values)
+            array = np.array([current[name] for name in self.parameter_names], dtype=float)
+        else:
+            array = np.asarray(values, dtype=float).copy()
+        return dataclasses.replace(self, parameters=array, _numeric={})
+
+    def require(self, want: str) -> None:
+        if want not in self.wanted:
+            raise ValueError(f"{want!r} was not compiled; ask compile_system for it")
+
+    # -- array wrappers ------------------------------------------------------------------
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """dy/dt at one state; ``y`` shape (2n,), returns shape (2n,)."""
+        self.require("rhs")
+        out = np.empty(2 * self.n)
+        self.kernels.rhs(float(t), np.ascontiguousarray(y, dtype=float), self.parameters, out)
+        return out
+
+    def hamiltonian(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
+        """H at many states; ``Y`` shape (N, 2n), ``t`` scalar or (N,); returns (N,)."""
+        self.require("hamiltonian")
+        ts, Y = _batch(t, Y, 2 * self.n)
+        out = np.empty(len(Y))
+        self.kernels.hamiltonian_batch(ts, Y, self.parameters, out)
+        return out
+
+    def velocities(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
+        """qdot at many states; ``Y`` shape (N, 2n); returns (N, n)."""
+        self.require("velocities")
+        ts, Y = _batch(t, Y, 2 * self.n)
+        out = np.empty((len(Y), self.n))
+        self.kernels.velocities_batch(ts, Y, self.parameters, out)
+        return out
+
+    def momenta(self, t: np.ndarray | float, Q: np.ndarray, Qdot: np.ndarray) -> np.ndarray:
+        """p from (q, qdot); ``Q``, ``Qdot`` shape (N, n); returns (N, n)."""
+        self.require("momenta")
+        ts, Q = _batch(t, Q, self.n)
+        Qdot = np.ascontiguousarray(np.atleast_2d(Qdot), dtype=float)
+        out = np.empty((len(Q), self.n))
+        self.kernels.momenta_batch(ts, Q, Qdot, self.parameters, out)
+        return out
+
+    def drawing(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
+        """Mechanism points at many states; ``Y`` shape (N, 2n); returns (N, npoints, 2)."""
+        self.require("drawing")
+        ts, Y = _batch(t, Y, 2 * self.n)
+        out = np.empty((len(Y), len(self.point_names), 2))
+        self.kernels.drawing_batch(ts, Y, self.parameters, out)
+        return out
+
+    # -- initial state -----------------------------------------------------------------------
+
+    def initial_state(self, t0: float = 0.0) -> np.ndarray:
+        """The scene's initial state as canonical ``(q, p)``, shape (2n,).
+
+        Missing entries are 0. Velocities are turned into momenta with p = dL/dqdot.
+        """
+        scene = self.mechanics.scene
+        values = scene.initial_values
+        q = np.array([values.get(name, 0.0) for name in scene.coordinates])
+        given_p = {name: values[name] for name in scene.momentum_names if name in values}
+        qdot = np.array([values.get(name, 0.0) for name in scene.velocity_names])
+        if len(given_p) == self.n:
+            p = np.array([given_p[name] for name in scene.momentum_names])
+        else:
+            p = self.momenta_from_velocities(t0, q, qdot)
+            for i, name in enumerate(scene.momentum_names):
+                if name in given_p:
+                    p[i] = given_p[name]
+        return np.concatenate([q, p])
+
+    def momenta_from_velocities(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """p(q, qdot, t) for one state, shape (n,), evaluated with numpy (no compilation)."""
+        mech = self.mechanics
+        if mech.momenta is not None:
+            f = self._lambdified("momenta", (mech.t, mech.q, mech.qdot), mech.momenta)
+            return np.array(f(t, q, qdot), dtype=float).reshape(self.n)
+        from scipy.optimize import fsolve
+
+        f = self._lambdified("velocities", (mech.t, mech.q, mech.p), mech.velocities)
+        solution, _, ok, message = fsolve(
+            lambda p: np.array(f(t, q, p), dtype=float) - qdot, qdot, full_output=True
+        )
+        if ok != 1:
+            raise DerivationError(f"could not find momenta for the initial velocities: {message}")
+        return solution
+
+    def _lambdified(self, key, args, exprs):
+        if key not in self._numeric:
+            params = tuple(self.mechanics.params[name] for name in self.parameter_names)
+            values = dict(zip(params, self.parameters, strict=True))
+            exprs = [sympy.sympify(e).xreplace(values) for e in exprs]
+            self._numeric[key] = sympy.lambdify(args, exprs, modules="numpy", cse=True)
+        return self._numeric[key]
+
+
+def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
+    Y = np.ascontiguousarray(np.atleast_2d(Y), dtype=float)
+    if Y.shape[1] != width:
+        raise ValueError(f"states must have {width} columns, got shape {Y.shape}")
+    ts = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=float), (len(Y),)))
+    return ts, Y
+
+
+def compile_system(
+    mechanics: Mechanics, wanted: Iterable[str] = ("rhs", "hamiltonian")
+) -> CompiledSystem:
+    """Print and load kernels for the wanted functions of ``mechanics``.
+
+    Parameters
+    ----------
+    mechanics
+        From ``systems.mechanics.derive``.
+    wanted
+        Names from ``WANTS``. ``"separable"`` adds T(p), V(q, t) and their gradients and is
+        only possible when the classification says separable.
+
+    Returns
+    -------
+    CompiledSystem
+    """
+    start = time.perf_counter()
+    wanted = frozenset(wanted)
+    unknown = wanted - WANTS
+    if unknown:
+        raise ValueError(f"unknown wants {sorted(unknown)}; choose from {sorted(WANTS)}")
+    writer = _KernelWriter(mechanics)
+    source = writer.source(wanted)
+    module = build_module(source)
+    scene = mechanics.scene
+    return CompiledSystem(
+        mechanics=mechanics,
+        kernels=module,
+        parameter_names=tuple(name for name, _ in scene.parameters),
+        parameters=np.array([value for _, value in scene.parameters], dtype=float),
+        wanted=wanted,
+        point_names=scene.drawing.point_names if scene.drawing else (),
+        build_seconds=time.perf_counter() - start,
+    )
+
+
+class _Printer(PythonCodePrinter):
+    """Prints ``math.*`` calls numba understands; integer powers as multiplication."""
+
+    def _print_Pow(self, expr, rational=False):
+        base, exponent = expr.as_base_exp()
+        if exponent.is_Integer and 2 <= abs(int(exponent)) <= 4:
+            factor = "*".join([self.parenthesize(base, 100)] * abs(int(exponent)))
+            return f"({factor})" if exponent > 0 else f"(1.0/({factor}))"
+        if exponent == sympy.Rational(1, 2):
+            return f"math.sqrt({self._print(base)})"
+        if exponent == -sympy.Rational(1, 2):
+            return f"(1.0/math.sqrt({self._print(base)}))"
+        return super()._print_Pow(expr, rational=rational)
+
+    def _print_Rational(self, expr):
+        return f"({float(expr.p)}/{float(expr.q)})"
+
+    def _print_Integer(self, expr):
+        return f"{float(expr.p)}"
+
+
+class _KernelWriter:
+    def __init__(self, mechanics: Mechanics):
+        self.mech = mechanics
+        self.scene = mechanics.scene
+        self.printer = _Printer({"fully_qualified_modules": True, "standard": "python3"})
+        names = [
+            "t",
+            *self.scene.coordinates,
+            *self.scene.velocity_names,
+            *self.scene.momentum_names,
+            *(n for n, _ in self.scene.parameters),
+        ]
+        self.rename = {
+            self.scene.symbols[name]: sympy.Symbol(f"v_{name}", real=True) for name in names
+        }
+
+    def source(self, wanted: frozenset[str]) -> str:
+        mech, scene = self.mech, self.scene
+        n = mech.n
+        npoints = len(scene.drawing.points) if scene.drawing else 0
+        parts = [f"N_DOF = {n}\nN_POINTS = {npoints}\n"]
+        state = self.unpack_state()
+        if "rhs" in wanted:
+            parts.append(self.function("rhs(t, y, P, out)", state, mech.hamilton_equations))
+        if "hamiltonian" in wanted:
+            parts.append(self.scalar("hamiltonian(t, y, P)", state, mech.hamiltonian))
+            parts.append(_BATCH_SCALAR.format(name="hamiltonian"))
+        if "velocities" in wanted:
+            parts.append(self.function("velocities(t, y, P, out)", state, mech.velocities))
+            parts.append(_BATCH_VECTOR.format(name="velocities"))
+        if "momenta" in wanted:
+            if mech.momenta is None:
+                raise DerivationError(
+                    "this Hamiltonian has no Lagrangian, so momenta from velocities are "
+                    "not defined",
+                    source=scene.source,
+                )
+            unpack = self.unpack("q", scene.coordinates) + self.unpack("qdot", scene.velocity_names)
+            parts.append(self.function("momenta(t, q, qdot, P, out)", unpack, mech.momenta))
+            parts.append(_BATCH_MOMENTA)
+        if "lagrangian" in wanted and mech.lagrangian is not None:
+            unpack = self.unpack("q", scene.coordinates) + self.unpack("qdot", scene.velocity_names)
+            parts.append(self.scalar("lagrangian(t, q, qdot, P)", unpack, mech.lagrangian))
+        if "separable" in wanted:
+            if mech.separable_parts is None:
+                raise DerivationError(
+                    "the Hamiltonian is not separable (H != T(p) + V(q))", source=scene.source
+                )
+            T, V = mech.separable_parts
+            pu = self.unpack("p", scene.momentum_names)
+            qu = self.unpack("q", scene.coordinates)
+            parts.append(self.scalar("kinetic(p, P)", pu, T))
+            parts.append(self.scalar("potential(t, q, P)", qu, V))
+            parts.append(
+                self.function("grad_kinetic(p, P, out)", pu, [sympy.diff(T, s) for s in mech.p])
+            )
+            parts.append(
+                self.function(
+                    "grad_potential(t, q, P, out)", qu, [sympy.diff(V, s) for s in mech.q]
+                )
+            )
+        if "drawing" in wanted:
+            exprs = []
+            for name, _, _ in scene.drawing.points if scene.drawing else ():
+                exprs.append(scene.expression(f"drawing.points.{name}.x"))
+                exprs.append(scene.expression(f"drawing.points.{name}.y"))
+            parts.append(self.function("drawing(t, y, P, out)", state, exprs, pairs=True))
+            parts.append(_BATCH_DRAWING)
+        return "\n\n".join(parts)
+
+    def unpack(self, array: str, names: Sequence[str]) -> list[str]:
+        return [f"v_{name} = {array}[{i}]" for i, name in enumerate(names)]
+
+    def unpack_state(self) -> list[str]:
+        names = (*self.scene.coordinates, *self.scene.momentum_names)
+        return self.unpack("y", names)
+
+    def header(self, signature: str, unpack: list[str]) -> list[str]:
+        params = [f"v_{name} = P[{i}]" for i, (name, _) in enumerate(self.scene.parameters)]
+        lines = [f"def {signature}:"]
+        if "t" in signature.split("(", 1)[1]:
+            lines.append("v_t = t")
+        return lines + unpack + params
+
+    def body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
+        renamed = [sympy.sympify(e).xreplace(self.rename) for e in exprs]
+        temporaries, reduced = sympy.cse(renamed, symbols=sympy.numbered_symbols("c"))
+        lines = [f"{s} = {self.printer.doprint(e)}" for s, e in temporaries]
+        return lines, [self.printer.doprint(e) for e in reduced]
+
+    def function(self, signature, unpack, exprs, pairs=False) -> str:
+        lines = self.header(signature, unpack)
+        temps, values = self.body(exprs)
+        lines += temps
+        for i, value in enumerate(values):
+            target = f"out[{i // 2}, {i % 2}]" if pairs else f"out[{i}]"
+            lines.append(f"{target} = {value}")
+        return _indent(lines)
+
+    def scalar(self, signature, unpack, expr) -> str:
+        lines = self.header(signature, unpack)
+        temps, values = self.body([expr])
+        return _indent(lines + temps + [f"return {values[0]}"])
+
+
+def _indent(lines: list[str]) -> str:
+    return lines[0] + "\n" + "\n".join("    " + line for line in lines[1:]) + "\n"
+
+
+_BATCH_SCALAR = """\
+def {name}_batch(ts, Y, P, out):
+    for i in range(Y.shape[0]):
+        out[i] = {name}(ts[i], Y[i], P)
+"""
+_BATCH_VECTOR = """\
+def {name}_batch(ts, Y, P, out):
+    for i in range(Y.shape[0]):
+        {name}(ts[i], Y[i], P, out[i])
+"""
+_BATCH_MOMENTA = """\
+def momenta_batch(ts, Q, Qdot, P, out):
+    for i in range(Q.shape[0]):
+        momenta(ts[i], Q[i], Qdot[i], P, out[i])
+"""
+_BATCH_DRAWING = """\
+def drawing_batch(ts, Y, P, out):
+    for i in range(Y.shape[0]):
+        drawing(ts[i], Y[i], P, out[i])
+"""

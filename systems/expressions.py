@@ -1,0 +1,343 @@
+"""Whitelist parser: expression text from a user or a scene file -> sympy expression.
+
+Text is never handed to ``eval``, ``sympify`` or ``parse_expr``. It is parsed by Python's
+``ast`` (which only builds a tree and runs nothing), every node is checked against a short
+whitelist, and the sympy expression is built node by node. Sizes are bounded so no input
+can hang the program: text length, nesting depth, literal size, and the size of powers
+with numeric exponents.
+"""
+
+from __future__ import annotations
+
+import ast
+import keyword
+import math
+from collections.abc import Callable, Mapping
+
+import sympy
+
+MAX_TEXT = 20_000
+MAX_DEPTH = 60
+MAX_LITERAL_DIGITS = 60
+MAX_INTEGER_EXPONENT = 100
+MAX_RESULT_DIGITS = 300
+
+FUNCTIONS: dict[str, Callable[..., sympy.Expr]] = {
+    "sin": sympy.sin,
+    "cos": sympy.cos,
+    "tan": sympy.tan,
+    "exp": sympy.exp,
+    "log": sympy.log,
+    "sqrt": sympy.sqrt,
+    "sinh": sympy.sinh,
+    "cosh": sympy.cosh,
+    "tanh": sympy.tanh,
+    "asin": sympy.asin,
+    "acos": sympy.acos,
+    "atan": sympy.atan,
+    "atan2": sympy.atan2,
+    "Abs": sympy.Abs,
+    "abs": sympy.Abs,
+}
+ARITY = {name: 1 for name in FUNCTIONS} | {"atan2": 2}
+CONSTANTS: dict[str, sympy.Expr] = {"pi": sympy.pi}
+RESERVED = frozenset(FUNCTIONS) | frozenset(CONSTANTS) | {"t"}
+
+
+class ExpressionError(ValueError):
+    """An expression the parser refuses, with where and why.
+
+    Attributes
+    ----------
+    field : str or None
+        Where the text came from, e.g. ``"system.kinetic"``.
+    text : str
+        The text as the user typed it.
+    position : int or None
+        1-based column of the offending character.
+    reason : str
+        What is wrong, in words that say what to fix.
+    """
+
+    def __init__(
+        self, reason: str, *, text: str, field: str | None = None, position: int | None = None
+    ):
+        self.reason = reason
+        self.text = text
+        self.field = field
+        self.position = position
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = f"{self.field}: " if self.field else ""
+        at = f" (at position {self.position})" if self.position else ""
+        return f"{where}{self.reason}{at}"
+
+    def with_field(self, field: str) -> ExpressionError:
+        """A copy of this error attributed to ``field``."""
+        return ExpressionError(self.reason, text=self.text, field=field, position=self.position)
+
+
+def check_name(name: object, *, field: str | None = None) -> str:
+    """Validate a coordinate or parameter name and return it.
+
+    Raises
+    ------
+    ExpressionError
+        If the name is not a plain identifier, is a Python keyword, a function or
+        constant name, ``t``, or starts with an underscore.
+    """
+    text = str(name)
+    if not isinstance(name, str) or not name.isidentifier() or not name.isascii():
+        reason = f"{text!r} is not a valid name: use letters, digits and underscores"
+    elif keyword.iskeyword(name):
+        reason = f"{name!r} is a reserved word; choose another name"
+    elif name.startswith("_"):
+        reason = f"{name!r} may not start with an underscore"
+    elif name in RESERVED:
+        reason = f"{name!r} is a built-in name (function, constant or time); choose another"
+    else:
+        return name
+    raise ExpressionError(reason, text=text, field=field)
+
+
+def parse_expression(
+    text: str, symbols: Mapping[str, sympy.Basic], *, field: str | None = None
+) -> sympy.Expr:
+    """Parse ``text`` into a sympy expression using only whitelisted constructs.
+
+    Parameters
+    ----------
+    text
+        The expression, e.g. ``"m*l**2*theta_dot**2/2"``. ``^`` is read as a power.
+    symbols
+        Every name the expression may use, mapped to its sympy object.
+    field
+        Where the text came from, for error messages.
+
+    Returns
+    -------
+    sympy.Expr
+
+    Raises
+    ------
+    ExpressionError
+        With the reason and the 1-based position of the offending part.
+    """
+    if not isinstance(text, str):
+        if isinstance(text, bool) or not isinstance(text, int | float):
+            raise ExpressionError("expected an expression in quotes", text=str(text), field=field)
+        text = repr(text)
+    source = text.replace("^", "**")
+    if not source.strip():
+        raise ExpressionError("the expression is empty", text=text, field=field)
+    if len(source) > MAX_TEXT:
+        raise ExpressionError(
+            f"the expression is too long ({len(source)} characters; limit {MAX_TEXT})",
+            text=text,
+            field=field,
+        )
+    if "\n" in source.strip() or ";" in source:
+        raise ExpressionError("write one expression on one line", text=text, field=field)
+    depth = _bracket_depth(source)
+    if depth > MAX_DEPTH:
+        raise ExpressionError(
+            f"the expression is nested too deeply ({depth} levels; limit {MAX_DEPTH})",
+            text=text,
+            field=field,
+        )
+    try:
+        tree = ast.parse(source.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ExpressionError(
+            f"syntax error: {_syntax_reason(exc)}",
+            text=text,
+            field=field,
+            position=exc.offset or len(text),
+        ) from None
+    except (ValueError, RecursionError, MemoryError):
+        raise ExpressionError("the expression cannot be read", text=text, field=field) from None
+    offset = len(source) - len(source.lstrip())
+    builder = _Builder(text, symbols, field, offset)
+    return builder.build(tree.body, 0)
+
+
+def _bracket_depth(source: str) -> int:
+    depth = deepest = 0
+    for char in source:
+        if char in "([{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in ")]}":
+            depth -= 1
+    return deepest
+
+
+def _syntax_reason(exc: SyntaxError) -> str:
+    message = exc.msg or "invalid syntax"
+    if "digits" in message and "limit" in message:
+        return f"a number is too long (limit {MAX_LITERAL_DIGITS} digits)"
+    return message[0].lower() + message[1:] if message else "invalid syntax"
+
+
+_BINARY = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+}
+_OPERATOR_NAMES = {
+    ast.FloorDiv: "//",
+    ast.Mod: "%",
+    ast.MatMult: "@",
+    ast.LShift: "<<",
+    ast.RShift: ">>",
+    ast.BitOr: "|",
+    ast.BitAnd: "&",
+    ast.BitXor: "^",
+}
+_FORBIDDEN = {
+    ast.Attribute: "attribute access ('.') is not allowed",
+    ast.Subscript: "indexing with [] is not allowed",
+    ast.Lambda: "lambda is not allowed",
+    ast.Compare: "comparisons are not allowed in an expression",
+    ast.BoolOp: "'and'/'or' are not allowed",
+    ast.IfExp: "'if ... else' is not allowed",
+    ast.List: "lists are not allowed",
+    ast.Tuple: "tuples are not allowed: use one expression",
+    ast.Dict: "dictionaries are not allowed",
+    ast.Set: "sets are not allowed",
+    ast.ListComp: "comprehensions are not allowed",
+    ast.SetComp: "comprehensions are not allowed",
+    ast.DictComp: "comprehensions are not allowed",
+    ast.GeneratorExp: "generators are not allowed",
+    ast.JoinedStr: "strings are not allowed",
+    ast.NamedExpr: "':=' is not allowed",
+    ast.Starred: "'*' unpacking is not allowed",
+    ast.Await: "'await' is not allowed",
+    ast.Yield: "'yield' is not allowed",
+}
+
+
+class _Builder:
+    def __init__(self, text: str, symbols: Mapping[str, sympy.Basic], field: str | None, offset):
+        self.text = text
+        self.symbols = symbols
+        self.field = field
+        self.offset = offset
+
+    def fail(self, reason: str, node: ast.AST | None = None) -> ExpressionError:
+        position = None
+        if node is not None and hasattr(node, "col_offset"):
+            position = node.col_offset + 1 + self.offset
+        return ExpressionError(reason, text=self.text, field=self.field, position=position)
+
+    def build(self, node: ast.AST, depth: int) -> sympy.Expr:
+        if depth > MAX_DEPTH:
+            raise self.fail(f"the expression is nested too deeply (limit {MAX_DEPTH})", node)
+        match node:
+            case ast.Constant(value=value):
+                return self.constant(value, node)
+            case ast.Name(id=name):
+                return self.name(name, node)
+            case ast.UnaryOp(op=ast.USub(), operand=operand):
+                return -self.build(operand, depth + 1)
+            case ast.UnaryOp(op=ast.UAdd(), operand=operand):
+                return self.build(operand, depth + 1)
+            case ast.UnaryOp():
+                raise self.fail("only + and - may stand before a term", node)
+            case ast.BinOp(op=ast.Pow(), left=left, right=right):
+                return self.power(self.build(left, depth + 1), self.build(right, depth + 1), node)
+            case ast.BinOp(op=op, left=left, right=right) if type(op) in _BINARY:
+                a, b = self.build(left, depth + 1), self.build(right, depth + 1)
+                if isinstance(op, ast.Div) and b == 0:
+                    raise self.fail("division by zero", node)
+                result = _BINARY[type(op)](a, b)
+                self.check_size(result, node)
+                return result
+            case ast.BinOp(op=op):
+                symbol = _OPERATOR_NAMES.get(type(op), "this operator")
+                raise self.fail(f"the operator {symbol} is not allowed; use + - * / **", node)
+            case ast.Call():
+                return self.call(node, depth)
+        for kind, reason in _FORBIDDEN.items():
+            if isinstance(node, kind):
+                raise self.fail(reason, node)
+        raise self.fail(f"{type(node).__name__} is not allowed in an expression", node)
+
+    def constant(self, value: object, node: ast.AST) -> sympy.Expr:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            if isinstance(value, complex):
+                raise self.fail("complex numbers are not allowed", node)
+            if isinstance(value, str | bytes):
+                raise self.fail("strings are not allowed in an expression", node)
+            raise self.fail(f"{value!r} is not a number", node)
+        if isinstance(value, int):
+            if value.bit_length() > MAX_LITERAL_DIGITS * 3.33:
+                raise self.fail(f"the number is too long (limit {MAX_LITERAL_DIGITS} digits)", node)
+            return sympy.Integer(value)
+        if not math.isfinite(value):
+            raise self.fail("the number is too large", node)
+        return sympy.Float(value)
+
+    def name(self, name: str, node: ast.AST) -> sympy.Expr:
+        if name.startswith("__") or name.endswith("__"):
+            raise self.fail(f"the name {name!r} is not allowed", node)
+        if name in self.symbols:
+            return self.symbols[name]
+        if name in CONSTANTS:
+            return CONSTANTS[name]
+        if name in FUNCTIONS:
+            raise self.fail(f"{name} is a function: write {name}(...)", node)
+        known = ", ".join(sorted(self.symbols)) or "none"
+        raise self.fail(f"unknown name {name!r} (known names: {known})", node)
+
+    def call(self, node: ast.Call, depth: int) -> sympy.Expr:
+        if not isinstance(node.func, ast.Name):
+            raise self.fail("only the listed functions may be called, by name", node)
+        name = node.func.id
+        if name not in FUNCTIONS:
+            allowed = ", ".join(sorted(set(FUNCTIONS) - {"abs"}))
+            raise self.fail(f"unknown function {name!r} (allowed: {allowed})", node)
+        if node.keywords:
+            raise self.fail(f"{name}() takes no keyword arguments", node)
+        if len(node.args) != ARITY[name]:
+            count = ARITY[name]
+            raise self.fail(f"{name}() takes {count} argument{'s' if count > 1 else ''}", node)
+        args = [self.build(arg, depth + 1) for arg in node.args]
+        result = FUNCTIONS[name](*args)
+        self.check_size(result, node)
+        return result
+
+    def power(self, base: sympy.Expr, exponent: sympy.Expr, node: ast.AST) -> sympy.Expr:
+        if exponent.is_Number:
+            if abs(float(exponent)) > MAX_INTEGER_EXPONENT:
+                raise self.fail(
+                    f"the exponent {exponent} is too large (limit {MAX_INTEGER_EXPONENT})", node
+                )
+            if base.is_Number and base != 0:
+                digits = abs(float(exponent)) * math.log10(abs(float(base)) or 1.0)
+                if digits > MAX_RESULT_DIGITS:
+                    raise self.fail("the power is too large to compute", node)
+        elif not exponent.is_number:
+            pass
+        elif _magnitude(exponent) > MAX_INTEGER_EXPONENT:
+            raise self.fail("the exponent is too large", node)
+        if base == 0 and exponent.is_Number and exponent < 0:
+            raise self.fail("division by zero (0 to a negative power)", node)
+        result = sympy.Pow(base, exponent)
+        self.check_size(result, node)
+        return result
+
+    def check_size(self, result: sympy.Expr, node: ast.AST) -> None:
+        if result.is_Integer and abs(result.p).bit_length() > MAX_RESULT_DIGITS * 3.33:
+            raise self.fail("the number is too large to compute", node)
+        if result is sympy.zoo or result is sympy.nan or result.has(sympy.zoo, sympy.nan):
+            raise self.fail("the expression is undefined (division by zero)", node)
+
+
+def _magnitude(value: sympy.Expr) -> float:
+    try:
+        return abs(complex(value.evalf(15)))
+    except (TypeError, ValueError):
+        return math.inf

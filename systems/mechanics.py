@@ -1,0 +1,561 @@
+"""Derivation: from a scene to Lagrange's and Hamilton's equations, classified.
+
+Coordinates, velocities and momenta are plain real symbols; the total time derivative
+is taken by the chain rule. Lagrange's equations are kept as ``M(q, t) qddot = F`` and M
+is never inverted symbolically to get the accelerations of a large system (see
+``accelerations``). The Legendre transform of a Lagrangian quadratic in the velocities,
+``L = qdot.M.qdot/2 + a.qdot + L0``, gives ``qdot = M^-1 (p - a)`` and
+``H = (p - a).M^-1.(p - a)/2 - L0``; Hamilton's equations then use the identity
+``-dH/dq = dL/dq`` at ``qdot(q, p)``, which keeps them far smaller than differentiating H.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+
+import sympy
+
+from systems.scene import Scene
+
+ZERO_TOLERANCE = 1e-9
+SYMBOLIC_INVERSE_LIMIT = 4
+
+
+class DerivationError(ValueError):
+    """The scene cannot be turned into equations of motion; says why and what to fix."""
+
+    def __init__(self, reason: str, *, source: str = "<text>", field: str | None = None):
+        self.reason = reason
+        self.source = source
+        self.field = field
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = f"{self.field}: " if self.field else ""
+        return f"{self.source}: {where}{self.reason}"
+
+
+@dataclass(frozen=True)
+class Classification:
+    """The textbook's classification of a mechanical system."""
+
+    time_dependent: bool
+    conservative: bool
+    hamiltonian_conserved: bool
+    hamiltonian_is_energy: bool
+    natural: bool
+    separable: bool
+
+    def as_dict(self) -> dict[str, bool]:
+        return {
+            "time_dependent": self.time_dependent,
+            "conservative": self.conservative,
+            "hamiltonian_conserved": self.hamiltonian_conserved,
+            "hamiltonian_is_energy": self.hamiltonian_is_energy,
+            "natural": self.natural,
+            "separable": self.separable,
+        }
+
+    def describe(self) -> list[str]:
+        """The classification in the textbook's words, one sentence each."""
+        return [
+            "rheonomic (time-dependent)" if self.time_dependent else "scleronomic (no explicit t)",
+            "conservative" if self.conservative else "not conservative",
+            "H is conserved" if self.hamiltonian_conserved else "H is not conserved",
+            "H = T + V" if self.hamiltonian_is_energy else "H differs from T + V",
+            "natural (T quadratic in velocities)" if self.natural else "not natural",
+            "separable: H = T(p) + V(q)" if self.separable else "not separable",
+        ]
+
+
+@dataclass(frozen=True, eq=False)
+class Mechanics:
+    """Everything derived from a scene. Expressions use the scene's own symbols.
+
+    Attributes
+    ----------
+    mass_matrix : sympy.Matrix, shape (n, n), or None
+        M(q, t) in ``M qddot = F``; None when a Hamiltonian has no Lagrangian.
+    forcing : sympy.Matrix, shape (n, 1), or None
+        F(q, qdot, t), including the enabled effects.
+    momenta : tuple of n expressions in (q, qdot, t), or None
+    hamiltonian : expression in (q, p, t)
+    velocities : tuple of n expressions qdot_i(q, p, t)
+    hamilton_equations : tuple of 2n expressions: (qdot_1..qdot_n, pdot_1..pdot_n)
+    generalized_forces : tuple of n expressions Q_i(q, qdot, t) of the enabled effects
+    """
+
+    scene: Scene
+    t: sympy.Symbol
+    q: tuple[sympy.Symbol, ...]
+    qdot: tuple[sympy.Symbol, ...]
+    p: tuple[sympy.Symbol, ...]
+    params: dict[str, sympy.Symbol]
+    lagrangian: sympy.Expr | None
+    kinetic: sympy.Expr | None
+    potential: sympy.Expr | None
+    mass_matrix: sympy.Matrix | None
+    forcing: sympy.Matrix | None
+    momenta: tuple[sympy.Expr, ...] | None
+    hamiltonian: sympy.Expr
+    velocities: tuple[sympy.Expr, ...]
+    hamilton_equations: tuple[sympy.Expr, ...]
+    generalized_forces: tuple[sympy.Expr, ...]
+    cyclic: tuple[str, ...]
+    conserved: dict[str, sympy.Expr]
+    classification: Classification
+    separable_parts: tuple[sympy.Expr, sympy.Expr] | None = None
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def qddot(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(sympy.Symbol(f"{q}_ddot", real=True) for q in self.scene.coordinates)
+
+    def accelerations(self) -> tuple[sympy.Expr, ...]:
+        """qddot_i(q, qdot, t), solved from ``M qddot = F`` on demand.
+
+        For up to ``SYMBOLIC_INVERSE_LIMIT`` coordinates the solution is formed by LU and
+        simplified; larger systems are meant to be solved numerically (``systems.compiled``).
+        """
+        if "accelerations" not in self._cache:
+            if self.mass_matrix is None:
+                raise DerivationError(
+                    "the Hamiltonian's Legendre transform does not invert, so there are "
+                    "no accelerations in terms of velocities; use Hamilton's equations",
+                    source=self.scene.source,
+                )
+            if self.n > SYMBOLIC_INVERSE_LIMIT:
+                raise DerivationError(
+                    f"symbolic accelerations are only formed for up to "
+                    f"{SYMBOLIC_INVERSE_LIMIT} coordinates",
+                    source=self.scene.source,
+                )
+            solution = self.mass_matrix.LUsolve(self.forcing)
+            self._cache["accelerations"] = tuple(_tidy(e) for e in solution)
+        return self._cache["accelerations"]
+
+    def lagrange_equations(self) -> tuple[sympy.Eq, ...]:
+        """Lagrange's equations as ``sum_j M_ij qddot_j = F_i``."""
+        if self.mass_matrix is None:
+            return ()
+        qdd = sympy.Matrix(self.qddot)
+        lhs = self.mass_matrix * qdd
+        return tuple(sympy.Eq(lhs[i], _tidy(self.forcing[i])) for i in range(self.n))
+
+    def energy_function(self) -> sympy.Expr | None:
+        """Jacobi's energy function h = sum qdot_i p_i - L in (q, qdot, t), or None."""
+        if self.lagrangian is None or self.momenta is None:
+            return None
+        h = sum(v * p for v, p in zip(self.qdot, self.momenta, strict=True)) - self.lagrangian
+        return _tidy(h)
+
+
+def derive(scene: Scene) -> Mechanics:
+    """Derive the equations of motion, momenta, Hamiltonian and classification.
+
+    Raises
+    ------
+    DerivationError
+        For a singular Legendre transform or one that cannot be inverted.
+    """
+    symbols = scene.symbols
+    t = symbols["t"]
+    q = tuple(symbols[name] for name in scene.coordinates)
+    qd = tuple(symbols[name] for name in scene.velocity_names)
+    p = tuple(symbols[name] for name in scene.momentum_names)
+    params = {name: symbols[name] for name, _ in scene.parameters}
+    ctx = _Context(scene, t, q, qd, p)
+    forces = ctx.generalized_forces()
+    if scene.kind == "hamiltonian":
+        return ctx.from_hamiltonian(scene.expression("system.hamiltonian"), forces, params)
+    if scene.kind == "energies":
+        kinetic = scene.expression("system.kinetic")
+        potential = (
+            scene.expression("system.potential") if scene.potential is not None else sympy.S.Zero
+        )
+        lagrangian = kinetic - potential
+    else:
+        lagrangian = scene.expression("system.lagrangian")
+        kinetic = potential = None
+    return ctx.from_lagrangian(lagrangian, kinetic, potential, forces, params)
+
+
+class _Context:
+    def __init__(self, scene: Scene, t, q, qd, p):
+        self.scene = scene
+        self.t, self.q, self.qd, self.p = t, q, qd, p
+        self.n = len(q)
+        self.rng = random.Random(1234)
+
+    def fail(self, reason: str, field: str | None = None) -> DerivationError:
+        return DerivationError(reason, source=self.scene.source, field=field)
+
+    # -- effects ---------------------------------------------------------------------------
+
+    def generalized_forces(self) -> tuple[sympy.Expr, ...]:
+        scene = self.scene
+        enabled = set(scene.enabled_effects())
+        forces = [sympy.S.Zero] * self.n
+        if "dissipation" in enabled:
+            rayleigh = scene.expression("effects.dissipation")
+            for i, v in enumerate(self.qd):
+                forces[i] -= sympy.diff(rayleigh, v)
+        for name, _ in scene.forces:
+            if f"forces.{name}" in enabled:
+                forces[scene.coordinates.index(name)] += scene.expression(f"effects.forces.{name}")
+        return tuple(forces)
+
+    # -- zero tests on random states -------------------------------------------------------
+
+    def vanishes(self, expr: sympy.Expr) -> bool:
+        """True if ``expr`` is zero identically (exactly, or at random real states)."""
+        expr = sympy.sympify(expr)
+        if expr == 0:
+            return True
+        free = sorted(expr.free_symbols, key=str)
+        for _ in range(4):
+            values = {s: sympy.Float(self.rng.uniform(0.3, 1.7)) for s in free}
+            try:
+                value = complex(expr.xreplace(values).evalf(20))
+            except (TypeError, ValueError, ZeroDivisionError):
+                return False
+            if not abs(value) <= ZERO_TOLERANCE:
+                return False
+        return True
+
+    def _random_state(self, extra=()) -> dict:
+        names = [*self.q, *self.qd, *self.p, self.t, *extra]
+        names += [s for s in self.scene.symbols.values() if s not in names]
+        return {s: sympy.Float(self.rng.uniform(0.3, 1.7)) for s in names}
+
+    # -- from a Lagrangian -------------------------------------------------------------------
+
+    def from_lagrangian(self, L, kinetic, potential, forces, params) -> Mechanics:
+        q, qd, t = self.q, self.qd, self.t
+        if not any(L.has(v) for v in qd):
+            raise self.fail(
+                "the Lagrangian does not depend on any velocity, so there are no equations "
+                "of motion; check the kinetic energy",
+                "system.kinetic" if kinetic is not None else "system.lagrangian",
+            )
+        momenta = tuple(sympy.diff(L, v) for v in qd)
+        M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
+        self.check_regular(M, "system.kinetic" if kinetic is not None else "system.lagrangian")
+        F = sympy.Matrix(
+            [
+                sympy.diff(L, q[i])
+                + forces[i]
+                - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
+                - sympy.diff(momenta[i], t)
+                for i in range(self.n)
+            ]
+        )
+        zero_velocity = dict.fromkeys(qd, sympy.S.Zero)
+        L0 = L.xreplace(zero_velocity)
+        quadratic = _degree_at_most(L, qd, 2)
+        if quadratic:
+            a = sympy.Matrix([m.xreplace(zero_velocity) for m in momenta])
+            velocities, H = self.legendre_quadratic(M, a, L0)
+        else:
+            velocities = self.solve_velocities(momenta)
+            H = _tidy(
+                sum(pi * vi for pi, vi in zip(self.p, velocities, strict=True))
+                - L.xreplace(dict(zip(qd, velocities, strict=True)))
+            )
+        to_velocities = dict(zip(qd, velocities, strict=True))
+        pdot = tuple(
+            _tidy((sympy.diff(L, q[i]) + forces[i]).xreplace(to_velocities)) for i in range(self.n)
+        )
+        velocity_part = L - L0 if kinetic is None else kinetic
+        if kinetic is None:
+            kinetic, potential = L - L0, -L0
+        natural = quadratic and self.vanishes(
+            _homogeneous_part(velocity_part, qd, 2) - velocity_part
+        )
+        energy = sum(v * m for v, m in zip(qd, momenta, strict=True)) - L if quadratic else None
+        is_energy = energy is not None and self.vanishes(energy - (kinetic + potential))
+        time_dependent = L.has(t) or self.drawing_depends_on_time()
+        cyclic = tuple(
+            name for name, qi in zip(self.scene.coordinates, q, strict=True) if not L.has(qi)
+        )
+        return self.finish(
+            L=L,
+            kinetic=kinetic,
+            potential=potential,
+            M=M,
+            F=F,
+            momenta=momenta,
+            H=H,
+            velocities=velocities,
+            pdot=pdot,
+            forces=forces,
+            params=params,
+            cyclic=cyclic,
+            natural=natural,
+            is_energy=is_energy,
+            time_dependent=time_dependent,
+        )
+
+    def check_regular(self, M: sympy.Matrix, field: str) -> None:
+        """Refuse a Lagrangian whose velocity Hessian is singular everywhere sampled."""
+        for _ in range(3):
+            values = self._random_state()
+            numeric = M.xreplace(values).evalf()
+            try:
+                matrix = [[complex(numeric[i, j]) for j in range(self.n)] for i in range(self.n)]
+            except (TypeError, ValueError):
+                continue
+            if abs(_det(matrix)) > 1e-9 * max(1.0, _norm(matrix)) ** self.n:
+                return
+        raise self.fail(
+            "the Legendre transform is singular: the velocity Hessian d2L/dqdot2 has zero "
+            "determinant, so the momenta do not determine the velocities. Every velocity "
+            "must enter L quadratically (a velocity that is missing, or enters only "
+            "linearly, makes L degenerate)",
+            field,
+        )
+
+    def legendre_quadratic(self, M, a, L0):
+        p = sympy.Matrix(self.p)
+        if self.n == 1:
+            inverse = sympy.Matrix([[1 / M[0, 0]]])
+        elif self.n <= SYMBOLIC_INVERSE_LIMIT:
+            det = _tidy(M.det(method="berkowitz"))
+            inverse = M.adjugate() / det
+        else:
+            raise self.fail(
+                f"systems of more than {SYMBOLIC_INVERSE_LIMIT} coordinates are not supported "
+                "yet (the symbolic Legendre transform would be too large)"
+            )
+        shifted = p - a
+        velocities = tuple(_tidy(e) for e in inverse * shifted)
+        H = _tidy((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
+        return velocities, H
+
+    def solve_velocities(self, momenta):
+        equations = [sympy.Eq(m, pi) for m, pi in zip(momenta, self.p, strict=True)]
+        try:
+            solutions = sympy.solve(equations, self.qd, dict=True)
+        except (NotImplementedError, ValueError):
+            solutions = []
+        for solution in solutions:
+            if len(solution) != self.n:
+                continue
+            velocities = tuple(solution[v] for v in self.qd)
+            back = [
+                m.xreplace(dict(zip(self.qd, velocities, strict=True))) - pi
+                for m, pi in zip(momenta, self.p, strict=True)
+            ]
+            if all(self.vanishes(e) for e in back):
+                return tuple(_tidy(v) for v in velocities)
+        raise self.fail(
+            "the momenta p = dL/dqdot could not be solved for the velocities, so the "
+            "Hamiltonian cannot be formed; write L quadratic in the velocities, or give the "
+            "hamiltonian directly",
+            "system.lagrangian",
+        )
+
+    # -- from a Hamiltonian ------------------------------------------------------------------
+
+    def from_hamiltonian(self, H, forces, params) -> Mechanics:
+        q, qd, p, t = self.q, self.qd, self.p, self.t
+        if not any(H.has(pi) for pi in p):
+            raise self.fail(
+                "the Hamiltonian does not depend on any momentum p_<q>", "system.hamiltonian"
+            )
+        velocities = tuple(_tidy(sympy.diff(H, pi)) for pi in p)
+        L = momenta = M = F = None
+        zero_momentum = dict.fromkeys(p, sympy.S.Zero)
+        quadratic = _degree_at_most(H, p, 2)
+        W = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(H, p[i], p[j]))
+        invertible = quadratic and self.n <= SYMBOLIC_INVERSE_LIMIT and self._regular(W)
+        if invertible:
+            b = sympy.Matrix([v.xreplace(zero_momentum) for v in velocities])
+            Winv = sympy.Matrix([[1 / W[0, 0]]]) if self.n == 1 else W.inv(method="ADJ")
+            momenta_vec = Winv * (sympy.Matrix(qd) - b)
+            momenta = tuple(_tidy(e) for e in momenta_vec)
+            to_momenta = dict(zip(p, momenta, strict=True))
+            L = _tidy(sum(m * v for m, v in zip(momenta, qd, strict=True)) - H.xreplace(to_momenta))
+            M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
+            F = sympy.Matrix(
+                [
+                    sympy.diff(L, q[i])
+                    + forces[i]
+                    - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
+                    - sympy.diff(momenta[i], t)
+                    for i in range(self.n)
+                ]
+            )
+        to_velocities = dict(zip(qd, velocities, strict=True))
+        pdot = tuple(
+            _tidy(-sympy.diff(H, q[i]) + forces[i].xreplace(to_velocities)) for i in range(self.n)
+        )
+        H0 = H.xreplace(zero_momentum)
+        kinetic_p, potential = H - H0, H0
+        natural = quadratic and self.vanishes(_homogeneous_part(kinetic_p, p, 2) - kinetic_p)
+        kinetic = None
+        if momenta is not None:
+            kinetic = _tidy(kinetic_p.xreplace(dict(zip(p, momenta, strict=True))))
+        cyclic = tuple(
+            name for name, qi in zip(self.scene.coordinates, q, strict=True) if not H.has(qi)
+        )
+        return self.finish(
+            L=L,
+            kinetic=kinetic,
+            potential=potential,
+            M=M,
+            F=F,
+            momenta=momenta,
+            H=H,
+            velocities=velocities,
+            pdot=pdot,
+            forces=forces,
+            params=params,
+            cyclic=cyclic,
+            natural=natural,
+            is_energy=quadratic and self.vanishes(_homogeneous_part(kinetic_p, p, 1)),
+            time_dependent=H.has(t) or self.drawing_depends_on_time(),
+        )
+
+    def _regular(self, W: sympy.Matrix) -> bool:
+        try:
+            self.check_regular(W, "system.hamiltonian")
+        except DerivationError:
+            return False
+        return True
+
+    # -- common ------------------------------------------------------------------------------
+
+    def drawing_depends_on_time(self) -> bool:
+        drawing = self.scene.drawing
+        if drawing is None:
+            return False
+        return any(
+            self.scene.expression(f"drawing.points.{name}.{axis}").has(self.t)
+            for name, _, _ in drawing.points
+            for axis in "xy"
+        )
+
+    def finish(
+        self,
+        *,
+        L,
+        kinetic,
+        potential,
+        M,
+        F,
+        momenta,
+        H,
+        velocities,
+        pdot,
+        forces,
+        params,
+        cyclic,
+        natural,
+        is_energy,
+        time_dependent,
+    ) -> Mechanics:
+        q, qd, p, t = self.q, self.qd, self.p, self.t
+        has_effects = any(not self.vanishes(f) for f in forces)
+        H_explicit_t = H.has(t)
+        potential_t = potential is not None and sympy.sympify(potential).has(t)
+        conservative = not has_effects and not potential_t
+        H_conserved = not has_effects and not H_explicit_t
+        mixed = [sympy.diff(H, qi, pj) for qi in q for pj in p]
+        kinetic_t = [sympy.diff(H, pj, t) for pj in p]
+        separable = all(self.vanishes(e) for e in mixed + kinetic_t)
+        separable_parts = None
+        if separable:
+            zero_p = dict.fromkeys(p, sympy.S.Zero)
+            V = H.xreplace(zero_p)
+            separable_parts = (_tidy(H - V), _tidy(V))
+        classification = Classification(
+            time_dependent=bool(time_dependent),
+            conservative=bool(conservative),
+            hamiltonian_conserved=bool(H_conserved),
+            hamiltonian_is_energy=bool(is_energy),
+            natural=bool(natural),
+            separable=bool(separable),
+        )
+        conserved: dict[str, sympy.Expr] = {}
+        if H_conserved:
+            if momenta is not None:
+                to_p = dict(zip(p, momenta, strict=True))
+                conserved["H"] = _tidy(H.xreplace(to_p))
+            else:
+                conserved["H"] = H
+        for name in cyclic:
+            i = self.scene.coordinates.index(name)
+            if self.vanishes(forces[i]):
+                conserved[f"p_{name}"] = momenta[i] if momenta is not None else p[i]
+        return Mechanics(
+            scene=self.scene,
+            t=t,
+            q=q,
+            qdot=qd,
+            p=p,
+            params=params,
+            lagrangian=L,
+            kinetic=kinetic,
+            potential=potential,
+            mass_matrix=M,
+            forcing=F,
+            momenta=momenta,
+            hamiltonian=H,
+            velocities=tuple(velocities),
+            hamilton_equations=tuple(velocities) + tuple(pdot),
+            generalized_forces=forces,
+            cyclic=cyclic,
+            conserved=conserved,
+            classification=classification,
+            separable_parts=separable_parts,
+        )
+
+
+def _tidy(expr: sympy.Expr) -> sympy.Expr:
+    """A cheap, predictable simplification: cancel fractions, tidy trigonometry if small."""
+    expr = sympy.sympify(expr)
+    if expr.count_ops() > 400:
+        return expr
+    tidy = sympy.cancel(sympy.together(expr))
+    if tidy.has(sympy.sin, sympy.cos) and tidy.count_ops() < 40:
+        tidy = sympy.trigsimp(tidy)
+    candidates = [expr, tidy, sympy.factor_terms(tidy)]
+    return min(candidates, key=lambda e: (e.count_ops(), len(str(e))))
+
+
+def _degree_at_most(expr: sympy.Expr, gens, degree: int) -> bool:
+    try:
+        poly = sympy.Poly(sympy.expand(expr), *gens)
+    except sympy.PolynomialError:
+        return False
+    if any(any(g in c.free_symbols for g in gens) for c in poly.coeffs()):
+        return False
+    return poly.total_degree() <= degree
+
+
+def _homogeneous_part(expr: sympy.Expr, gens, degree: int) -> sympy.Expr:
+    poly = sympy.Poly(sympy.expand(expr), *gens)
+    return sum(
+        (
+            coeff * sympy.prod(g**k for g, k in zip(gens, monom, strict=True))
+            for monom, coeff in poly.terms()
+            if sum(monom) == degree
+        ),
+        sympy.S.Zero,
+    )
+
+
+def _det(matrix: list[list[complex]]) -> complex:
+    import numpy as np
+
+    return complex(np.linalg.det(np.array(matrix, dtype=complex)))
+
+
+def _norm(matrix: list[list[complex]]) -> float:
+    return max(abs(v) for row in matrix for v in row)

@@ -1,0 +1,559 @@
+"""Scenes: a mechanical system as text (TOML), read into a frozen, validated value.
+
+The format is documented for users in ``docs/scenes.md``. Every expression is checked by
+the whitelist parser when the scene is read, so a scene that loads will derive.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import sympy
+
+from systems.expressions import ExpressionError, check_name, parse_expression
+
+SCENES_DIR = Path(__file__).resolve().parent.parent / "resources" / "scenes"
+SYSTEM_KINDS = ("energies", "lagrangian", "hamiltonian")
+
+
+class SceneError(ValueError):
+    """A scene that cannot be read, with the file, the field and the position."""
+
+    def __init__(
+        self, reason: str, *, source: str = "<text>", field: str | None = None, position=None
+    ):
+        self.reason = reason
+        self.source = source
+        self.field = field
+        self.position = position
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = f"{self.field}: " if self.field else ""
+        at = f" (at position {self.position})" if self.position else ""
+        return f"{self.source}: {where}{self.reason}{at}"
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """Cartesian points of the mechanism, as expression text in q, t and parameters."""
+
+    points: tuple[tuple[str, str, str], ...] = ()
+    links: tuple[tuple[str, str], ...] = ()
+    trace: tuple[str, ...] = ()
+
+    @property
+    def point_names(self) -> tuple[str, ...]:
+        return tuple(name for name, _, _ in self.points)
+
+
+@dataclass(frozen=True)
+class CatalogueEntry:
+    name: str
+    title: str
+    description: str
+    path: Path
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A mechanical system with its parameters, effects, initial state and drawing.
+
+    Exactly one of (``kinetic`` and ``potential``), ``lagrangian`` or ``hamiltonian`` is
+    given. Expressions are kept as text (what the user typed); ``symbols`` and
+    ``expression`` give their sympy form.
+    """
+
+    title: str
+    coordinates: tuple[str, ...]
+    parameters: tuple[tuple[str, float], ...] = ()
+    kinetic: str | None = None
+    potential: str | None = None
+    lagrangian: str | None = None
+    hamiltonian: str | None = None
+    dissipation: str | None = None
+    forces: tuple[tuple[str, str], ...] = ()
+    disabled: frozenset[str] = frozenset()
+    initial: tuple[tuple[str, float], ...] = ()
+    drawing: Drawing | None = None
+    view: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    description: str = ""
+    source: str = "<text>"
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    @property
+    def kind(self) -> str:
+        """``"energies"``, ``"lagrangian"`` or ``"hamiltonian"``."""
+        if self.hamiltonian is not None:
+            return "hamiltonian"
+        if self.lagrangian is not None:
+            return "lagrangian"
+        return "energies"
+
+    @property
+    def parameter_values(self) -> dict[str, float]:
+        return dict(self.parameters)
+
+    @property
+    def initial_values(self) -> dict[str, float]:
+        return dict(self.initial)
+
+    @property
+    def velocity_names(self) -> tuple[str, ...]:
+        return tuple(f"{q}_dot" for q in self.coordinates)
+
+    @property
+    def momentum_names(self) -> tuple[str, ...]:
+        return tuple(f"p_{q}" for q in self.coordinates)
+
+    def effect_keys(self) -> list[str]:
+        """Every effect the scene defines: ``"dissipation"`` and ``"forces.<q>"``."""
+        keys = ["dissipation"] if self.dissipation is not None else []
+        return keys + [f"forces.{q}" for q, _ in self.forces]
+
+    def enabled_effects(self) -> list[str]:
+        return [key for key in self.effect_keys() if key not in self.disabled]
+
+    def with_effects(self, enabled: Iterable[str]) -> Scene:
+        """A copy with exactly the effects in ``enabled`` switched on."""
+        enabled = set(enabled)
+        unknown = enabled - set(self.effect_keys())
+        if unknown:
+            raise SceneError(f"unknown effect {sorted(unknown)[0]!r}", source=self.source)
+        return dataclasses.replace(self, disabled=frozenset(set(self.effect_keys()) - enabled))
+
+    def with_parameters(self, **values: float) -> Scene:
+        """A copy with some parameter values changed."""
+        current = dict(self.parameters)
+        for name, value in values.items():
+            if name not in current:
+                raise SceneError(f"unknown parameter {name!r}", source=self.source)
+            current[name] = float(value)
+        return dataclasses.replace(self, parameters=tuple(current.items()))
+
+    def with_initial(self, **values: float) -> Scene:
+        """A copy with some initial values (q, q_dot or p_q) changed."""
+        current = dict(self.initial)
+        current.update({name: float(value) for name, value in values.items()})
+        return dataclasses.replace(self, initial=tuple(current.items()))
+
+    # -- symbols and expressions ---------------------------------------------------------
+
+    @cached_property
+    def symbols(self) -> dict[str, sympy.Symbol]:
+        """Every name a scene expression may use, mapped to a real sympy symbol."""
+        names = ["t", *self.coordinates, *self.velocity_names, *self.momentum_names]
+        names += [name for name, _ in self.parameters]
+        return {name: sympy.Symbol(name, real=True) for name in names}
+
+    def allowed(self, *groups: str) -> dict[str, sympy.Symbol]:
+        """Symbols of the named groups: ``q``, ``qdot``, ``p``, ``t``, ``params``."""
+        table = {
+            "q": self.coordinates,
+            "qdot": self.velocity_names,
+            "p": self.momentum_names,
+            "t": ("t",),
+            "params": tuple(name for name, _ in self.parameters),
+        }
+        return {name: self.symbols[name] for group in groups for name in table[group]}
+
+    def expression(self, field_name: str) -> sympy.Expr:
+        """The parsed expression of a field such as ``"system.kinetic"`` or ``"forces.x"``."""
+        return self._expressions[field_name]
+
+    @cached_property
+    def _expressions(self) -> dict[str, sympy.Expr]:
+        return _parse_all(self)
+
+    def to_toml(self) -> str:
+        """The scene as TOML text that ``parse_scene`` reads back to an equal scene."""
+        return _to_toml(self)
+
+
+# -- reading ---------------------------------------------------------------------------
+
+
+def parse_scene(text: str, source: str = "<text>", name: str = "") -> Scene:
+    """Read a scene from TOML text.
+
+    Raises
+    ------
+    SceneError
+        Naming ``source``, the field and, for expressions, the position.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"not valid TOML: {exc}", source=source) from None
+    return scene_from_dict(data, source=source, name=name)
+
+
+def scene_from_dict(data: Mapping[str, Any], source: str = "<text>", name: str = "") -> Scene:
+    """Build a scene from the tables of a TOML document (already decoded)."""
+    reader = _Reader(data, source)
+    system = reader.table(data, "system", required=True)
+    reader.check_keys(
+        system,
+        "system",
+        {"coordinates", "parameters", "kinetic", "potential", "lagrangian", "hamiltonian"},
+    )
+    coordinates = reader.names(system.get("coordinates"), "system.coordinates")
+    parameters = reader.parameters(system.get("parameters", {}))
+    effects = reader.table(data, "effects")
+    reader.check_keys(effects, "effects", {"dissipation", "forces", "disabled"})
+    forces_table = reader.table(effects, "forces", prefix="effects.")
+    drawing = reader.drawing(reader.table(data, "drawing"))
+    top = {"title", "description", "system", "effects", "initial", "drawing", "view"}
+    reader.check_keys(data, "", top)
+    texts = {}
+    for key in ("kinetic", "potential", "lagrangian", "hamiltonian"):
+        if key in system:
+            texts[key] = reader.text(system[key], f"system.{key}")
+    dissipation = effects.get("dissipation")
+    kwargs = dict(
+        title=reader.text(data.get("title", name or "Untitled"), "title"),
+        description=reader.text(data.get("description", ""), "description"),
+        coordinates=coordinates,
+        parameters=parameters,
+        dissipation=None
+        if dissipation is None
+        else reader.text(dissipation, "effects.dissipation"),
+        forces=tuple((q, reader.text(v, f"effects.forces.{q}")) for q, v in forces_table.items()),
+        disabled=frozenset(reader.string_list(effects.get("disabled", []), "effects.disabled")),
+        initial=tuple(
+            (k, reader.number(v, f"initial.{k}", parameters))
+            for k, v in reader.table(data, "initial").items()
+        ),
+        drawing=drawing,
+        view=dict(reader.table(data, "view")),
+        source=source,
+        name=name,
+        **texts,
+    )
+    scene = _build(kwargs, source)
+    scene._expressions  # noqa: B018 - parse every expression now, so errors surface on load
+    return scene
+
+
+def _build(kwargs: dict, source: str) -> Scene:
+    try:
+        return Scene(**kwargs)
+    except ExpressionError as exc:
+        raise SceneError(
+            exc.reason, source=source, field=exc.field, position=exc.position
+        ) from None
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """Load a catalogue scene by name (``"simple_pendulum"``) or a ``.toml`` file by path."""
+    path = Path(name_or_path)
+    if path.suffix != ".toml" and not path.exists():
+        candidate = SCENES_DIR / f"{name_or_path}.toml"
+        if not candidate.exists():
+            names = ", ".join(entry.name for entry in catalogue())
+            raise SceneError(
+                f"no catalogue scene or file named {str(name_or_path)!r} (catalogue: {names})",
+                source=str(name_or_path),
+            )
+        path = candidate
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"cannot read the file: {exc.strerror}", source=str(path)) from None
+    return parse_scene(text, source=str(path), name=path.stem)
+
+
+def catalogue() -> list[CatalogueEntry]:
+    """The scenes shipped in ``resources/scenes``, sorted by name."""
+    entries = []
+    for path in sorted(SCENES_DIR.glob("*.toml")):
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        entries.append(
+            CatalogueEntry(
+                path.stem, str(data.get("title", path.stem)), str(data.get("description", "")), path
+            )
+        )
+    return entries
+
+
+class _Reader:
+    def __init__(self, data: Mapping[str, Any], source: str):
+        self.data = data
+        self.source = source
+
+    def fail(self, field: str, reason: str) -> SceneError:
+        return SceneError(reason, source=self.source, field=field or None)
+
+    def table(self, data: Mapping, key: str, required=False, prefix="") -> Mapping[str, Any]:
+        value = data.get(key)
+        if value is None:
+            if required:
+                raise self.fail(prefix + key, f"the table [{prefix + key}] is missing")
+            return {}
+        if not isinstance(value, Mapping):
+            raise self.fail(prefix + key, "must be a table")
+        return value
+
+    def check_keys(self, table: Mapping, where: str, allowed: set[str]) -> None:
+        for key in table:
+            if key not in allowed:
+                field = f"{where}.{key}" if where else key
+                raise self.fail(
+                    field, f"unknown key (expected one of: {', '.join(sorted(allowed))})"
+                )
+
+    def text(self, value: Any, field: str) -> str:
+        if isinstance(value, bool) or not isinstance(value, str | int | float):
+            raise self.fail(field, "must be a string (an expression in quotes)")
+        return str(value)
+
+    def names(self, value: Any, field: str) -> tuple[str, ...]:
+        if not isinstance(value, list) or not value:
+            raise self.fail(field, 'must be a non-empty list of names, e.g. ["x"]')
+        return tuple(self._name(item, field) for item in value)
+
+    def _name(self, item: Any, field: str) -> str:
+        try:
+            return check_name(item, field=field)
+        except ExpressionError as exc:
+            raise self.fail(field, exc.reason) from None
+
+    def string_list(self, value: Any, field: str) -> list[str]:
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise self.fail(field, "must be a list of strings")
+        return value
+
+    def parameters(self, value: Any) -> tuple[tuple[str, float], ...]:
+        if not isinstance(value, Mapping):
+            raise self.fail("system.parameters", "must be a table of name = value")
+        result: dict[str, float] = {}
+        for key, raw in value.items():
+            field = f"system.parameters.{key}"
+            self._name(key, field)
+            result[key] = self.number(raw, field, tuple(result.items()))
+        return tuple(result.items())
+
+    def number(self, value: Any, field: str, parameters) -> float:
+        """A number, or a constant expression of earlier parameters, e.g. ``"pi/2"``."""
+        if isinstance(value, bool):
+            raise self.fail(field, "must be a number")
+        if isinstance(value, str):
+            params = dict(parameters)
+            symbols = {k: sympy.Float(v) for k, v in params.items()}
+            try:
+                expr = parse_expression(value, symbols, field=field)
+                value = float(expr.evalf())
+            except ExpressionError as exc:
+                raise SceneError(
+                    exc.reason, source=self.source, field=field, position=exc.position
+                ) from None
+            except (TypeError, ValueError):
+                raise self.fail(field, "must evaluate to a real number") from None
+        if not isinstance(value, int | float) or not math.isfinite(value):
+            raise self.fail(field, "must be a finite number")
+        return float(value)
+
+    def drawing(self, table: Mapping[str, Any]) -> Drawing | None:
+        if not table:
+            return None
+        self.check_keys(table, "drawing", {"points", "links", "trace"})
+        points = []
+        raw_points = table.get("points", {})
+        if not isinstance(raw_points, Mapping):
+            raise self.fail("drawing.points", 'must be a table: name = ["x", "y"]')
+        for name, xy in raw_points.items():
+            field = f"drawing.points.{name}"
+            if not isinstance(xy, list) or len(xy) != 2:
+                raise self.fail(field, "must be a list of two expressions [x, y]")
+            points.append((name, self.text(xy[0], field), self.text(xy[1], field)))
+        known = {name for name, _, _ in points} | {"origin"}
+        links = []
+        for i, link in enumerate(table.get("links", [])):
+            field = f"drawing.links[{i}]"
+            if not isinstance(link, list) or len(link) != 2:
+                raise self.fail(field, 'must be a pair of point names, e.g. ["origin", "bob"]')
+            for end in link:
+                if end not in known:
+                    raise self.fail(field, f"unknown point {end!r}")
+            links.append((link[0], link[1]))
+        trace = self.string_list(table.get("trace", []), "drawing.trace")
+        for name in trace:
+            if name not in known:
+                raise self.fail("drawing.trace", f"unknown point {name!r}")
+        return Drawing(tuple(points), tuple(links), tuple(trace))
+
+
+# -- validation and parsing ----------------------------------------------------------------
+
+
+def _validate(scene: Scene) -> None:
+    def fail(field: str, reason: str) -> SceneError:
+        return SceneError(reason, source=scene.source, field=field)
+
+    if not scene.coordinates:
+        raise fail("system.coordinates", "at least one coordinate is needed")
+    names = [*scene.coordinates, *scene.velocity_names, *scene.momentum_names]
+    seen: set[str] = set()
+    for name in names + [name for name, _ in scene.parameters]:
+        if name in seen:
+            field = "system.parameters" if name in dict(scene.parameters) else "system.coordinates"
+            raise fail(
+                field,
+                f"the name {name!r} is used twice (as coordinate, velocity, momentum or parameter)",
+            )
+        seen.add(name)
+    given = {
+        "energies": scene.kinetic is not None or scene.potential is not None,
+        "lagrangian": scene.lagrangian is not None,
+        "hamiltonian": scene.hamiltonian is not None,
+    }
+    if sum(given.values()) != 1:
+        raise fail(
+            "system",
+            "give either kinetic (and potential), or lagrangian, or hamiltonian: exactly one",
+        )
+    if given["energies"] and scene.kinetic is None:
+        raise fail("system.kinetic", "the kinetic energy is missing")
+    for q, _ in scene.forces:
+        if q not in scene.coordinates:
+            raise fail(f"effects.forces.{q}", f"{q!r} is not a coordinate")
+    unknown = set(scene.disabled) - set(scene.effect_keys())
+    if unknown:
+        raise fail("effects.disabled", f"unknown effect {sorted(unknown)[0]!r}")
+    valid_initial = set(scene.coordinates) | set(scene.velocity_names) | set(scene.momentum_names)
+    for name, _ in scene.initial:
+        if name not in valid_initial:
+            raise fail(
+                f"initial.{name}", "not a coordinate, velocity (<q>_dot) or momentum (p_<q>)"
+            )
+    for v, p in zip(scene.velocity_names, scene.momentum_names, strict=True):
+        if v in dict(scene.initial) and p in dict(scene.initial):
+            raise fail(f"initial.{p}", f"give either {v} or {p}, not both")
+
+
+def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
+    fields: list[tuple[str, str | None, tuple[str, ...]]] = [
+        ("system.kinetic", scene.kinetic, ("q", "qdot", "t", "params")),
+        ("system.potential", scene.potential, ("q", "t", "params")),
+        ("system.lagrangian", scene.lagrangian, ("q", "qdot", "t", "params")),
+        ("system.hamiltonian", scene.hamiltonian, ("q", "p", "t", "params")),
+        ("effects.dissipation", scene.dissipation, ("q", "qdot", "t", "params")),
+    ]
+    fields += [
+        (f"effects.forces.{q}", text, ("q", "qdot", "t", "params")) for q, text in scene.forces
+    ]
+    if scene.drawing:
+        for name, x, y in scene.drawing.points:
+            fields.append((f"drawing.points.{name}.x", x, ("q", "t", "params")))
+            fields.append((f"drawing.points.{name}.y", y, ("q", "t", "params")))
+    result = {}
+    for field_name, text, groups in fields:
+        if text is None:
+            continue
+        allowed = scene.allowed(*groups)
+        try:
+            result[field_name] = parse_expression(text, allowed, field=field_name)
+        except ExpressionError as exc:
+            hint = _misplaced_name_hint(scene, exc, groups, field_name)
+            reason = exc.reason if hint is None else hint
+            raise SceneError(
+                reason, source=scene.source, field=field_name, position=exc.position
+            ) from None
+    return result
+
+
+def _misplaced_name_hint(scene, exc, groups, field_name) -> str | None:
+    """A clearer reason when a known name is used where it is not allowed."""
+    if not exc.reason.startswith("unknown name"):
+        return None
+    name = exc.reason.split("'")[1]
+    if name in scene.velocity_names and "qdot" not in groups:
+        if field_name == "system.potential":
+            return (
+                f"the potential may not depend on the velocity {name!r}; "
+                "write a lagrangian instead for velocity-dependent potentials"
+            )
+        return f"{name!r} (a velocity) is not allowed here"
+    if name in scene.momentum_names and "p" not in groups:
+        return f"{name!r} (a momentum) is only allowed in a hamiltonian"
+    if name in scene.velocity_names and "p" in groups:
+        return f"{name!r}: a hamiltonian is written in momenta (p_<q>), not velocities"
+    return None
+
+
+# -- writing ------------------------------------------------------------------------------
+
+
+def _to_toml(scene: Scene) -> str:
+    lines = [f"title = {_str(scene.title)}"]
+    if scene.description:
+        lines.append(f"description = {_str(scene.description)}")
+    lines += ["", "[system]", f"coordinates = [{', '.join(_str(q) for q in scene.coordinates)}]"]
+    lines.append(f"parameters = {_inline({k: v for k, v in scene.parameters})}")
+    for key in ("kinetic", "potential", "lagrangian", "hamiltonian"):
+        value = getattr(scene, key)
+        if value is not None:
+            lines.append(f"{key} = {_str(value)}")
+    if scene.dissipation is not None or scene.forces:
+        lines += ["", "[effects]"]
+        if scene.dissipation is not None:
+            lines.append(f"dissipation = {_str(scene.dissipation)}")
+        if scene.forces:
+            lines.append(f"forces = {_inline(dict(scene.forces))}")
+        if scene.disabled:
+            lines.append(f"disabled = [{', '.join(_str(k) for k in sorted(scene.disabled))}]")
+    if scene.initial:
+        lines += ["", "[initial]"] + [f"{k} = {_value(v)}" for k, v in scene.initial]
+    if scene.drawing:
+        d = scene.drawing
+        lines += ["", "[drawing]"]
+        points = {name: [x, y] for name, x, y in d.points}
+        lines.append(f"points = {_inline(points)}")
+        if d.links:
+            lines.append(f"links = {_value([list(link) for link in d.links])}")
+        if d.trace:
+            lines.append(f"trace = {_value(list(d.trace))}")
+    if scene.view:
+        lines += ["", "[view]"] + [f"{k} = {_value(v)}" for k, v in scene.view.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _str(text: str) -> str:
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+    return f'"{escaped}"'
+
+
+def _value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        return _str(value)
+    if isinstance(value, Mapping):
+        return _inline(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def _inline(table: Mapping[str, Any]) -> str:
+    items = ", ".join(f"{_key(k)} = {_value(v)}" for k, v in table.items())
+    return "{ " + items + " }" if items else "{}"
+
+
+def _key(key: str) -> str:
+    return key if key.replace("_", "a").isalnum() else _str(key)
