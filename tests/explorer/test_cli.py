@@ -1,0 +1,68 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import sympy
+
+from explorer.cli import main
+from tests.systems.scenes import PENDULUM, PLANETARY
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_derive_json_reads_back(tmp_path, capsys):
+    path = tmp_path / "planet.toml"
+    path.write_text(PLANETARY)
+    assert main(["derive", str(path), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["coordinates"] == ["r", "theta"]
+    assert report["cyclic"] == ["theta"]
+    assert report["classification"]["hamiltonian_is_energy"] is True
+    names = {
+        n: sympy.Symbol(n)
+        for n in ["r", "theta", "r_dot", "theta_dot", "p_r", "p_theta", "m", "k", "t"]
+    }
+    m, k, r, thd = names["m"], names["k"], names["r"], names["theta_dot"]
+    momentum = sympy.sympify(report["momenta"]["theta"], locals=names)
+    assert sympy.simplify(momentum - m * r**2 * thd) == 0
+    rddot = sympy.sympify(report["accelerations"]["r"], locals=names)
+    assert sympy.simplify(m * rddot - m * r * thd**2 + k / r**2) == 0
+    H = sympy.sympify(report["hamiltonian"], locals=names)
+    assert sympy.simplify(sympy.diff(H, names["p_r"]) - names["p_r"] / m) == 0
+    assert set(report["hamilton_equations"]) == {"r", "theta", "p_r", "p_theta"}
+    assert set(report["conserved"]) == {"H", "p_theta"}
+
+
+def test_derive_readable(tmp_path, capsys):
+    path = tmp_path / "pendulum.toml"
+    path.write_text(PENDULUM)
+    assert main(["derive", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "Hamilton's equations" in out and "scleronomic" in out and "θ" in out
+
+
+def test_user_errors_exit_2_with_one_clear_line(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(PENDULUM.replace("cos(theta)", "cos(theta"))
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "main.py"), "derive", str(path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f"error: {path}: system.potential: syntax error: '(' was never closed (at position 16)"
+    ]
+
+
+def test_unknown_scene_exits_2(capsys):
+    assert main(["derive", "no_such_scene"]) == 2
+    assert "no catalogue scene or file named 'no_such_scene'" in capsys.readouterr().err
+
+
+def test_list(capsys):
+    assert main(["list", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert isinstance(rows, list)

@@ -1,0 +1,69 @@
+import time
+
+import pytest
+import sympy
+
+from systems.expressions import ExpressionError, check_name, parse_expression
+
+x, y = sympy.symbols("x y", real=True)
+NAMES = {"x": x, "y": y}
+
+
+def test_arithmetic_and_functions():
+    expr = parse_expression("x^2 + 3*sin(y)/2 - atan2(y, x) + Abs(x) + pi", NAMES)
+    assert (
+        expr
+        == x**2 + sympy.Rational(3, 2) * sympy.sin(y) - sympy.atan2(y, x) + sympy.Abs(x) + sympy.pi
+    )
+
+
+@pytest.mark.parametrize(
+    "text, reason",
+    [
+        ("__import__('os').system('ls')", "only the listed functions"),
+        ("x.real", "attribute access"),
+        ("(lambda: 1)()", "only the listed functions"),
+        ("lambda: 1", "lambda"),
+        ("x[0]", "indexing"),
+        ("__class__", "not allowed"),
+        ("sin(x=1)", "keyword"),
+        ("'hello'", "strings"),
+        ("[x for x in y]", "comprehensions"),
+        ("9**9**9**9", "too large"),
+        ("10**10**10", "too large"),
+        ("x**1000", "too large"),
+        ("1" * 5000, "too long"),
+        ("(" * 10000 + "x" + ")" * 10000, "too"),
+        ("z + 1", "unknown name 'z'"),
+        ("foo(x)", "unknown function 'foo'"),
+        ("x // 2", "operator //"),
+        ("x +", "syntax error"),
+        ("1/0", "division by zero"),
+        ("x if y else 1", "if"),
+        ("", "empty"),
+    ],
+)
+def test_rejections_are_clear_and_fast(text, reason):
+    start = time.perf_counter()
+    with pytest.raises(ExpressionError) as info:
+        parse_expression(text, NAMES, field="system.potential")
+    assert time.perf_counter() - start < 1.0
+    assert reason in str(info.value)
+    assert str(info.value).startswith("system.potential: ")
+
+
+def test_position_points_at_the_problem():
+    with pytest.raises(ExpressionError) as info:
+        parse_expression("x + 2*zz", NAMES)
+    assert info.value.position == 7
+    assert "(at position 7)" in str(info.value)
+
+
+@pytest.mark.parametrize("name", ["class", "sin", "t", "_x", "pi", "a-b", "2x"])
+def test_bad_names(name):
+    with pytest.raises(ExpressionError):
+        check_name(name)
+
+
+def test_good_name():
+    assert check_name("theta1") == "theta1"
