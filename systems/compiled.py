@@ -20,6 +20,7 @@ import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
 from systems.codegen import build_module
+from systems.expressions import as_expr
 from systems.mechanics import DerivationError, Mechanics
 
 WANTS = frozenset(
@@ -156,7 +157,7 @@ class CompiledSystem:
         if key not in self._numeric:
             params = tuple(self.mechanics.params[name] for name in self.parameter_names)
             values = dict(zip(params, self.parameters, strict=True))
-            exprs = [sympy.sympify(e).xreplace(values) for e in exprs]
+            exprs = [as_expr(e).xreplace(values) for e in exprs]
             self._numeric[key] = sympy.lambdify(args, exprs, modules="numpy", cse=True)
         return self._numeric[key]
 
@@ -312,7 +313,7 @@ class _KernelWriter:
         return lines + unpack + params
 
     def body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
-        renamed = [sympy.sympify(e).xreplace(self.rename) for e in exprs]
+        renamed = [as_expr(e).xreplace(self.rename) for e in exprs]
         temporaries, reduced = sympy.cse(renamed, symbols=sympy.numbered_symbols("c"))
         lines = [f"{s} = {self.printer.doprint(e)}" for s, e in temporaries]
         return lines, [self.printer.doprint(e) for e in reduced]

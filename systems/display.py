@@ -10,6 +10,8 @@ import re
 
 import sympy
 
+from systems.expressions import as_expr
+
 GREEK = {
     "alpha": "α", "beta": "β", "gamma": "γ", "delta": "δ", "epsilon": "ε", "zeta": "ζ",
     "eta": "η", "theta": "θ", "iota": "ι", "kappa": "κ", "lam": "λ", "mu": "μ", "nu": "ν",
@@ -55,7 +57,7 @@ def for_display(expr: sympy.Expr, scene) -> sympy.Expr:
     names = display_names(scene)
     mapping = {
         s: sympy.Symbol(names[s.name], real=True)
-        for s in sympy.sympify(expr).free_symbols
+        for s in as_expr(expr).free_symbols
         if s.name in names
     }
-    return sympy.sympify(expr).xreplace(mapping)
+    return as_expr(expr).xreplace(mapping)

@@ -341,3 +341,12 @@ def _magnitude(value: sympy.Expr) -> float:
         return abs(complex(value.evalf(15)))
     except (TypeError, ValueError):
         return math.inf
+
+
+def as_expr(value: sympy.Basic | int | float) -> sympy.Basic:
+    """A sympy object for a sympy object or a plain number; never parses text."""
+    if isinstance(value, sympy.Basic):
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"expected a sympy expression or a number, got {type(value).__name__}")
+    return sympy.Integer(value) if isinstance(value, int) else sympy.Float(value)

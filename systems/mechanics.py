@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import sympy
 
+from systems.expressions import as_expr
 from systems.scene import Scene
 
 ZERO_TOLERANCE = 1e-9
@@ -214,7 +215,7 @@ class _Context:
 
     def vanishes(self, expr: sympy.Expr) -> bool:
         """True if ``expr`` is zero identically (exactly, or at random real states)."""
-        expr = sympy.sympify(expr)
+        expr = as_expr(expr)
         if expr == 0:
             return True
         free = sorted(expr.free_symbols, key=str)
@@ -463,7 +464,7 @@ class _Context:
         q, qd, p, t = self.q, self.qd, self.p, self.t
         has_effects = any(not self.vanishes(f) for f in forces)
         H_explicit_t = H.has(t)
-        potential_t = potential is not None and sympy.sympify(potential).has(t)
+        potential_t = potential is not None and as_expr(potential).has(t)
         conservative = not has_effects and not potential_t
         H_conserved = not has_effects and not H_explicit_t
         mixed = [sympy.diff(H, qi, pj) for qi in q for pj in p]
@@ -519,7 +520,7 @@ class _Context:
 
 def _tidy(expr: sympy.Expr) -> sympy.Expr:
     """A cheap, predictable simplification: cancel fractions, tidy trigonometry if small."""
-    expr = sympy.sympify(expr)
+    expr = as_expr(expr)
     if expr.count_ops() > 400:
         return expr
     tidy = sympy.cancel(sympy.together(expr))
