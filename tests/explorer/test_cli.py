@@ -53,7 +53,7 @@ def test_user_errors_exit_2_with_one_clear_line(tmp_path):
     )
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        f"error: {path}: system.potential: syntax error: '(' was never closed (at position 16)"
+        f"error: {path}: system.potential: syntax error: '(' was never closed (at position 11)"
     ]
 
 
