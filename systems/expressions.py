@@ -330,6 +330,11 @@ class _Builder:
         return result
 
     def check_size(self, result: sympy.Expr, node: ast.AST) -> None:
+        if result.is_Pow and result.exp.is_Integer and abs(result.exp) > MAX_INTEGER_EXPONENT:
+            raise self.fail(
+                f"the combined exponent {result.exp} is too large (limit {MAX_INTEGER_EXPONENT})",
+                node,
+            )
         if result.is_Integer and abs(result.p).bit_length() > MAX_RESULT_DIGITS * 3.33:
             raise self.fail("the number is too large to compute", node)
         if result is sympy.zoo or result is sympy.nan or result.has(sympy.zoo, sympy.nan):

@@ -32,6 +32,7 @@ def test_arithmetic_and_functions():
         ("9**9**9**9", "too large"),
         ("10**10**10", "too large"),
         ("x**1000", "too large"),
+        ("(x**24)**24", "combined exponent"),
         ("1" * 5000, "too long"),
         ("(" * 10000 + "x" + ")" * 10000, "too"),
         ("z + 1", "unknown name 'z'"),
