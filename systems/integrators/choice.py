@@ -1,0 +1,152 @@
+"""The automatic choice of a stepper from a system's classification.
+
+Rules, first match wins:
+
+1. stiff (see ``stiffness_ratio``) -> ``radau``;
+2. not conservative (dissipation, driving forces, explicitly time-dependent potential)
+   or H not conserved -> ``dop853``;
+3. separable, autonomous, with a singular attractive potential (a coordinate expression
+   in a denominator of V, e.g. -k/r, and V < 0 at the initial state) -> ``logh_yoshida6``;
+4. separable -> ``yoshida4``;
+5. otherwise (conservative, H = H(q, p) not separable) -> ``gauss_legendre4``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy
+
+from systems.expressions import as_expr
+
+STIFF_RATIO = 100.0
+"""Stiff when the fastest rate of the linearisation exceeds the slowest by this factor."""
+
+
+def initial_point(mechanics) -> tuple[dict, np.ndarray]:
+    """Parameter values (symbol -> float) and the scene's initial (q, p), shape (2n,)."""
+    scene = mechanics.scene
+    params = {mechanics.params[name]: float(value) for name, value in scene.parameters}
+    values = scene.initial_values
+    q = [values.get(name, 0.0) for name in scene.coordinates]
+    qdot = [values.get(name, 0.0) for name in scene.velocity_names]
+    p = []
+    subs = {**params, mechanics.t: 0.0}
+    subs |= dict(zip(mechanics.q, q, strict=True)) | dict(zip(mechanics.qdot, qdot, strict=True))
+    for i, name in enumerate(scene.momentum_names):
+        if name in values:
+            p.append(values[name])
+        elif mechanics.momenta is not None:
+            p.append(_number(mechanics.momenta[i], subs))
+        else:
+            p.append(0.0)
+    return params, np.array(q + p, dtype=float)
+
+
+def _number(expr, subs: dict) -> float:
+    expr = as_expr(expr)
+    if isinstance(expr, sympy.Basic):
+        expr = expr.xreplace(subs)
+    return float(expr)
+
+
+def _rates(mechanics) -> np.ndarray:
+    """Moduli of the eigenvalues of the Jacobian of Hamilton's equations at the start."""
+    params, y0 = initial_point(mechanics)
+    variables = (*mechanics.q, *mechanics.p)
+    exprs = [as_expr(e).xreplace(params) for e in mechanics.hamilton_equations]
+    f = sympy.lambdify((mechanics.t, variables), exprs, modules="math", cse=True)
+    n2 = len(y0)
+    J = np.empty((n2, n2))
+    for j in range(n2):
+        h = 1e-6 * max(1.0, abs(y0[j]))
+        up, down = y0.copy(), y0.copy()
+        up[j] += h
+        down[j] -= h
+        try:
+            J[:, j] = (np.array(f(0.0, up), dtype=float) - np.array(f(0.0, down), dtype=float)) / (
+                2 * h
+            )
+        except (ZeroDivisionError, ValueError, OverflowError):
+            return np.array([])
+    if not np.all(np.isfinite(J)):
+        return np.array([])
+    return np.abs(np.linalg.eigvals(J))
+
+
+def stiffness_ratio(mechanics) -> float:
+    """Fastest over slowest nonzero rate |lambda| of the linearised flow at the start.
+
+    The eigenvalues of the Jacobian of Hamilton's equations (with the effects) at the
+    initial state give the time scales 1/|lambda| of the motion. A step sized for the
+    slow motion, dt ~ 1/|lambda|_min, puts the fast modes at |lambda|_max dt = this
+    ratio: beyond ``STIFF_RATIO`` an explicit or fixed-point-iterated implicit method is
+    unstable or stalls there, and an L-stable implicit method is the right tool.
+    Returns 1.0 when the ratio cannot be formed (no motion, a singular start).
+    """
+    rates = _rates(mechanics)
+    if rates.size == 0:
+        return 1.0
+    fast = rates.max()
+    slow_rates = rates[rates > 1e-9 * max(fast, 1e-300)]
+    if fast == 0.0 or slow_rates.size == 0:
+        return 1.0
+    return float(fast / slow_rates.min())
+
+
+def singular_terms(expr) -> list[sympy.Expr]:
+    """Denominators of ``expr`` that contain a coordinate symbol (1/r, 1/sqrt(x^2+y^2))."""
+    found = []
+    for node in sympy.preorder_traversal(as_expr(expr)):
+        if isinstance(node, sympy.Pow) and node.exp.is_negative:
+            if any(isinstance(s, sympy.Symbol) for s in node.base.free_symbols):
+                found.append(node.base)
+    return found
+
+
+def _singular_attractive(mechanics) -> bool:
+    if mechanics.separable_parts is None:
+        return False
+    V = mechanics.separable_parts[1]
+    coords = set(mechanics.q)
+    if not any(b.free_symbols & coords for b in singular_terms(V)):
+        return False
+    params, y0 = initial_point(mechanics)
+    n = mechanics.n
+    subs = {**params, mechanics.t: 0.0} | dict(zip(mechanics.q, y0[:n], strict=True))
+    try:
+        value = _number(V, subs)
+    except (TypeError, ValueError):
+        return False
+    return value < 0.0
+
+
+def choose_method(mechanics) -> tuple[str, str]:
+    """Pick a stepper for ``mechanics`` (from ``systems.mechanics.derive``).
+
+    Returns
+    -------
+    name : str
+        A key of ``STEPPERS``.
+    reason : str
+        One line saying why.
+    """
+    c = mechanics.classification
+    ratio = stiffness_ratio(mechanics)
+    if ratio > STIFF_RATIO:
+        return "radau", (
+            f"stiff: time scales at the start differ by a factor {ratio:.3g} "
+            f"(> {STIFF_RATIO:g}), so an L-stable implicit method"
+        )
+    if not c.conservative or not c.hamiltonian_conserved:
+        what = "dissipative or driven" if not c.conservative else "H depends on time"
+        return "dop853", f"{what}: no energy to preserve, so adaptive 8th-order Runge-Kutta"
+    if c.separable and not c.time_dependent and _singular_attractive(mechanics):
+        return "logh_yoshida6", (
+            "separable with a singular attractive potential: time-transformed "
+            "(logarithmic-Hamiltonian) symplectic steps shrink near the singularity"
+        )
+    if c.separable:
+        return "yoshida4", "separable H = T(p) + V(q): explicit symplectic, 4th order"
+    return "gauss_legendre4", (
+        "conservative but H is not separable: implicit symplectic Gauss-Legendre, 4th order"
+    )
