@@ -1,0 +1,190 @@
+"""Derivation and compilation off the GUI thread.
+
+The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``; a worker in a
+``QThread`` reads it, derives the mechanics and compiles the kernels, and sends back a
+``Built`` value or a ``BuildFailure`` with the field and position of the problem. Requests
+are numbered: a request overtaken by a newer one is skipped, and only the newest result
+is delivered, so typing fast never shows a stale system.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+
+@dataclass(frozen=True)
+class Built:
+    """A scene ready to run: its compiled system and the automatic method choice."""
+
+    request: int
+    scene: object
+    compiled: object
+    method: str
+    reason: str
+    seconds: float
+
+
+@dataclass(frozen=True)
+class BuildFailure:
+    """Why a scene could not be built, where the physics core says it went wrong."""
+
+    request: int
+    message: str
+    field: str | None = None
+    position: int | None = None
+    reason: str = ""
+
+
+def wants_for(mechanics) -> tuple[str, ...]:
+    """What the GUI needs compiled: the right-hand side, H, velocities, drawing, T/V parts."""
+    wants = ["rhs", "hamiltonian", "velocities"]
+    scene = mechanics.scene
+    if scene.drawing is not None and scene.drawing.points:
+        wants.append("drawing")
+    if mechanics.classification.separable and mechanics.separable_parts is not None:
+        wants.append("separable")
+    return tuple(wants)
+
+
+def build(source, request: int = 0) -> Built:
+    """Read (TOML text or the tables of one), derive and compile; raises the core's errors."""
+    from systems.compiled import compile_system
+    from systems.integrators import choose_method
+    from systems.mechanics import derive
+    from systems.scene import Scene, parse_scene, scene_from_dict
+
+    start = time.perf_counter()
+    if isinstance(source, Scene):
+        scene = source
+    elif isinstance(source, dict):
+        scene = scene_from_dict(source, source="<editor>")
+    else:
+        scene = parse_scene(source, source="<editor>")
+    mechanics = derive(scene)
+    compiled = compile_system(mechanics, wants_for(mechanics))
+    try:
+        method, reason = choose_method(mechanics)
+    except NotImplementedError:
+        method, reason = "", "automatic choice not available"
+    return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
+
+
+def failure_from(exc: Exception, request: int) -> BuildFailure:
+    return BuildFailure(
+        request=request,
+        message=str(exc),
+        field=getattr(exc, "field", None),
+        position=getattr(exc, "position", None),
+        reason=getattr(exc, "reason", str(exc)),
+    )
+
+
+def describe(mechanics) -> str:
+    """The derivation laid out for a person (as ``derive`` prints it)."""
+    from explorer.commands.derive_cmd import readable
+
+    return readable(mechanics)
+
+
+class _BuildWorker(QObject):
+    built = Signal(object)
+    build_failed = Signal(object)
+    described = Signal(int, str)
+
+    def __init__(self):
+        super().__init__()
+        self.latest = 0
+        self._lock = threading.Lock()
+
+    @Slot(object)
+    def build(self, job) -> None:
+        request, source = job
+        if request < self.latest:
+            return  # overtaken by a newer request while waiting
+        from systems.expressions import ExpressionError
+        from systems.mechanics import DerivationError
+        from systems.scene import SceneError
+
+        try:
+            result = build(source, request)
+        except (SceneError, ExpressionError, DerivationError, ValueError) as exc:
+            self.build_failed.emit(failure_from(exc, request))
+            return
+        except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
+            self.build_failed.emit(failure_from(exc, request))
+            return
+        self.built.emit(result)
+        if request < self.latest:
+            return
+        try:
+            text = describe(result.compiled.mechanics)
+        except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
+            text = f"(the derivation could not be laid out: {exc})"
+        self.described.emit(request, text)
+
+
+class BuildService(QObject):
+    """Builds scenes in a background thread; delivers only the newest request's result.
+
+    Signals
+    -------
+    built(Built)
+    build_failed(BuildFailure)
+    described(int, str)   the readable derivation of a built request (arrives later)
+    busy_changed(bool)
+    """
+
+    built = Signal(object)
+    build_failed = Signal(object)
+    described = Signal(int, str)
+    busy_changed = Signal(bool)
+    _requested = Signal(object)
+
+    def __init__(self, parent: QObject | None = None):
+        super().__init__(parent)
+        self._counter = 0
+        self._thread = QThread()
+        self._thread.setObjectName("scene-builder")
+        self._worker = _BuildWorker()
+        self._worker.moveToThread(self._thread)
+        self._requested.connect(self._worker.build)
+        self._worker.built.connect(self._on_worker_built)
+        self._worker.build_failed.connect(self._on_worker_build_failed)
+        self._worker.described.connect(self._on_worker_described)
+        self._thread.start()
+
+    def request(self, source) -> int:
+        """Build ``source`` (TOML text or a ``Scene``); returns the request number."""
+        self._counter += 1
+        self._worker.latest = self._counter
+        self._requested.emit((self._counter, source))
+        self.busy_changed.emit(True)
+        return self._counter
+
+    @property
+    def latest(self) -> int:
+        return self._counter
+
+    def _on_worker_built(self, result: Built) -> None:
+        if result.request == self._counter:
+            self.busy_changed.emit(False)
+            self.built.emit(result)
+
+    def _on_worker_build_failed(self, failure: BuildFailure) -> None:
+        if failure.request == self._counter:
+            self.busy_changed.emit(False)
+            self.build_failed.emit(failure)
+
+    def _on_worker_described(self, request: int, text: str) -> None:
+        if request == self._counter:
+            self.described.emit(request, text)
+
+    def stop(self) -> None:
+        """End the thread (after the build in progress, if any)."""
+        if self._thread.isRunning():
+            self._thread.quit()
+            self._thread.wait()

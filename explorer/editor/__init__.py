@@ -1,0 +1,1 @@
+"""The system editor dock: catalogue, fields, parameters, effects, derived results."""

@@ -1,0 +1,168 @@
+"""The parameters table: name, value, a slider over [min, max], and the range itself."""
+
+from __future__ import annotations
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import QHeaderView, QSlider, QTableWidget, QTableWidgetItem, QWidget
+
+SLIDER_STEPS = 1000
+NAME, VALUE, SLIDER, LOW, HIGH = range(5)
+
+
+def default_range(value) -> tuple[float, float]:
+    if not isinstance(value, int | float):
+        return -1.0, 1.0
+    if value > 0:
+        return 0.0, 2.0 * value
+    if value < 0:
+        return 2.0 * value, 0.0
+    return -1.0, 1.0
+
+
+class ParameterTableView(QTableWidget):
+    """Parameters with sliders.
+
+    Signals
+    -------
+    values_changed(dict)    a value moved (slider or typed): name -> value; no rebuild needed
+    structure_changed()     a name was edited, or a row added or removed: rebuild the system
+    """
+
+    values_changed = Signal(dict)
+    structure_changed = Signal()
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(0, 5, parent)
+        self.setHorizontalHeaderLabels(["name", "value", "", "min", "max"])
+        header = self.horizontalHeader()
+        header.setSectionResizeMode(SLIDER, QHeaderView.ResizeMode.Stretch)
+        for column in (NAME, VALUE, LOW, HIGH):
+            header.setSectionResizeMode(column, QHeaderView.ResizeMode.ResizeToContents)
+        self.verticalHeader().setVisible(False)
+        self._filling = False
+        self.itemChanged.connect(self._on_item_changed)
+
+    # -- content -------------------------------------------------------------------------
+
+    def set_parameters(self, parameters, ranges: dict | None = None) -> None:
+        """Fill from ``(name, value)`` pairs; ``ranges`` maps name -> (min, max)."""
+        self._filling = True
+        self.setRowCount(0)
+        for name, value in parameters:
+            lo, hi = (ranges or {}).get(name) or default_range(value)
+            self._add_row(name, value, lo, hi)
+        self._filling = False
+
+    def add_parameter(self, name: str = "a", value: float = 1.0) -> None:
+        self._filling = True
+        self._add_row(name, value, *default_range(value))
+        self._filling = False
+        self.structure_changed.emit()
+
+    def remove_selected(self) -> None:
+        rows = sorted({index.row() for index in self.selectedIndexes()}, reverse=True)
+        for row in rows:
+            self.removeRow(row)
+        if rows:
+            self.structure_changed.emit()
+
+    def _add_row(self, name: str, value: float, lo: float, hi: float) -> None:
+        row = self.rowCount()
+        self.insertRow(row)
+        self.setItem(row, NAME, QTableWidgetItem(name))
+        shown = f"{value:g}" if isinstance(value, int | float) else str(value)
+        self.setItem(row, VALUE, QTableWidgetItem(shown))
+        self.setItem(row, LOW, QTableWidgetItem(f"{lo:g}"))
+        self.setItem(row, HIGH, QTableWidgetItem(f"{hi:g}"))
+        slider = QSlider(Qt.Orientation.Horizontal)
+        slider.setRange(0, SLIDER_STEPS)
+        slider.setMinimumWidth(80)
+        slider.valueChanged.connect(
+            lambda position, s=slider: self._on_slider_value_changed(s, position)
+        )
+        self.setCellWidget(row, SLIDER, slider)
+        self._place_slider(row)
+
+    def _number(self, row: int, column: int) -> float | None:
+        item = self.item(row, column)
+        try:
+            return float(item.text()) if item is not None else None
+        except ValueError:
+            return None
+
+    def _place_slider(self, row: int) -> None:
+        slider = self.cellWidget(row, SLIDER)
+        value, lo, hi = (self._number(row, c) for c in (VALUE, LOW, HIGH))
+        if slider is None or None in (value, lo, hi) or hi <= lo:
+            return
+        slider.blockSignals(True)
+        slider.setValue(round((min(max(value, lo), hi) - lo) / (hi - lo) * SLIDER_STEPS))
+        slider.blockSignals(False)
+
+    def parameters(self) -> list[tuple[str, str]]:
+        """``(name, value text)`` per row, as typed."""
+        rows = []
+        for row in range(self.rowCount()):
+            name = self.item(row, NAME).text().strip() if self.item(row, NAME) else ""
+            value = self.item(row, VALUE).text().strip() if self.item(row, VALUE) else ""
+            rows.append((name, value))
+        return rows
+
+    def ranges(self) -> dict[str, tuple[float, float]]:
+        result = {}
+        for row in range(self.rowCount()):
+            lo, hi = self._number(row, LOW), self._number(row, HIGH)
+            name = self.item(row, NAME).text().strip()
+            if lo is not None and hi is not None and hi > lo:
+                result[name] = (lo, hi)
+        return result
+
+    def values(self) -> dict[str, float]:
+        """Parameter values that are valid numbers."""
+        result = {}
+        for row in range(self.rowCount()):
+            value = self._number(row, VALUE)
+            if value is not None:
+                result[self.item(row, NAME).text().strip()] = value
+        return result
+
+    def set_value(self, name: str, value: float) -> None:
+        """Set a value as if typed (emits ``values_changed``)."""
+        for row in range(self.rowCount()):
+            if self.item(row, NAME).text().strip() == name:
+                self.item(row, VALUE).setText(f"{value:g}")
+                return
+        raise KeyError(name)
+
+    def slider(self, name: str) -> QSlider:
+        for row in range(self.rowCount()):
+            if self.item(row, NAME).text().strip() == name:
+                return self.cellWidget(row, SLIDER)
+        raise KeyError(name)
+
+    # -- slots ----------------------------------------------------------------------------
+
+    def _on_slider_value_changed(self, slider: QSlider, position: int) -> None:
+        for row in range(self.rowCount()):
+            if self.cellWidget(row, SLIDER) is slider:
+                lo, hi = self._number(row, LOW), self._number(row, HIGH)
+                if lo is None or hi is None or hi <= lo:
+                    return
+                value = lo + (hi - lo) * position / SLIDER_STEPS
+                self._filling = True
+                self.item(row, VALUE).setText(f"{value:.6g}")
+                self._filling = False
+                self.values_changed.emit(self.values())
+                return
+
+    def _on_item_changed(self, item: QTableWidgetItem) -> None:
+        if self._filling:
+            return
+        if item.column() == NAME:
+            self.structure_changed.emit()
+        elif item.column() == VALUE:
+            self._place_slider(item.row())
+            if self._number(item.row(), VALUE) is not None:
+                self.values_changed.emit(self.values())
+        else:
+            self._place_slider(item.row())

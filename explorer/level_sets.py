@@ -1,0 +1,149 @@
+"""Level sets of H(q, p) for one-degree autonomous systems, with the separatrix.
+
+H is evaluated on a grid with the compiled Hamiltonian (one batched call); saddle points
+are found from the grid's small-gradient cells, refined with Newton's method on finite
+differences of H, and kept when the Hessian determinant is negative. The separatrix is
+the level set through a saddle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pyqtgraph as pg
+from scipy.optimize import root
+
+
+@dataclass(frozen=True)
+class EnergyGrid:
+    """H on a grid: ``values[i, j] = H(qs[i], ps[j])`` for the coordinate pair shown."""
+
+    qs: np.ndarray
+    ps: np.ndarray
+    values: np.ndarray
+
+
+@dataclass(frozen=True)
+class Saddle:
+    q: float
+    p: float
+    energy: float
+
+
+def energy_grid(
+    compiled, q_range, p_range, size: int = 201, base_state=None, index: int = 0, t: float = 0.0
+) -> EnergyGrid:
+    """H over ``q_range x p_range`` for coordinate ``index`` (others from ``base_state``)."""
+    n = compiled.n
+    qs = np.linspace(*q_range, size)
+    ps = np.linspace(*p_range, size)
+    Q, P = np.meshgrid(qs, ps, indexing="ij")
+    base = np.zeros(2 * n) if base_state is None else np.asarray(base_state, dtype=float)
+    Y = np.repeat(base[None, :], Q.size, axis=0)
+    Y[:, index] = Q.ravel()
+    Y[:, n + index] = P.ravel()
+    with np.errstate(all="ignore"):
+        values = compiled.hamiltonian(t, Y).reshape(Q.shape)
+    return EnergyGrid(qs, ps, values)
+
+
+def _h(compiled, q: float, p: float, t: float = 0.0) -> float:
+    return float(compiled.hamiltonian(t, np.array([[q, p]]))[0])
+
+
+def _gradient(compiled, x: np.ndarray, step: np.ndarray) -> np.ndarray:
+    q, p = x
+    hq, hp = step
+    Y = np.array([[q + hq, p], [q - hq, p], [q, p + hp], [q, p - hp]])
+    H = compiled.hamiltonian(0.0, Y)
+    return np.array([(H[0] - H[1]) / (2 * hq), (H[2] - H[3]) / (2 * hp)])
+
+
+def find_saddles(compiled, grid: EnergyGrid, limit: int = 8) -> list[Saddle]:
+    """Saddle points of H inside the grid (1-degree systems only)."""
+    if compiled.n != 1:
+        return []
+    values = grid.values
+    if not np.isfinite(values).any():
+        return []
+    dq = grid.qs[1] - grid.qs[0]
+    dp = grid.ps[1] - grid.ps[0]
+    with np.errstate(all="ignore"):
+        gq, gp = np.gradient(values, dq, dp)
+        scale = np.nanmax(np.abs(values)) or 1.0
+        magnitude = np.hypot(gq * dq, gp * dp) / scale
+    magnitude = np.where(np.isfinite(magnitude), magnitude, np.inf)
+    # local minima of |grad H| over each 3x3 neighbourhood
+    padded = np.pad(magnitude, 1, constant_values=np.inf)
+    neighbours = np.stack(
+        [
+            padded[1 + a : padded.shape[0] - 1 + a, 1 + b : padded.shape[1] - 1 + b]
+            for a in (-1, 0, 1)
+            for b in (-1, 0, 1)
+            if (a, b) != (0, 0)
+        ]
+    )
+    candidates = np.argwhere((magnitude <= neighbours.min(axis=0)) & (magnitude < 0.05))
+    order = np.argsort(magnitude[tuple(candidates.T)])
+    step = np.array([dq, dp]) * 1e-3
+    saddles: list[Saddle] = []
+    for i, j in candidates[order][: 4 * limit]:
+        x0 = np.array([grid.qs[i], grid.ps[j]])
+        with np.errstate(all="ignore"):
+            solution = root(lambda x: _gradient(compiled, x, step), x0, method="hybr")
+        if not solution.success:
+            continue
+        q, p = solution.x
+        inside = (
+            grid.qs[0] - dq <= q <= grid.qs[-1] + dq and grid.ps[0] - dp <= p <= grid.ps[-1] + dp
+        )
+        if not inside:
+            continue
+        hess = np.array(
+            [
+                (_gradient(compiled, solution.x + [step[0], 0], step)
+                 - _gradient(compiled, solution.x - [step[0], 0], step)) / (2 * step[0]),
+                (_gradient(compiled, solution.x + [0, step[1]], step)
+                 - _gradient(compiled, solution.x - [0, step[1]], step)) / (2 * step[1]),
+            ]
+        )  # fmt: skip
+        if not np.linalg.det(hess) < 0:
+            continue
+        if any(abs(s.q - q) < 2 * dq and abs(s.p - p) < 2 * dp for s in saddles):
+            continue
+        saddles.append(Saddle(float(q), float(p), _h(compiled, q, p)))
+        if len(saddles) >= limit:
+            break
+    return saddles
+
+
+def spread_levels(grid: EnergyGrid, count: int = 12) -> np.ndarray:
+    """``count`` energies spread over the grid's range (between its 2% and 90% quantiles)."""
+    finite = grid.values[np.isfinite(grid.values)]
+    if not finite.size:
+        return np.array([])
+    lo, hi = np.quantile(finite, [0.02, 0.9])
+    if hi <= lo:
+        return np.array([lo])
+    return np.linspace(lo, hi, count + 2)[1:-1]
+
+
+def contour(grid: EnergyGrid, level: float) -> tuple[np.ndarray, np.ndarray]:
+    """The level set ``H = level`` as (q, p) arrays with NaN between separate pieces."""
+    values = np.where(np.isfinite(grid.values), grid.values, np.nanmax(grid.values) + 1.0)
+    lines = pg.functions.isocurve(values, level, connected=True)
+    xs: list[np.ndarray] = []
+    ys: list[np.ndarray] = []
+    dq = grid.qs[1] - grid.qs[0]
+    dp = grid.ps[1] - grid.ps[0]
+    for line in lines:
+        points = np.asarray(line, dtype=float)
+        if len(points) < 2:
+            continue
+        # isocurve places grid index i at i + 0.5
+        xs += [grid.qs[0] + (points[:, 0] - 0.5) * dq, [np.nan]]
+        ys += [grid.ps[0] + (points[:, 1] - 0.5) * dp, [np.nan]]
+    if not xs:
+        return np.array([]), np.array([])
+    return np.concatenate(xs), np.concatenate(ys)

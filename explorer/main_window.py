@@ -1,0 +1,537 @@
+"""The main window: editor dock, phase view, configuration and conserved-quantity docks.
+
+Data flow: the editor or the catalogue asks the ``BuildService`` for a scene; a ``Built``
+value arrives (compiled off the GUI thread); the window starts a ``SimulationWorker`` for
+it in a ``QThread`` and appends each emitted frame to the ``TrajectoryStore``. One
+``QTimer`` redraws the visible panels whose data changed, at display rate. A hidden panel
+is neither redrawn nor are its diagnostics computed by the worker.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtWidgets import (
+    QDockWidget,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QProgressBar,
+    QWidget,
+)
+
+from explorer.builder import BuildService, Built
+from explorer.controls import ControlsPanel
+from explorer.editor.editor_panel import SystemEditorPanel
+from explorer.panels.configuration_view import ConfigurationView
+from explorer.panels.conserved_view import ConservedView
+from explorer.panels.phase_view import PhaseView
+from explorer.trajectories import TrajectoryStore
+from explorer.worker import RunSettings, SimulationWorker, WorkerThread
+
+REDRAW_MS = 30
+POINCARE_T_END = 5000.0
+
+
+class MainWindow(QMainWindow):
+    """Phase Explorer's window. ``open_scene`` loads a scene; everything else is live.
+
+    Signals
+    -------
+    system_started(object)  the ``Built`` value of a system whose worker just started
+    frame_received()        a worker frame was appended to the store
+    """
+
+    system_started = Signal(object)
+    frame_received = Signal()
+
+    def __init__(self, parent: QWidget | None = None, stream=None):
+        super().__init__(parent)
+        self.setWindowTitle("Phase Explorer")
+        self.resize(1400, 880)
+        self._stream = stream
+        self.built: Built | None = None
+        self.compiled = None
+        self.store = TrajectoryStore()
+        self.settings = RunSettings()
+        self.runner: WorkerThread | None = None
+        self._generation = 0
+        self._speed = 1.0
+        self._rate_window: deque = deque(maxlen=40)
+        self._last_error = math.nan
+        self.redraws = 0
+
+        self.builder = BuildService(self)
+        self.builder.built.connect(self._on_builder_built)
+        self.builder.build_failed.connect(self._on_builder_build_failed)
+        self.builder.busy_changed.connect(self._on_builder_busy_changed)
+        self.builder.described.connect(self._on_builder_described)
+
+        self.phase_view = PhaseView()
+        self.configuration_view = ConfigurationView()
+        self.conserved_view = ConservedView()
+        self.editor = SystemEditorPanel()
+        self.controls = ControlsPanel()
+        self.setCentralWidget(self.phase_view)
+        self.panels: dict[str, QWidget] = {
+            "phase": self.phase_view,
+            "configuration": self.configuration_view,
+            "conserved": self.conserved_view,
+        }
+        self.docks: dict[str, QDockWidget] = {}
+        self._add_dock("editor", "System editor", self.editor, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self._add_dock(
+            "configuration",
+            "Configuration",
+            self.configuration_view,
+            Qt.DockWidgetArea.RightDockWidgetArea,
+        )
+        self._add_dock(
+            "conserved",
+            "Conserved quantities",
+            self.conserved_view,
+            Qt.DockWidgetArea.BottomDockWidgetArea,
+        )
+        self._add_workprecision_dock()
+        self.resizeDocks(
+            [self.docks["editor"], self.docks["configuration"]],
+            [420, 420],
+            Qt.Orientation.Horizontal,
+        )
+        self.resizeDocks([self.docks["conserved"]], [230], Qt.Orientation.Vertical)
+
+        toolbar = self.addToolBar("Run")
+        toolbar.setObjectName("run-toolbar")
+        toolbar.addWidget(self.controls)
+        self._build_status_bar()
+        self._build_menus()
+
+        self.editor.scene_edited.connect(self._on_editor_scene_edited)
+        self.editor.catalogue_selected.connect(self._on_editor_catalogue_selected)
+        self.editor.parameters_changed.connect(self._on_editor_parameters_changed)
+        self.phase_view.launch_requested.connect(self._on_phase_launch_requested)
+        self.phase_view.launch_refused.connect(self._on_phase_launch_refused)
+        self.phase_view.mode_changed.connect(self._on_phase_mode_changed)
+        self.controls.method_changed.connect(self._on_controls_method_changed)
+        self.controls.step_changed.connect(self._on_controls_step_changed)
+        self.controls.speed_changed.connect(self._on_controls_speed_changed)
+        self.controls.play_toggled.connect(self._on_controls_play_toggled)
+        self.controls.single_step_requested.connect(self._on_controls_single_step_requested)
+        self.controls.reset_requested.connect(self._on_controls_reset_requested)
+        self.controls.clear_requested.connect(self._on_controls_clear_requested)
+
+        self.redraw_timer = QTimer(self)
+        self.redraw_timer.setInterval(REDRAW_MS)
+        self.redraw_timer.timeout.connect(self._on_redraw_timer_timeout)
+        self.redraw_timer.start()
+
+    # -- construction helpers ---------------------------------------------------------------
+
+    def _add_dock(self, key: str, title: str, widget: QWidget, area) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(f"dock-{key}")
+        dock.setWidget(widget)
+        self.addDockWidget(area, dock)
+        dock.visibilityChanged.connect(self._on_dock_visibility_changed)
+        self.docks[key] = dock
+        return dock
+
+    def _add_workprecision_dock(self) -> None:
+        try:
+            from explorer.panels.workprecision_view import WorkPrecisionView
+        except ImportError:  # the engine's work-precision module is not there yet
+            self.workprecision_view = None
+            return
+        self.workprecision_view = WorkPrecisionView()
+        self.panels["workprecision"] = self.workprecision_view
+        dock = self._add_dock(
+            "workprecision",
+            "Work–precision",
+            self.workprecision_view,
+            Qt.DockWidgetArea.BottomDockWidgetArea,
+        )
+        self.tabifyDockWidget(self.docks["conserved"], dock)
+        self.docks["conserved"].raise_()
+
+    def _build_status_bar(self) -> None:
+        bar = self.statusBar()
+        self.time_label = QLabel("t = 0")
+        self.rate_label = QLabel("")
+        self.error_label = QLabel("")
+        self.method_label = QLabel("")
+        self.busy_bar = QProgressBar()
+        self.busy_bar.setRange(0, 0)
+        self.busy_bar.setMaximumWidth(120)
+        self.busy_bar.setVisible(False)
+        for widget in (self.time_label, self.rate_label, self.error_label, self.method_label):
+            widget.setMinimumWidth(120)
+            bar.addPermanentWidget(widget)
+        bar.addPermanentWidget(self.busy_bar)
+
+    def _action(self, menu, text: str, slot, shortcut=None, tip: str = "") -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcut(QKeySequence(shortcut))
+        if tip:
+            action.setStatusTip(tip)
+        action.triggered.connect(slot)
+        menu.addAction(action)
+        return action
+
+    def _build_menus(self) -> None:
+        menu = self.menuBar()
+        file_menu = menu.addMenu("&File")
+        self._action(
+            file_menu, "&Open scene…", self._on_open_triggered, QKeySequence.StandardKey.Open
+        )
+        self._action(
+            file_menu, "&Save scene as…", self._on_save_triggered, QKeySequence.StandardKey.SaveAs
+        )
+        file_menu.addSeparator()
+        export_menu = file_menu.addMenu("&Export")
+        self.export_actions = {}
+        shortcuts = {"phase": "Ctrl+E", "configuration": "Ctrl+Shift+G", "conserved": None}
+        for key, title in (
+            ("phase", "Phase view"),
+            ("configuration", "Configuration view"),
+            ("conserved", "Conserved quantities"),
+            ("workprecision", "Work–precision"),
+        ):
+            if key not in self.panels:
+                continue
+            self.export_actions[key] = self._action(
+                export_menu,
+                f"{title} as PNG or SVG…",
+                lambda _=False, k=key: self.export_panel_dialog(k),
+                shortcuts.get(key),
+            )
+        self.csv_action = self._action(
+            export_menu, "Trajectories as CSV…", self._on_export_csv_triggered, "Ctrl+Shift+E"
+        )
+        file_menu.addSeparator()
+        self._action(file_menu, "&Quit", self.close, QKeySequence.StandardKey.Quit)
+        run_menu = menu.addMenu("&Run")
+        self._action(run_menu, "Play / pause", self.controls.play_button.toggle, "Space")
+        self._action(run_menu, "Single step", self._on_controls_single_step_requested, "Ctrl+.")
+        self._action(run_menu, "Reset", self._on_controls_reset_requested, "Ctrl+R")
+        self._action(run_menu, "Clear launched orbits", self._on_controls_clear_requested)
+        view_menu = menu.addMenu("&View")
+        for dock in self.docks.values():
+            view_menu.addAction(dock.toggleViewAction())
+        toolbar = self.addToolBar("Export")
+        toolbar.setObjectName("export-toolbar")
+        toolbar.addAction(self.export_actions["phase"])
+        toolbar.addAction(self.csv_action)
+        self.export_actions["phase"].setText("Export figure")
+        self.csv_action.setText("Export CSV")
+
+    # -- opening systems ----------------------------------------------------------------------
+
+    def open_scene(self, scene) -> int:
+        """Open a catalogue name, a path or a ``Scene``: shown in the editor, built, run."""
+        from systems.scene import Scene, load_scene
+
+        if not isinstance(scene, Scene):
+            scene = load_scene(scene)
+        self.editor.show_scene(scene)
+        return self.builder.request(scene)
+
+    def _on_editor_catalogue_selected(self, name: str) -> None:
+        from systems.scene import SceneError, load_scene
+
+        try:
+            scene = load_scene(name)
+        except SceneError as exc:
+            self.editor.show_failure_message(str(exc))
+            return
+        self.editor.show_scene(scene)
+        self.builder.request(scene)
+
+    def _on_editor_scene_edited(self, text: str) -> None:
+        self.builder.request(text)
+
+    def _on_builder_busy_changed(self, busy: bool) -> None:
+        self.busy_bar.setVisible(busy)
+
+    def _on_builder_described(self, _request: int, text: str) -> None:
+        self.editor.show_derivation(text)
+
+    def _on_builder_build_failed(self, failure) -> None:
+        self.editor.show_failure(failure)
+        self.statusBar().showMessage(failure.message, 8000)
+
+    def _on_builder_built(self, built: Built) -> None:
+        self.built = built
+        self.editor.show_built(built)
+        from systems.integrators import STEPPERS
+
+        mechanics = built.compiled.mechanics
+        self.controls.set_methods(
+            STEPPERS, mechanics.classification.separable, built.method, built.reason
+        )
+        self.setWindowTitle(f"Phase Explorer — {built.scene.title}")
+        self._start_system(built.compiled, launches=None)
+        self.system_started.emit(built)
+
+    def _on_editor_parameters_changed(self, values: dict) -> None:
+        if self.compiled is None:
+            return
+        compiled = self.compiled.with_parameters(values)
+        self._start_system(compiled, launches=self._launch_states())
+
+    def _launch_states(self) -> list[np.ndarray]:
+        return [trajectory.y0 for trajectory in self.store if trajectory.key != 0]
+
+    # -- running -----------------------------------------------------------------------------
+
+    def _current_settings(self) -> RunSettings:
+        poincare = self.phase_view.mode == "poincare"
+        method = self.controls.method or (self.built.method if self.built else None) or None
+        section = None
+        if poincare and self.phase_view.section is not None:
+            section = (self.phase_view.section.coordinate, self.phase_view.section.value, 1)
+        step = self.controls.step_value
+        adaptive = self.controls.is_adaptive()
+        scene_t_end = float(self.compiled.mechanics.scene.view.get("t_end", 100.0) or 100.0)
+        return RunSettings(
+            method=method,
+            dt=None if adaptive else step,
+            tol=step if adaptive else None,
+            speed=math.inf if poincare else self.controls.speed,
+            t_end=max(POINCARE_T_END, 25 * scene_t_end) if poincare else math.inf,
+            diagnostics=self._wanted_diagnostics(),
+            section=section,
+        )
+
+    def _wanted_diagnostics(self) -> tuple[str, ...]:
+        wanted = []
+        if self._panel_visible("conserved"):
+            wanted.append("H")
+        drawing = self.compiled is not None and "drawing" in self.compiled.wanted
+        if drawing and self._panel_visible("configuration"):
+            wanted.append("points")
+        return tuple(wanted)
+
+    def _panel_visible(self, key: str) -> bool:
+        dock = self.docks.get(key)
+        if dock is None:
+            return key == "phase"
+        if self.isVisible():
+            return dock.isVisible()
+        return not dock.isHidden()  # rendering without a window on screen (export, tests)
+
+    def _start_system(self, compiled, launches: list[np.ndarray] | None) -> None:
+        """Stop the running worker; start a new one on ``compiled`` from the initial state."""
+        self._stop_worker()
+        self.compiled = compiled
+        self._generation += 1
+        n_points = len(compiled.point_names)
+        self.store = TrajectoryStore(n_points=n_points)
+        y0 = compiled.initial_state()
+        self.phase_view.set_system(compiled, y0)
+        self.configuration_view.set_system(compiled)
+        self.conserved_view.set_system(compiled)
+        self.settings = self._current_settings()
+        worker = SimulationWorker(compiled, self.settings, self._generation, stream=self._stream)
+        worker.blocks_ready.connect(self._on_worker_blocks_ready)
+        worker.failed.connect(self._on_worker_failed)
+        for state in [y0, *(launches or [])]:
+            trajectory = self.store.add(state)
+            worker.add_trajectory(trajectory.key, state)
+        if not self.controls.playing:
+            worker.pause()
+        self.runner = WorkerThread(worker)
+        self.runner.start()
+        self._rate_window.clear()
+        self.method_label.setText("")
+
+    def _stop_worker(self) -> None:
+        if self.runner is not None:
+            self.runner.stop()
+            self.runner = None
+
+    @property
+    def worker(self) -> SimulationWorker | None:
+        return None if self.runner is None else self.runner.worker
+
+    def _apply_settings(self) -> None:
+        if self.compiled is None or self.worker is None:
+            return
+        self.settings = self._current_settings()
+        self.worker.set_settings(self.settings)
+
+    def _on_worker_blocks_ready(self, frame) -> None:
+        if frame.generation != self._generation:
+            return  # a late frame from a replaced worker
+        steps = 0
+        for key, block in frame.blocks:
+            self.store.append(key, block)
+            steps += int(block.steps)
+        self._rate_window.append((time.perf_counter(), steps))
+        self.frame_received.emit()
+
+    def _on_worker_failed(self, message: str) -> None:
+        self.statusBar().showMessage(f"integration failed: {message}", 10000)
+
+    def _on_phase_launch_requested(self, state) -> None:
+        if self.worker is None:
+            return
+        t0 = 0.0
+        main = self.store.main
+        if main is not None and self.compiled.mechanics.classification.time_dependent:
+            t0 = main.last_t  # a driven system: start the new orbit at the current time
+        trajectory = self.store.add(state, t0)
+        self.worker.add_trajectory(trajectory.key, state, t0)
+
+    def _on_phase_launch_refused(self, message: str) -> None:
+        self.statusBar().showMessage(message, 5000)
+
+    def _on_phase_mode_changed(self, _mode: str) -> None:
+        if self.compiled is not None:
+            self._start_system(self.compiled, launches=self._launch_states())
+
+    def _on_controls_method_changed(self, _name) -> None:
+        self._apply_settings()
+
+    def _on_controls_step_changed(self, _value) -> None:
+        self._apply_settings()
+
+    def _on_controls_speed_changed(self, _speed: float) -> None:
+        self._apply_settings()
+
+    def _on_controls_play_toggled(self, playing: bool) -> None:
+        if self.worker is not None:
+            (self.worker.resume if playing else self.worker.pause)()
+
+    def _on_controls_single_step_requested(self) -> None:
+        if self.worker is not None:
+            if self.controls.playing:
+                self.controls.play_button.setChecked(False)
+            self.worker.step()
+
+    def _on_controls_reset_requested(self) -> None:
+        if self.compiled is not None:
+            self._start_system(self.compiled, launches=self._launch_states())
+
+    def _on_controls_clear_requested(self) -> None:
+        if self.worker is None:
+            return
+        for trajectory in list(self.store):
+            if trajectory.key != 0:
+                self.worker.remove_trajectory(trajectory.key)
+                self.store.remove(trajectory.key)
+
+    def _on_dock_visibility_changed(self, _visible: bool) -> None:
+        if self.compiled is not None and self.worker is not None:
+            wanted = self._wanted_diagnostics()
+            if wanted != self.settings.diagnostics:
+                self._apply_settings()
+            self.store.mark_dirty()
+
+    # -- redraw -------------------------------------------------------------------------------
+
+    def _on_redraw_timer_timeout(self) -> None:
+        if self.compiled is None:
+            return
+        for key, panel in self.panels.items():
+            if key == "workprecision" or not self._panel_visible(key):
+                continue
+            if self.store.take_dirty(key):
+                panel.refresh(self.store)
+        self.redraws += 1
+        self._update_status()
+
+    def _update_status(self) -> None:
+        main = self.store.main
+        if main is None:
+            return
+        self.time_label.setText(f"t = {main.last_t:.4g}")
+        if len(self._rate_window) >= 2:
+            (t0, _), (t1, _) = self._rate_window[0], self._rate_window[-1]
+            steps = sum(s for _, s in list(self._rate_window)[1:])
+            if t1 > t0:
+                self.rate_label.setText(f"{steps / (t1 - t0):.3g} steps/s")
+        cls = self.compiled.mechanics.classification
+        with np.errstate(all="ignore"):
+            H = self.compiled.hamiltonian(
+                np.array([main.t0, main.last_t]), np.array([main.y0, main.last_y])
+            )
+        if cls.hamiltonian_conserved:
+            error = abs(H[1] - H[0]) / (abs(H[0]) if H[0] != 0 else 1.0)
+            self.error_label.setText(f"|ΔH/H₀| = {error:.2e}")
+        else:
+            self.error_label.setText(f"H = {H[1]:.5g}")
+        method = main.method or (self.built.method if self.built else "")
+        self.method_label.setText(f"method: {method}")
+        if main.status not in ("running", "ok"):
+            self.statusBar().showMessage(f"stopped: {main.status}: {main.message}")
+
+    # -- files ---------------------------------------------------------------------------------
+
+    def _on_open_triggered(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open scene", "", "Scenes (*.toml)")
+        if path:
+            self._on_editor_catalogue_selected(path)
+
+    def _on_save_triggered(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Save scene as", "", "Scenes (*.toml)")
+        if path:
+            self.save_scene(path)
+
+    def save_scene(self, path: str | Path) -> None:
+        """Write the edited system (with the current parameter values) as a scene file."""
+        Path(path).write_text(self.editor.scene_text(), encoding="utf-8")
+        self.statusBar().showMessage(f"saved {path}", 5000)
+
+    def export_panel_dialog(self, key: str) -> None:
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Export figure", f"{key}.png", "PNG image (*.png);;SVG drawing (*.svg)"
+        )
+        if path:
+            self.export_panel(key, path)
+
+    def export_panel(self, key: str, path: str | Path) -> Path:
+        """Render a panel to PNG or SVG (chosen by the suffix of ``path``)."""
+        from explorer.export import export_widget
+
+        panel = self.panels[key]
+        panel.refresh(self.store) if key != "workprecision" else None
+        written = export_widget(panel.export_target(), path)
+        self.statusBar().showMessage(f"wrote {written}", 5000)
+        return written
+
+    def _on_export_csv_triggered(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Export trajectories", "trajectories.csv", "CSV (*.csv)"
+        )
+        if path:
+            self.export_csv(path)
+
+    def export_csv(self, path: str | Path) -> Path:
+        """Write every trajectory (t, q, q_dot, p_q, H; an ``orbit`` column) to CSV."""
+        from explorer.export import write_trajectories_csv
+
+        if self.compiled is None:
+            raise RuntimeError("no system is open")
+        return write_trajectories_csv(self.compiled, list(self.store), path)
+
+    # -- closing -------------------------------------------------------------------------------
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt override
+        self.shutdown()
+        super().closeEvent(event)
+
+    def shutdown(self) -> None:
+        """Stop the redraw timer, the worker and the builder threads."""
+        self.redraw_timer.stop()
+        self._stop_worker()
+        self.builder.stop()
+        self.editor.shutdown()
+        if self.workprecision_view is not None:
+            self.workprecision_view.shutdown()

@@ -1,0 +1,131 @@
+"""Configuration view: the mechanism animated from the scene's drawing, and the path in (q1, q2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtWidgets import QVBoxLayout, QWidget
+
+from explorer.labels import coordinate_label
+from explorer.panels.curves import TrailCurve
+from explorer.trajectories import backfill_points
+
+ROD_PEN = pg.mkPen("#333333", width=3)
+TRACE_POINTS = 4000
+
+
+class ConfigurationView(QWidget):
+    """The main trajectory's mechanism (rods, bobs, traces) and, for n >= 2, its (q1, q2) path."""
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        self.compiled = None
+        self.layout_widget = pg.GraphicsLayoutWidget()
+        self.layout_widget.setBackground("w")
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addWidget(self.layout_widget)
+        self.mechanism = self.layout_widget.addPlot(row=0, col=0)
+        self.mechanism.setAspectLocked(True)
+        self.mechanism.showGrid(x=True, y=True, alpha=0.15)
+        self.mechanism.setLabel("bottom", "x")
+        self.mechanism.setLabel("left", "y")
+        self.path_plot: pg.PlotItem | None = None
+        self._rods = pg.PlotDataItem(pen=ROD_PEN, connect="pairs")
+        self._bobs = pg.ScatterPlotItem(size=16, pen=pg.mkPen("#222"), brush=pg.mkBrush("#1f77b4"))
+        self._pivot = pg.ScatterPlotItem(
+            [0], [0], size=9, symbol="s", pen=pg.mkPen("#222"), brush="#777"
+        )
+        self._traces: list[pg.PlotDataItem] = []
+        self._path: TrailCurve | None = None
+        self._head: pg.ScatterPlotItem | None = None
+        self._message = pg.TextItem("", color="#555", anchor=(0.5, 0.5))
+        self._trace_from = 0
+
+    def set_system(self, compiled) -> None:
+        """Show a newly compiled system (its drawing and coordinates)."""
+        self.compiled = compiled
+        scene = compiled.mechanics.scene
+        self.mechanism.clear()
+        self._traces.clear()
+        drawing = scene.drawing
+        self.mechanism.setTitle(f"{scene.title}: configuration")
+        if drawing is None or not drawing.points:
+            self._message.setText("This scene has no [drawing] table.")
+            self.mechanism.addItem(self._message)
+        else:
+            self.mechanism.addItem(self._rods)
+            self.mechanism.addItem(self._pivot)
+            self.mechanism.addItem(self._bobs)
+            for name in drawing.trace:
+                item = pg.PlotDataItem(pen=pg.mkPen("#d62728", width=1), name=f"trace of {name}")
+                item.setZValue(-5)
+                self.mechanism.addItem(item)
+                self._traces.append(item)
+        if self.path_plot is not None:
+            self.layout_widget.removeItem(self.path_plot)
+            self.path_plot = None
+            self._path = None
+        if compiled.n >= 2:
+            q1, q2 = scene.coordinates[:2]
+            self.path_plot = self.layout_widget.addPlot(row=0, col=1)
+            self.path_plot.setTitle(f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
+            self.path_plot.setLabel("bottom", coordinate_label(q1))
+            self.path_plot.setLabel("left", coordinate_label(q2))
+            self.path_plot.showGrid(x=True, y=True, alpha=0.15)
+            self._path = TrailCurve(self.path_plot, pg.mkPen("#1f77b4", width=1.2))
+            self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
+            self.path_plot.addItem(self._head)
+        self._fit_range(compiled)
+
+    def _fit_range(self, compiled) -> None:
+        scene = compiled.mechanics.scene
+        if scene.drawing is None or not scene.drawing.points:
+            self.mechanism.setXRange(-1, 1)
+            self.mechanism.setYRange(-1, 1)
+            return
+        y0 = compiled.initial_state()
+        points = compiled.drawing(0.0, y0[None, :])[0]
+        reach = float(np.nanmax(np.abs(points))) if np.isfinite(points).any() else 1.0
+        reach = 1.15 * max(reach, 1e-3)
+        ranges = dict(scene.view.get("ranges", {}) or {})
+        if "x" in ranges and "y" in ranges and "x" not in scene.coordinates:
+            self.mechanism.setXRange(*ranges["x"], padding=0)
+            self.mechanism.setYRange(*ranges["y"], padding=0)
+        else:
+            self.mechanism.setXRange(-reach, reach, padding=0)
+            self.mechanism.setYRange(-reach, reach, padding=0)
+
+    def refresh(self, store) -> None:
+        """Draw the main trajectory's current configuration and traces."""
+        trajectory = store.main
+        if self.compiled is None or trajectory is None:
+            return
+        scene = self.compiled.mechanics.scene
+        drawing = scene.drawing
+        total = len(trajectory.t)
+        if drawing is not None and drawing.points:
+            start = max(total - TRACE_POINTS, 0) if drawing.trace else total - 1
+            window = backfill_points(trajectory, self.compiled, start)
+            current = window[-1]
+            names = list(self.compiled.point_names)
+            where = {name: current[k] for k, name in enumerate(names)}
+            where["origin"] = np.zeros(2)
+            segments = np.array([[where[a], where[b]] for a, b in drawing.links]).reshape(-1, 2)
+            if len(segments):
+                self._rods.setData(segments[:, 0], segments[:, 1])
+            else:
+                self._rods.setData([], [])
+            self._bobs.setData(current[:, 0], current[:, 1])
+            for item, name in zip(self._traces, drawing.trace, strict=True):
+                if name == "origin":
+                    continue
+                k = names.index(name)
+                item.setData(window[:, k, 0], window[:, k, 1])
+        if self._path is not None:
+            y = trajectory.y.data
+            self._path.update(y[:, 0], y[:, 1])
+            self._head.setData([y[-1, 0]], [y[-1, 1]])
+
+    def export_target(self) -> QWidget:
+        return self.layout_widget
