@@ -23,7 +23,7 @@ import numpy as np
 
 from systems.integrators import STEPPERS, choose_method, gauss_tableau, get_stepper
 from systems.integrators.registry import Stepper
-from systems.integrators.stepsize import DEFAULT_TOL, default_step, fictitious_step
+from systems.integrators.stepsize import DEFAULT_TOL, STIFF_TOL, default_step, fictitious_step
 
 PROBLEMS = ("non_finite", "singular", "energy_error", "stalled")
 STATUS_CODES = {1: "non_finite", 2: "stalled", 3: "singular", 4: "stalled"}
@@ -453,9 +453,11 @@ def _make_runner(compiled, stepper, y0, t0, t_end, dt, tol, section):
     if family == "logh":
         ds = dt if dt is not None else fictitious_step(compiled, stepper, t0, y0, t_end)
         return _LogH(compiled, stepper, y0, t0, t_end, ds, section)
-    tol = DEFAULT_TOL if tol is None else tol
     if family == "dop853":
+        tol = DEFAULT_TOL if tol is None else tol
         return _Dop853(compiled, stepper, y0, t0, t_end, tol, section)
+    # implicit stiff solvers: a tolerance loose enough to step over resolved-away fast modes
+    tol = STIFF_TOL if tol is None else tol
     return _Scipy(compiled, stepper, y0, t0, t_end, max(tol, 1e-12), section)
 
 

@@ -2,7 +2,10 @@
 
 Rules, first match wins:
 
-1. stiff (see ``stiffness_ratio``) -> ``radau``;
+1. stiff (see ``stiffness_ratio``): with decaying fast modes -> ``radau``; with purely
+   oscillatory fast modes in a conservative system (a stiff spring) ->
+   ``gauss_legendre4`` with a step that resolves the fastest mode, since an L-stable
+   method must resolve an excited oscillation too, at far higher cost per step;
 2. not conservative (dissipation, driving forces, explicitly time-dependent potential)
    or H not conserved -> ``dop853``;
 3. separable, autonomous, with a singular attractive potential (a coordinate expression
@@ -49,8 +52,8 @@ def _number(expr, subs: dict) -> float:
     return float(expr)
 
 
-def _rates(mechanics) -> np.ndarray:
-    """Moduli of the eigenvalues of the Jacobian of Hamilton's equations at the start."""
+def _eigenvalues(mechanics) -> np.ndarray:
+    """Eigenvalues of the Jacobian of Hamilton's equations at the start (complex)."""
     params, y0 = initial_point(mechanics)
     variables = (*mechanics.q, *mechanics.p)
     exprs = [as_expr(e).xreplace(params) for e in mechanics.hamilton_equations]
@@ -70,7 +73,7 @@ def _rates(mechanics) -> np.ndarray:
             return np.array([])
     if not np.all(np.isfinite(J)):
         return np.array([])
-    return np.abs(np.linalg.eigvals(J))
+    return np.linalg.eigvals(J)
 
 
 def stiffness_ratio(mechanics) -> float:
@@ -83,7 +86,11 @@ def stiffness_ratio(mechanics) -> float:
     unstable or stalls there, and an L-stable implicit method is the right tool.
     Returns 1.0 when the ratio cannot be formed (no motion, a singular start).
     """
-    rates = _rates(mechanics)
+    return _ratio(_eigenvalues(mechanics))
+
+
+def _ratio(eigenvalues: np.ndarray) -> float:
+    rates = np.abs(eigenvalues)
     if rates.size == 0:
         return 1.0
     fast = rates.max()
@@ -131,8 +138,16 @@ def choose_method(mechanics) -> tuple[str, str]:
         One line saying why.
     """
     c = mechanics.classification
-    ratio = stiffness_ratio(mechanics)
+    eigenvalues = _eigenvalues(mechanics)
+    ratio = _ratio(eigenvalues)
     if ratio > STIFF_RATIO:
+        fast = eigenvalues[np.abs(eigenvalues) > 0.5 * np.abs(eigenvalues).max()]
+        oscillatory = np.all(np.abs(fast.real) <= 0.01 * np.abs(fast))
+        if oscillatory and c.conservative and c.hamiltonian_conserved:
+            return "gauss_legendre4", (
+                f"stiff (time scales differ by {ratio:.3g}) but the fast modes oscillate: "
+                "implicit symplectic Gauss-Legendre with steps that resolve them"
+            )
         return "radau", (
             f"stiff: time scales at the start differ by a factor {ratio:.3g} "
             f"(> {STIFF_RATIO:g}), so an L-stable implicit method"

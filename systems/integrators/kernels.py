@@ -228,11 +228,13 @@ def _gauss_step(t, y, P, dt, A, b, c, Z, F, Yst, tol, maxit):
         if diff <= tol:
             converged = True
             break
-        if it > 2 and diff >= prev:
-            # round-off level reached: further iterations only wander
-            converged = diff < 1e3 * tol + 1e-12
+        if diff >= prev and diff < 1e-10:
+            # round-off level reached (Hairer's criterion): further iterations only wander
+            converged = True
             break
         prev = diff
+    if not converged and diff < 1e-10:
+        converged = True
     if converged:
         # the increment uses F(y + Z) of the converged stages
         for i in range(s):

@@ -12,6 +12,7 @@ STEPS_PER_PERIOD = {2: 200, 4: 60, 6: 30, 8: 20}
 """Steps per fastest period at the start, by order: about 1e-4 relative error per period."""
 
 DEFAULT_TOL = 1e-10
+STIFF_TOL = 1e-6
 
 
 def fastest_rate(compiled, t0: float, y0: np.ndarray) -> float:
