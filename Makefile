@@ -21,8 +21,8 @@ run: $(VENV)/.installed
 	$(BIN)/python main.py
 
 test: $(VENV)/.installed-test
-	$(BIN)/ruff check systems explorer tests benchmarks main.py
-	$(BIN)/ruff format --check systems explorer tests benchmarks main.py
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed-test
