@@ -1,0 +1,209 @@
+"""Shared numeric helpers: lambdified expressions with parameter values, periodicity, roots.
+
+Not the hot path: ``sympy.lambdify`` with numpy and ``cse=True`` is enough here. Every
+function returned by ``vectorize`` broadcasts constant entries to the shape of its inputs.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import weakref
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+import sympy
+
+from systems.mechanics import Mechanics
+
+TWO_PI = 2.0 * math.pi
+
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def cache_for(mechanics: Mechanics) -> dict:
+    """A dictionary of derived objects that lives as long as ``mechanics``."""
+    try:
+        return _CACHE.setdefault(mechanics, {})
+    except TypeError:  # not weak-referenceable: no caching
+        return {}
+
+
+def parameter_values(
+    mechanics: Mechanics, parameters: Mapping[str, float] | None = None
+) -> dict[sympy.Symbol, float]:
+    """The scene's parameter values (optionally overridden), keyed by their symbols."""
+    values = dict(mechanics.scene.parameter_values)
+    if parameters:
+        unknown = set(parameters) - set(values)
+        if unknown:
+            raise ValueError(f"unknown parameter {sorted(unknown)[0]!r}")
+        values.update({k: float(v) for k, v in parameters.items()})
+    return {mechanics.params[name]: float(value) for name, value in values.items()}
+
+
+def with_parameters(expr, mechanics: Mechanics, parameters: Mapping[str, float] | None = None):
+    """``expr`` with every parameter replaced by its numeric value (sympy Float)."""
+    values = {s: sympy.Float(v) for s, v in parameter_values(mechanics, parameters).items()}
+    return sympy.sympify(expr).xreplace(values)
+
+
+def vectorize(
+    exprs: Sequence[sympy.Expr], args: Sequence[sympy.Symbol]
+) -> Callable[..., np.ndarray]:
+    """Lambdify a list of expressions into ``f(*arrays) -> ndarray (len(exprs), *shape)``.
+
+    The arrays are broadcast together; constant expressions are broadcast to their shape.
+    """
+    exprs = [sympy.sympify(e) for e in exprs]
+    raw = sympy.lambdify(list(args), exprs, modules="numpy", cse=True)
+
+    def function(*arrays) -> np.ndarray:
+        arrays = [np.asarray(a, dtype=float) for a in arrays]
+        shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else ()
+        with np.errstate(all="ignore"):
+            values = raw(*arrays)
+        out = np.empty((len(exprs), *shape))
+        for i, value in enumerate(values):
+            out[i] = np.broadcast_to(np.asarray(value, dtype=float), shape)
+        return out
+
+    return function
+
+
+def is_periodic(expr: sympy.Expr, symbol: sympy.Symbol, others: Sequence[sympy.Symbol]) -> bool:
+    """True if ``expr`` is unchanged by ``symbol -> symbol + 2 pi`` at random real points."""
+    if not expr.has(symbol):
+        return False
+    shifted = expr.xreplace({symbol: symbol + 2 * sympy.pi})
+    free = sorted((expr.free_symbols | set(others)) - {symbol}, key=str)
+    f = vectorize([expr, shifted], [symbol, *free])
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-2.0, 2.0, size=(1 + len(free), 8))
+    points[1:] = np.where(np.abs(points[1:]) < 0.2, 0.7, points[1:])
+    base, moved = f(*points)
+    if not (np.all(np.isfinite(base)) and np.all(np.isfinite(moved))):
+        return False
+    scale = max(1.0, float(np.max(np.abs(base))))
+    return bool(np.max(np.abs(base - moved)) <= 1e-9 * scale)
+
+
+def fold_angle(x: float | np.ndarray) -> float | np.ndarray:
+    """Angles folded into (-pi, pi]."""
+    folded = -np.mod(-np.asarray(x, dtype=float) + math.pi, TWO_PI) + math.pi
+    return float(folded) if np.ndim(folded) == 0 else folded
+
+
+def level_crossings(
+    f: Callable[[np.ndarray], np.ndarray], level: float, lo: float, hi: float, samples: int = 2001
+) -> np.ndarray:
+    """Every x in [lo, hi] where ``f(x) = level`` (sign changes on a grid, then brentq).
+
+    A log-spaced grid is used when ``0 < lo`` and ``hi / lo > 100``. Returns shape (m,).
+    """
+
+    if 0 < lo and hi / lo > 100:
+        x = np.geomspace(lo, hi, samples)
+    else:
+        x = np.linspace(lo, hi, samples)
+    with np.errstate(all="ignore"):
+        g = f(x) - level
+    roots = []
+    for i in range(samples - 1):
+        a, b = g[i], g[i + 1]
+        if not (np.isfinite(a) and np.isfinite(b)):
+            continue
+        if a == 0.0:
+            roots.append(x[i])
+        elif a * b < 0:
+            roots.append(_brent(lambda s: float(f(np.array([s]))[0]) - level, x[i], x[i + 1]))
+    if np.isfinite(g[-1]) and g[-1] == 0.0:
+        roots.append(x[-1])
+    return np.array(roots, dtype=float)
+
+
+def bracket_around(
+    f: Callable[[np.ndarray], np.ndarray],
+    level: float,
+    x0: float,
+    direction: int,
+    *,
+    first_step: float,
+    limit: float,
+    growth: float = 1.05,
+) -> float | None:
+    """The first x beyond ``x0`` (to the right for direction +1) where ``f(x) = level``.
+
+    Steps outward geometrically from ``first_step`` until ``limit`` away from ``x0``;
+    returns None if ``f`` stays below ``level`` (an unbounded or open side).
+    """
+    steps = [first_step]
+    while steps[-1] < limit:
+        steps.append(min(limit, steps[-1] * growth + first_step))
+    x = x0 + direction * np.concatenate([[0.0], np.array(steps)])
+    with np.errstate(all="ignore"):
+        g = f(x) - level
+    for i in range(1, len(x)):
+        if not np.isfinite(g[i]):
+            return None
+        if g[i] >= 0.0:
+            if g[i] == 0.0:
+                return float(x[i])
+            return _brent(lambda s: float(f(np.array([s]))[0]) - level, x[i - 1], x[i])
+    return None
+
+
+def _brent(function, a: float, b: float) -> float:
+    from scipy.optimize import brentq
+
+    lo, hi = min(a, b), max(a, b)
+    return float(brentq(function, lo, hi, xtol=1e-15 * max(1.0, abs(lo), abs(hi)), rtol=1e-15))
+
+
+# -- running sympy with a time limit ----------------------------------------------------------
+
+
+def run_bounded(function: Callable, args: tuple, timeout: float):
+    """Run ``function(*args)`` in a forked child process; None if it fails or overruns.
+
+    sympy's solvers may run for a very long time on some inputs; a child process can be
+    stopped, a thread cannot. Where ``fork`` is unavailable, returns None (the caller
+    falls back to a numeric method).
+    """
+    try:
+        context = multiprocessing.get_context("fork")
+    except ValueError:
+        return None
+    receiver, sender = context.Pipe(duplex=False)
+    process = context.Process(target=_child, args=(sender, function, args), daemon=True)
+    try:
+        process.start()
+    except OSError:
+        return None
+    sender.close()
+    result = None
+    try:
+        if receiver.poll(timeout):
+            status, value = receiver.recv()
+            result = value if status == "ok" else None
+    except (EOFError, OSError):
+        result = None
+    finally:
+        receiver.close()
+        if process.is_alive():
+            process.kill()
+        process.join(1.0)
+    return result
+
+
+def _child(sender, function, args) -> None:
+    try:
+        value = function(*args)
+        sender.send(("ok", value))
+    except BaseException as exc:  # noqa: BLE001 - reported to the parent as a failure
+        try:
+            sender.send(("error", repr(exc)))
+        except Exception:  # noqa: BLE001
+            pass
+    finally:
+        sender.close()

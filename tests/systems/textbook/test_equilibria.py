@@ -1,0 +1,125 @@
+import math
+import time
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+from systems.mechanics import derive
+from systems.textbook._numeric import run_bounded
+from systems.textbook.equilibria import equilibria_json, find_equilibria, search_equilibria
+from tests.systems.scenes import DRIVEN_DAMPED, PENDULUM, PLANETARY, VARIABLE_LENGTH, scene
+from tests.systems.textbook.scenes import COUPLED, HOOP, TRANSCENDENTAL
+
+
+def test_pendulum_bottom_stable_at_sqrt_g_over_l_top_unstable():
+    mech = derive(scene(PENDULUM))
+    g, l = mech.scene.parameter_values["g"], mech.scene.parameter_values["l"]
+    result = search_equilibria(mech)
+    assert result.periodic == ("theta",)
+    assert [e.kind for e in result.equilibria] == ["minimum", "maximum"]
+    bottom, top = result.equilibria
+    assert bottom.q == {"theta": 0.0} and bottom.stable
+    assert bottom.frequencies == pytest.approx([math.sqrt(g / l)], rel=1e-12)
+    assert top.q["theta"] == pytest.approx(math.pi, abs=1e-12) and not top.stable
+    assert top.frequencies == []
+    assert top.omega_squared[0] == pytest.approx(-g / l, rel=1e-12)  # growth rate^2
+    assert equilibria_json(mech) == [
+        {"q": {"theta": 0.0}, "stable": True, "frequencies": [pytest.approx(math.sqrt(g / l))]},
+        {"q": {"theta": pytest.approx(math.pi)}, "stable": False, "frequencies": []},
+    ]
+
+
+def test_pendulum_numeric_search_agrees_with_symbolic():
+    mech = derive(scene(PENDULUM))
+    numeric = search_equilibria(mech, symbolic=False)
+    assert numeric.method == "numeric"
+    symbolic = equilibria_json(mech)
+    assert len(numeric.equilibria) == len(symbolic) == 2
+    for got, want in zip(numeric.equilibria, symbolic, strict=True):
+        got = got.as_json()
+        assert got["q"]["theta"] == pytest.approx(want["q"]["theta"], abs=1e-10)
+        assert got["stable"] == want["stable"]
+        assert got["frequencies"] == pytest.approx(want["frequencies"], rel=1e-10)
+
+
+def test_three_equal_springs_normal_modes():
+    mech = derive(scene(COUPLED))
+    m, k = mech.scene.parameter_values["m"], mech.scene.parameter_values["k"]
+    (eq,) = find_equilibria(mech)
+    assert eq.kind == "minimum"
+    assert eq.q == pytest.approx({"x1": 0.0, "x2": 0.0}, abs=1e-12)
+    assert eq.frequencies == pytest.approx([math.sqrt(k / m), math.sqrt(3 * k / m)], rel=1e-12)
+    slow, fast = eq.modes.T
+    assert slow[0] == pytest.approx(slow[1], rel=1e-10)  # in phase
+    assert fast[0] == pytest.approx(-fast[1], rel=1e-10)  # opposite
+    assert slow @ (m * np.eye(2)) @ slow == pytest.approx(1.0)  # M-normalized
+
+
+def test_spinning_hoop_uses_the_velocity_free_kinetic_term():
+    mech = derive(scene(HOOP))
+    v = mech.scene.parameter_values
+    c = v["g"] / (v["w"] ** 2 * v["R"])  # cos of the off-axis equilibria
+    result = search_equilibria(mech)
+    angles = sorted(e.q["theta"] for e in result.equilibria)
+    assert angles == pytest.approx([-math.acos(c), 0.0, math.acos(c), math.pi], abs=1e-10)
+    by_angle = {round(e.q["theta"], 6): e for e in result.equilibria}
+    side = by_angle[round(math.acos(c), 6)]
+    assert side.stable and not by_angle[0.0].stable  # spun fast, the bottom is unstable
+    assert side.frequencies == pytest.approx([v["w"] * math.sqrt(1 - c**2)], rel=1e-10)
+    assert side.exact  # sympy found the closed form acos(g/(R w^2))
+
+
+def test_transcendental_well_falls_back_to_numeric_roots():
+    mech = derive(scene(TRANSCENDENTAL))
+    a = mech.scene.parameter_values["a"]
+    result = search_equilibria(mech, box={"x": (-6.0, 6.0)}, timeout=0.5)
+    assert result.method in ("numeric", "symbolic+numeric")
+
+    def grad(x):
+        return -math.sin(x) + 2 * a * x
+
+    expected = [0.0]
+    for lo, hi in [(1.0, 3.0), (-3.0, -1.0)]:
+        expected.append(scipy.optimize.brentq(grad, lo, hi, xtol=1e-14))
+    found = sorted(e.q["x"] for e in result.equilibria)
+    assert found == pytest.approx(sorted(expected), abs=1e-9)
+    kinds = {round(e.q["x"], 6): e.kind for e in result.equilibria}
+    assert kinds[0.0] == "maximum"  # U'' = -1 + 2a < 0
+
+
+def test_planetary_motion_has_no_equilibrium_and_theta_is_free():
+    result = search_equilibria(derive(scene(PLANETARY)))
+    assert result.equilibria == []
+    assert result.free == ("theta",) and result.searched == ("r",)
+    assert "nowhere" in result.reason
+
+
+def test_rheonomic_scene_has_none_with_a_reason():
+    result = search_equilibria(derive(scene(VARIABLE_LENGTH)))
+    assert result.equilibria == [] and result.method == "none"
+    assert "rheonomic" in result.reason
+
+
+def test_driven_damped_scene_gives_the_conservative_part():
+    result = search_equilibria(derive(scene(DRIVEN_DAMPED)))
+    assert [e.kind for e in result.equilibria] == ["minimum", "maximum"]
+    assert "conservative part" in result.reason
+
+
+def test_box_limits_the_search():
+    mech = derive(scene(PENDULUM))
+    result = search_equilibria(mech, box={"theta": (-1.0, 1.0)})
+    assert [e.q["theta"] for e in result.equilibria] == [0.0]
+
+
+def _slow():
+    time.sleep(30)
+    return 1
+
+
+def test_bounded_run_gives_up_in_time():
+    start = time.perf_counter()
+    assert run_bounded(_slow, (), 0.3) is None
+    assert time.perf_counter() - start < 3.0
+    assert run_bounded(math.hypot, (3.0, 4.0), 5.0) == 5.0
