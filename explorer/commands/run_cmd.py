@@ -1,0 +1,190 @@
+"""``run SCENE``: integrate headless, write the trajectory, report what it cost."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from explorer.commands.errors import UserError, user_errors
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("run", help="integrate a scene headless and report the result")
+    parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
+    parser.add_argument("--t-end", type=float, default=None, help="end time (default: scene's)")
+    parser.add_argument("--method", default=None, help="a stepper name (default: automatic)")
+    step = parser.add_mutually_exclusive_group()
+    step.add_argument("--dt", type=float, default=None, help="fixed step of fixed-step methods")
+    step.add_argument("--tol", type=float, default=None, help="tolerance of adaptive methods")
+    parser.add_argument("--out", default=None, help="write the trajectory to FILE.csv or .npz")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
+    """Load, derive, choose and compile. Returns (scene, mechanics, method, why, compiled).
+
+    Raises ``UserError`` for an unknown method or one the system does not allow.
+    """
+    from systems.compiled import compile_system
+    from systems.integrators import STEPPERS, choose_method
+    from systems.mechanics import derive
+    from systems.scene import load_scene
+    from systems.simulation import required_wants
+
+    with user_errors():
+        scene = load_scene(scene_name)
+        mechanics = derive(scene)
+    auto, auto_why = choose_method(mechanics)
+    if method is None:
+        method, why = auto, auto_why
+    else:
+        if method not in STEPPERS:
+            raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
+        check_method(mechanics, method)
+        why = f"requested (the automatic choice would be {auto}: {auto_why})"
+    wants = required_wants(method) | {"hamiltonian", *extra_wants}
+    with user_errors():
+        compiled = compile_system(mechanics, wants)
+    return scene, mechanics, method, why, compiled
+
+
+def check_method(mechanics, method: str) -> None:
+    """``UserError`` when ``method`` needs a structure the system lacks."""
+    from systems.integrators import STEPPERS
+
+    stepper = STEPPERS[method]
+    c = mechanics.classification
+    if stepper.needs_separable and not c.separable:
+        raise UserError(
+            f"method {method!r} needs a separable Hamiltonian H = T(p) + V(q), and this "
+            "system's is not; try gauss_legendre4 or dop853"
+        )
+    if stepper.time_transformed and (c.time_dependent or not c.hamiltonian_conserved):
+        raise UserError(
+            f"method {method!r} needs a conservative, time-independent system; try dop853"
+        )
+
+
+def warm_up(compiled, method: str, y0: np.ndarray, dt, tol) -> None:
+    """Compile (or load from the cache) the kernels a run will use, on a throwaway run."""
+    from systems.simulation import stream
+
+    for _ in stream(
+        compiled, method=method, y0=y0, t_end=1e-9, dt=dt, tol=tol, energy_tolerance=math.inf
+    ):
+        pass
+
+
+def run(args: argparse.Namespace) -> int:
+    from systems.simulation import stream
+
+    if args.dt is not None and not args.dt > 0:
+        raise UserError("--dt must be positive")
+    if args.tol is not None and not args.tol > 0:
+        raise UserError("--tol must be positive")
+    if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
+        raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
+    start = time.perf_counter()
+    scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
+    t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
+    if not t_end > 0:
+        raise UserError("--t-end must be positive")
+    y0 = compiled.initial_state()
+    warm_up(compiled, method, y0, args.dt, args.tol)
+    compile_s = time.perf_counter() - start
+
+    ts, ys, Hs = [np.array([0.0])], [y0[None, :]], []
+    last = None
+    start = time.perf_counter()
+    for block in stream(
+        compiled, method=method, y0=y0, t_end=t_end, dt=args.dt, tol=args.tol, max_points=4096
+    ):
+        ts.append(block.t)
+        ys.append(block.y)
+        last = block
+    wall_s = time.perf_counter() - start
+    t = np.concatenate(ts)
+    y = np.concatenate(ys)
+    n = compiled.n
+    with np.errstate(all="ignore"):
+        H = compiled.hamiltonian(t, y)
+        qdot = compiled.velocities(t, y)
+    del Hs
+    conserved = mechanics.classification.hamiltonian_conserved
+    max_rel = None
+    if conserved:
+        scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
+        max_rel = float(np.max(np.abs(H - H[0])) / scale)
+    if args.out:
+        write_trajectory(args.out, scene, t, y, qdot, H, n)
+    report = {
+        "method": method,
+        "why": why,
+        "steps": int(last.steps),
+        "rhs_evaluations": int(last.rhs_evaluations),
+        "wall_s": wall_s,
+        "compile_s": compile_s,
+        "t_end": float(t[-1]),
+        "final": {
+            "q": dict(zip(scene.coordinates, map(float, y[-1, :n]), strict=True)),
+            "qdot": dict(zip(scene.coordinates, map(float, qdot[-1]), strict=True)),
+            "p": dict(zip(scene.coordinates, map(float, y[-1, n:]), strict=True)),
+        },
+        "max_rel_energy_error": max_rel,
+        "status": last.status,
+        "message": last.message,
+    }
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(readable(scene, report))
+    if last.status != "ok":
+        print(f"stopped: {last.status}: {last.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:
+    """CSV columns t, each q, each q_dot, each p_q, H; or the same arrays in an .npz."""
+    header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
+    table = np.column_stack([t, y[:, :n], qdot, y[:, n:], H])
+    if Path(path).suffix.lower() == ".npz":
+        np.savez(
+            path,
+            t=t,
+            q=y[:, :n],
+            qdot=qdot,
+            p=y[:, n:],
+            H=H,
+            columns=np.array(header),
+        )
+        return
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        for row in table:
+            writer.writerow([repr(float(v)) for v in row])
+
+
+def readable(scene, report: dict) -> str:
+    lines = [
+        f"{scene.title}: integrated to t = {report['t_end']:g} with {report['method']}",
+        f"  why: {report['why']}",
+        f"  {report['steps']} steps, {report['rhs_evaluations']} evaluations, "
+        f"{report['wall_s']:.3g} s (compiling {report['compile_s']:.3g} s)",
+    ]
+    if report["max_rel_energy_error"] is not None:
+        lines.append(f"  max relative energy error: {report['max_rel_energy_error']:.3g}")
+    final = ", ".join(f"{k} = {v:.10g}" for k, v in report["final"]["q"].items())
+    lines.append(f"  final: {final}")
+    lines.append(
+        f"  status: {report['status']}" + (f" ({report['message']})" * bool(report["message"]))
+    )
+    return "\n".join(lines)
