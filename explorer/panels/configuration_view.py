@@ -7,7 +7,7 @@ import pyqtgraph as pg
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.labels import coordinate_label
-from explorer.panels.curves import TrailCurve
+from explorer.panels.curves import TrailCurve, style_plot
 from explorer.trajectories import backfill_points
 
 ROD_PEN = pg.mkPen("#333333", width=3)
@@ -27,7 +27,7 @@ class ConfigurationView(QWidget):
         layout.addWidget(self.layout_widget)
         self.mechanism = self.layout_widget.addPlot(row=0, col=0)
         self.mechanism.setAspectLocked(True)
-        self.mechanism.showGrid(x=True, y=True, alpha=0.15)
+        style_plot(self.mechanism)
         self.mechanism.setLabel("bottom", "x")
         self.mechanism.setLabel("left", "y")
         self.path_plot: pg.PlotItem | None = None
@@ -72,7 +72,7 @@ class ConfigurationView(QWidget):
             self.path_plot.setTitle(f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
             self.path_plot.setLabel("bottom", coordinate_label(q1))
             self.path_plot.setLabel("left", coordinate_label(q2))
-            self.path_plot.showGrid(x=True, y=True, alpha=0.15)
+            style_plot(self.path_plot)
             self._path = TrailCurve(self.path_plot, pg.mkPen("#1f77b4", width=1.2))
             self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
             self.path_plot.addItem(self._head)

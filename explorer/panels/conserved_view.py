@@ -11,7 +11,7 @@ import pyqtgraph as pg
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.labels import momentum_label
-from explorer.panels.curves import TrailCurve
+from explorer.panels.curves import TrailCurve, style_plot
 from explorer.trajectories import backfill_energy
 
 FLOOR = 1e-17
@@ -29,9 +29,8 @@ class ConservedView(QWidget):
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.layout_widget)
         self.energy_plot = self.layout_widget.addPlot(row=0, col=0)
-        self.energy_plot.showGrid(x=True, y=True, alpha=0.2)
+        style_plot(self.energy_plot)
         self.energy_plot.setLabel("bottom", "t")
-        self.energy_plot.getAxis("left").enableAutoSIPrefix(False)
         self.energy_legend = self.energy_plot.addLegend(offset=(-10, 10))
         self.momentum_plot: pg.PlotItem | None = None
         self.momentum_legend = None
@@ -65,7 +64,7 @@ class ConservedView(QWidget):
         if self.conserved_momenta:
             self.momentum_plot = self.layout_widget.addPlot(row=1, col=0)
             self.momentum_plot.setXLink(self.energy_plot)
-            self.momentum_plot.showGrid(x=True, y=True, alpha=0.2)
+            style_plot(self.momentum_plot)
             self.momentum_plot.setLabel("bottom", "t")
             labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
             self.momentum_plot.setTitle(f"Conserved momenta: {labels}")

@@ -62,3 +62,11 @@ class TrailCurve:
 
     def point_count(self) -> int:
         return sum(len(item.xData) for item in self.items if item.xData is not None)
+
+
+def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
+    """House style: a light grid, no SI-prefix rescaling of the axes (it hides the units)."""
+    plot.showGrid(x=True, y=True, alpha=0.15)
+    for name in ("left", "bottom"):
+        plot.getAxis(name).enableAutoSIPrefix(False)
+    return plot

@@ -10,7 +10,7 @@ from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLa
 
 from explorer import level_sets, poincare
 from explorer.labels import coordinate_label, momentum_label
-from explorer.panels.curves import TrailCurve
+from explorer.panels.curves import TrailCurve, style_plot
 from explorer.panels.ranges import axis_range, phase_ranges
 
 LEVEL_PEN = pg.mkPen("#9aa3ad", width=1)
@@ -69,7 +69,7 @@ class PhaseView(QWidget):
 
         self.plot_widget = pg.PlotWidget(background="w")
         self.plot = self.plot_widget.getPlotItem()
-        self.plot.showGrid(x=True, y=True, alpha=0.15)
+        style_plot(self.plot)
         self.legend = self.plot.addLegend(offset=(-10, 10), labelTextColor="#222")
         self.plot.scene().sigMouseClicked.connect(self._on_scene_clicked)
 
@@ -215,7 +215,7 @@ class PhaseView(QWidget):
         ).reshape(Q.shape)
         rgba = np.zeros((size, size, 4), dtype=np.ubyte)
         rgba[mask] = FORBIDDEN_RGBA
-        image = pg.ImageItem(rgba)
+        image = pg.ImageItem(rgba, levels=(0, 255))
         image.setRect(q_range[0], p_range[0], q_range[1] - q_range[0], p_range[1] - p_range[0])
         image.setZValue(-20)
         self.plot.addItem(image)

@@ -1,0 +1,100 @@
+"""Panels drawn without a main window: integrate a scene to ``t_end`` and render a figure.
+
+Used by the ``export`` command. The scene is built and integrated synchronously (there is
+no event loop to keep responsive), then the panel is laid out offscreen and exported.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+FIGURE_SIZE = (1000, 720)
+
+
+def ensure_qt_platform() -> None:
+    """Render offscreen unless a Qt platform was chosen (must run before Qt starts)."""
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+
+def integrate(built, t_end: float, *, diagnostics=("H",), section=None):
+    """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``."""
+    from explorer.trajectories import TrajectoryStore
+    from systems.simulation import stream
+
+    compiled = built.compiled
+    store = TrajectoryStore(n_points=len(compiled.point_names))
+    trajectory = store.add(compiled.initial_state())
+    if "drawing" in compiled.wanted:
+        diagnostics = (*diagnostics, "points")
+    for block in stream(
+        compiled,
+        method=built.method or None,
+        t_end=t_end,
+        diagnostics=diagnostics,
+        section=section,
+        max_points=20000,
+    ):
+        store.append(trajectory.key, block)
+    return store
+
+
+def make_panel(key: str):
+    from explorer.panels.configuration_view import ConfigurationView
+    from explorer.panels.conserved_view import ConservedView
+    from explorer.panels.phase_view import PhaseView
+
+    return {"phase": PhaseView, "configuration": ConfigurationView, "conserved": ConservedView}[
+        key
+    ]()
+
+
+def render_panel(
+    scene,
+    panel: str,
+    out: str | Path,
+    *,
+    t_end: float | None = None,
+    poincare: bool = False,
+    size=FIGURE_SIZE,
+) -> tuple[Path, object]:
+    """Build ``scene``, integrate it to ``t_end`` and export ``panel`` to ``out``.
+
+    Returns the written path and the trajectory's final status (``"ok"`` or a problem).
+    """
+    ensure_qt_platform()
+    from explorer.app import application
+    from explorer.builder import build
+    from explorer.export import export_widget
+
+    app = application()
+    built = build(scene)
+    compiled = built.compiled
+    t_end = float(t_end if t_end is not None else scene.view.get("t_end", 20.0))
+    view = make_panel(panel)
+    view.resize(*size)
+    y0 = compiled.initial_state()
+    section = None
+    if panel == "phase":
+        view.set_system(compiled, y0)
+        if poincare:
+            view.set_mode("poincare")
+            if view.mode != "poincare":
+                raise ValueError(
+                    "a Poincaré section needs an autonomous conservative system "
+                    "of two degrees of freedom"
+                )
+            section = (view.section.coordinate, view.section.value, 1)
+    else:
+        view.set_system(compiled)
+    store = integrate(built, t_end, section=section)
+    view.show()
+    app.processEvents()
+    view.refresh(store)
+    app.processEvents()
+    written = export_widget(view.export_target(), out)
+    main = store.main
+    view.close()
+    view.deleteLater()
+    app.processEvents()
+    return written, main

@@ -1,0 +1,230 @@
+"""SVG figures through ``QSvgGenerator`` that real renderers draw correctly.
+
+Rendering a pyqtgraph widget straight into a ``QSvgGenerator`` gives curves in data
+coordinates under a large scaling transform, with cosmetic pens expressed as
+``vector-effect="non-scaling-stroke"`` and without clipping to the plot area (SVG Tiny
+has no clip paths): renderers such as librsvg then draw lines hundreds of pixels wide and
+data outside the axes. So the widget is rendered without its data items (axes, labels,
+legends and titles are drawn in pixel coordinates and come out right), and the data items
+are then drawn by this module in pixel coordinates, clipped to their view box: polylines
+as paths, scatter points as small vector symbols, images as embedded pictures.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, QRect, QRectF
+from PySide6.QtGui import QBrush, QPainter, QPainterPath, QPen, QTransform
+
+DATA_TYPES = (pg.PlotCurveItem, pg.ScatterPlotItem, pg.ImageItem, pg.TextItem)
+
+
+def _view_boxes(widget) -> list[pg.ViewBox]:
+    views = widget.findChildren(pg.GraphicsView)
+    if isinstance(widget, pg.GraphicsView):
+        views.append(widget)
+    boxes = []
+    for view in views:
+        boxes += [item for item in view.scene().items() if isinstance(item, pg.ViewBox)]
+    return boxes
+
+
+def _data_items(box: pg.ViewBox) -> list:
+    items = []
+    for item in box.childGroup.childItems():
+        stack = [item]
+        while stack:
+            current = stack.pop()
+            if isinstance(current, DATA_TYPES):
+                items.append(current)
+            else:
+                stack.extend(current.childItems())
+    return items
+
+
+def _to_widget(widget, item) -> QTransform:
+    """Transform from ``item``'s coordinates to ``widget``'s pixels."""
+    view = item.scene().views()[0]
+    transform = item.sceneTransform() * view.viewportTransform()
+    offset = view.viewport().mapTo(widget, view.viewport().rect().topLeft())
+    return transform * QTransform.fromTranslate(offset.x(), offset.y())
+
+
+def _box_rect(widget, box: pg.ViewBox) -> QRectF:
+    view = box.scene().views()[0]
+    polygon = view.mapFromScene(box.sceneBoundingRect())
+    offset = view.viewport().mapTo(widget, view.viewport().rect().topLeft())
+    return QRectF(polygon.boundingRect()).translated(offset.x(), offset.y())
+
+
+def _map(transform: QTransform, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    t = transform
+    return (
+        t.m11() * x + t.m21() * y + t.dx(),
+        t.m12() * x + t.m22() * y + t.dy(),
+    )
+
+
+def clip_segments(x: np.ndarray, y: np.ndarray, rect: QRectF):
+    """Segments of the polyline (x, y) clipped to ``rect`` (Liang–Barsky), as (x0, y0, x1, y1)."""
+    x0, y0, x1, y1 = x[:-1], y[:-1], x[1:], y[1:]
+    good = np.isfinite(x0) & np.isfinite(y0) & np.isfinite(x1) & np.isfinite(y1)
+    x0, y0, x1, y1 = x0[good], y0[good], x1[good], y1[good]
+    dx, dy = x1 - x0, y1 - y0
+    lo = np.zeros_like(x0)
+    hi = np.ones_like(x0)
+    keep = np.ones_like(x0, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for p, q in (
+            (-dx, x0 - rect.left()),
+            (dx, rect.right() - x0),
+            (-dy, y0 - rect.top()),
+            (dy, rect.bottom() - y0),
+        ):
+            parallel = p == 0
+            keep &= ~(parallel & (q < 0))
+            r = q / p
+            entering = (p < 0) & ~parallel
+            leaving = (p > 0) & ~parallel
+            lo = np.where(entering, np.maximum(lo, r), lo)
+            hi = np.where(leaving, np.minimum(hi, r), hi)
+    keep &= lo <= hi
+    return (
+        (x0 + lo * dx)[keep],
+        (y0 + lo * dy)[keep],
+        (x0 + hi * dx)[keep],
+        (y0 + hi * dy)[keep],
+    )
+
+
+def _polyline_path(segments) -> QPainterPath:
+    sx0, sy0, sx1, sy1 = segments
+    path = QPainterPath()
+    last = None
+    for a, b, c, d in zip(sx0.tolist(), sy0.tolist(), sx1.tolist(), sy1.tolist(), strict=True):
+        if last is None or abs(last[0] - a) > 1e-9 or abs(last[1] - b) > 1e-9:
+            path.moveTo(a, b)
+        path.lineTo(c, d)
+        last = (c, d)
+    return path
+
+
+def _pixel_pen(pen: QPen) -> QPen:
+    pen = QPen(pen)
+    pen.setCosmetic(False)
+    pen.setWidthF(max(pen.widthF(), 1.0))
+    return pen
+
+
+def _draw_curve(painter, widget, item: pg.PlotCurveItem, rect: QRectF) -> int:
+    x, y = item.getData()
+    if x is None or len(x) < 2:
+        return 0
+    x, y = _map(_to_widget(widget, item), np.asarray(x, float), np.asarray(y, float))
+    connect = item.opts.get("connect", "all")
+    if isinstance(connect, str) and connect == "pairs":
+        x = np.insert(x, np.arange(2, len(x), 2), np.nan)
+        y = np.insert(y, np.arange(2, len(y), 2), np.nan)
+    segments = clip_segments(x, y, rect)
+    if not len(segments[0]):
+        return 0
+    painter.setPen(_pixel_pen(pg.mkPen(item.opts["pen"])))
+    painter.setBrush(QBrush())
+    painter.drawPath(_polyline_path(segments))
+    return len(segments[0])
+
+
+def _draw_scatter(painter, widget, item: pg.ScatterPlotItem, rect: QRectF) -> int:
+    data = item.data
+    if not len(data):
+        return 0
+    x, y = _map(_to_widget(widget, item), data["x"].astype(float), data["y"].astype(float))
+    count = 0
+    for k in np.flatnonzero(np.isfinite(x) & np.isfinite(y)):
+        point = QPointF(x[k], y[k])
+        if not rect.contains(point):
+            continue
+        size = float(data["size"][k]) if data["size"][k] >= 0 else float(item.opts["size"])
+        pen = data["pen"][k] if data["pen"][k] is not None else pg.mkPen(item.opts["pen"])
+        brush = data["brush"][k] if data["brush"][k] is not None else pg.mkBrush(item.opts["brush"])
+        painter.setPen(_pixel_pen(pg.mkPen(pen)))
+        painter.setBrush(pg.mkBrush(brush))
+        symbol = data["symbol"][k] if data["symbol"][k] is not None else item.opts["symbol"]
+        half = size / 2
+        if symbol in ("s",):
+            painter.drawRect(QRectF(x[k] - half, y[k] - half, size, size))
+        elif symbol == "x":
+            painter.drawLine(QPointF(x[k] - half, y[k] - half), QPointF(x[k] + half, y[k] + half))
+            painter.drawLine(QPointF(x[k] - half, y[k] + half), QPointF(x[k] + half, y[k] - half))
+        else:
+            painter.drawEllipse(point, half, half)
+        count += 1
+    return count
+
+
+def _draw_image(painter, widget, item: pg.ImageItem, rect: QRectF) -> int:
+    if item.image is None:
+        return 0
+    item.render()
+    qimage = item.qimage
+    if qimage is None:
+        return 0
+    bounds = _to_widget(widget, item).mapRect(item.boundingRect())
+    target = bounds.intersected(rect)
+    if target.isEmpty():
+        return 0
+    sx = qimage.width() / bounds.width()
+    sy = qimage.height() / bounds.height()
+    source = QRectF(
+        (target.left() - bounds.left()) * sx,
+        (target.top() - bounds.top()) * sy,
+        target.width() * sx,
+        target.height() * sy,
+    )
+    flipped = _to_widget(widget, item).m22() < 0
+    image = qimage.mirrored(False, True) if flipped else qimage
+    if flipped:
+        source.moveTop(qimage.height() - source.bottom())
+    painter.drawImage(target, image, source)
+    return 1
+
+
+def write_svg(widget, path: str | Path, title: str = "Phase Explorer") -> dict[str, int]:
+    """Render ``widget`` (pyqtgraph plots inside) to ``path``; returns counts of drawn items."""
+    from PySide6.QtSvg import QSvgGenerator
+
+    size = widget.size()
+    generator = QSvgGenerator()
+    generator.setFileName(str(path))
+    generator.setSize(size)
+    generator.setViewBox(QRect(0, 0, size.width(), size.height()))
+    generator.setTitle(title)
+    generator.setResolution(widget.logicalDpiX())
+    boxes = [box for box in _view_boxes(widget) if box.isVisible()]
+    items = {box: [i for i in _data_items(box) if i.isVisible()] for box in boxes}
+    counts = {"curves": 0, "points": 0, "images": 0}
+    for group in items.values():
+        for item in group:
+            item.setVisible(False)
+    painter = QPainter(generator)
+    try:
+        widget.render(painter)
+        painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+        for box, group in items.items():
+            rect = _box_rect(widget, box)
+            for item in sorted(group, key=lambda i: i.zValue()):
+                if isinstance(item, pg.ImageItem):
+                    counts["images"] += _draw_image(painter, widget, item, rect)
+                elif isinstance(item, pg.PlotCurveItem):
+                    counts["curves"] += bool(_draw_curve(painter, widget, item, rect))
+                elif isinstance(item, pg.ScatterPlotItem):
+                    counts["points"] += _draw_scatter(painter, widget, item, rect)
+    finally:
+        painter.end()
+        for group in items.values():
+            for item in group:
+                item.setVisible(True)
+    return counts
