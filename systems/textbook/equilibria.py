@@ -65,7 +65,11 @@ class Equilibrium:
     hessian : ndarray, shape (m, m)
         K = d2U/dq2 over the searched coordinates.
     potential : float
-        U at the equilibrium.
+        U at the equilibrium, which is also H there: the energy of the level set through
+        it (a saddle's level set is the separatrix).
+    p : dict[str, float]
+        The momenta at rest there (zero unless L has terms linear in the velocities),
+        for markers in a phase view.
     exact : dict[str, str]
         Closed forms found by sympy (coordinate -> expression text in the parameters);
         empty when the equilibrium was found numerically.
@@ -79,6 +83,7 @@ class Equilibrium:
     modes: np.ndarray
     hessian: np.ndarray
     potential: float
+    p: dict[str, float] = field(default_factory=dict)
     exact: dict[str, str] = field(default_factory=dict)
 
     def as_json(self) -> dict:
@@ -173,8 +178,9 @@ def search_equilibria(
         equilibria are those of the conservative part.
     box : mapping of coordinate name to (low, high), optional
         The region scanned numerically (the view). Defaults: (-pi, pi] for a periodic
-        coordinate, (-10, 10) otherwise. When a box is given, symbolic solutions outside
-        it are dropped too; without one they are all kept.
+        coordinate; otherwise (-10, 10), widened to cover three times the scene's view
+        range of the coordinate (``[view] ranges``) if it has one. When a box is given,
+        symbolic solutions outside it are dropped too; without one they are all kept.
     parameters : mapping of name to float, optional
         Parameter values overriding the scene's.
     symbolic : bool
@@ -224,7 +230,7 @@ def search_equilibria(
             numeric_expression, symbol_of[name], [s for s in everything if s != symbol_of[name]]
         )
     )
-    region = _region(searched, periodic, box)
+    region = _region(searched, periodic, box, mechanics.scene.view)
     U_numeric = with_parameters(U, mechanics, parameters)
     problem = _Problem(mechanics, U_numeric, unknowns, searched, free, periodic, region, parameters)
 
@@ -271,7 +277,8 @@ def search_equilibria(
 # -- the pieces -------------------------------------------------------------------------------
 
 
-def _region(searched, periodic, box: Box | None) -> dict[str, tuple[float, float]]:
+def _region(searched, periodic, box: Box | None, view: Mapping) -> dict[str, tuple[float, float]]:
+    ranges = view.get("ranges", {}) if isinstance(view, Mapping) else {}
     region = {}
     for name in searched:
         if box is not None and name in box:
@@ -282,6 +289,12 @@ def _region(searched, periodic, box: Box | None) -> dict[str, tuple[float, float
             lo, hi = -math.pi, math.pi
         else:
             lo, hi = -DEFAULT_HALF_WIDTH, DEFAULT_HALF_WIDTH
+            try:  # a scene's view range, widened three times about its centre
+                a, b = (float(v) for v in ranges[name])
+                centre, width = (a + b) / 2, abs(b - a)
+                lo, hi = min(lo, centre - 1.5 * width), max(hi, centre + 1.5 * width)
+            except (KeyError, TypeError, ValueError):
+                pass
         region[name] = (lo, hi)
     return region
 
@@ -310,11 +323,12 @@ def _solve(gradient, unknowns):
     (faster, and sympy then finds both sin = 0 roots); several: ``sympy.solve``."""
     if len(unknowns) == 1:
         (u,) = unknowns
-        solutions = []
-        for factor, _ in sympy.factor_list(gradient[0])[1]:
-            if factor.has(u):
-                solutions += [{u: value} for value in sympy.solve(factor, u)]
-        return solutions
+        numerator, _ = sympy.fraction(sympy.together(gradient[0]))
+        try:
+            factors = [f for f, _ in sympy.factor_list(numerator)[1] if f.has(u)]
+        except sympy.PolynomialError:
+            factors = [numerator]
+        return [{u: value} for factor in factors for value in sympy.solve(factor, u)]
     solutions = sympy.solve(gradient, unknowns, dict=True)
     complete = [s for s in solutions if all(u in s for u in unknowns)]
     if len(complete) != len(solutions):  # a continuum of equilibria: leave it to numerics
@@ -347,6 +361,15 @@ class _Problem:
         self.gradient_scale = _typical(g)
         self.hessian_scale = _typical(h)
         self.mass = _mass_function(mechanics, parameters)
+        zero = {**dict.fromkeys(mechanics.qdot, 0), mechanics.t: 0}
+        if mechanics.momenta is not None:
+            momenta = [
+                with_parameters(e, mechanics, parameters).xreplace(zero) for e in mechanics.momenta
+            ]
+        else:
+            momenta = [sympy.S.Zero] * len(self.names)
+        momenta_function = vectorize(momenta, mechanics.q)
+        self.rest_momenta = lambda q: momenta_function(*q)
 
     def hessian(self, x: np.ndarray) -> np.ndarray:
         return self._hessian(*x).reshape(self.m, self.m)
@@ -439,7 +462,7 @@ class _Problem:
         if index_f:
             Mff = M[np.ix_(index_f, index_f)]
             Mfr = M[np.ix_(index_f, index_r)]
-            back = -np.linalg.solve(Mff, Mfr)
+            back = -np.linalg.pinv(Mff) @ Mfr  # pinv: M_ff may vanish (spherical pendulum)
             Mrr = Mrr + Mfr.T @ back
         eig_K = np.linalg.eigvalsh(K)
         tol = 1e-8 * max(self.hessian_scale, float(np.max(np.abs(eig_K))), 1e-300)
@@ -472,6 +495,10 @@ class _Problem:
             modes=modes,
             hessian=K,
             potential=float(self.U(*x)[0]),
+            p={
+                f"p_{name}": float(v)
+                for name, v in zip(self.names, self.rest_momenta(q), strict=True)
+            },
             exact=exact,
         )
 

@@ -20,6 +20,8 @@ def test_pendulum_bottom_stable_at_sqrt_g_over_l_top_unstable():
     assert [e.kind for e in result.equilibria] == ["minimum", "maximum"]
     bottom, top = result.equilibria
     assert bottom.q == {"theta": 0.0} and bottom.stable
+    assert bottom.p == {"p_theta": 0.0}
+    assert bottom.potential == pytest.approx(-mech.scene.parameter_values["m"] * g * l)
     assert bottom.frequencies == pytest.approx([math.sqrt(g / l)], rel=1e-12)
     assert top.q["theta"] == pytest.approx(math.pi, abs=1e-12) and not top.stable
     assert top.frequencies == []
