@@ -137,20 +137,26 @@ def bracket_around(
     Steps outward geometrically from ``first_step`` until ``limit`` away from ``x0``;
     returns None if ``f`` stays below ``level`` (an unbounded or open side).
     """
-    steps = [first_step]
-    while steps[-1] < limit:
-        steps.append(min(limit, steps[-1] * growth + first_step))
-    x = x0 + direction * np.concatenate([[0.0], np.array(steps)])
+    if growth == 1.0:
+        steps = first_step * np.arange(1, math.ceil(limit / first_step) + 1)
+    else:  # s_k+1 = growth s_k + first_step, a geometric series
+        k = np.arange(
+            1, 1 + math.ceil(math.log1p(limit * (growth - 1) / first_step) / math.log(growth)) + 1
+        )
+        steps = first_step * (growth**k - 1) / (growth - 1)
+    steps = np.minimum(steps, limit)
+    x = x0 + direction * np.concatenate([[0.0], steps])
     with np.errstate(all="ignore"):
         g = f(x) - level
-    for i in range(1, len(x)):
-        if not np.isfinite(g[i]):
-            return None
-        if g[i] >= 0.0:
-            if g[i] == 0.0:
-                return float(x[i])
-            return _brent(lambda s: float(f(np.array([s]))[0]) - level, x[i - 1], x[i])
-    return None
+    stop = np.flatnonzero(~np.isfinite(g[1:]) | (g[1:] >= 0.0))
+    if stop.size == 0:
+        return None
+    i = int(stop[0]) + 1
+    if not np.isfinite(g[i]):
+        return None
+    if g[i] == 0.0:
+        return float(x[i])
+    return _brent(lambda s: float(f(np.array([s]))[0]) - level, x[i - 1], x[i])
 
 
 def _brent(function, a: float, b: float) -> float:

@@ -5,7 +5,8 @@ For a scleronomic system the equilibria (constant q, zero velocities) solve
 part of the kinetic energy (a bead on a spinning hoop has ``U = V - m w^2 R^2 sin^2/2``).
 A scene given only by a Hamiltonian that cannot be turned into a Lagrangian uses
 ``U = H(q, p=0)``. The Hessian ``K = d2U/dq2`` at an equilibrium decides its kind, and the
-generalized eigenproblem ``K v = w^2 M v`` (``scipy.linalg.eigh``) gives the normal modes.
+generalized eigenproblem ``K v = w^2 M v`` (``scipy.linalg.eigh``) gives the normal modes
+(terms of L linear in the velocities, gyroscopic or magnetic, are not part of it).
 
 Coordinates that ``U`` does not depend on (cyclic ones such as the angle of planetary
 motion) are not searched: every value is an equilibrium value. They are reported as
@@ -237,7 +238,12 @@ def search_equilibria(
     found: list[tuple[np.ndarray, dict[str, str]]] = []
     method = "numeric"
     if symbolic and len(unknowns) <= SYMBOLIC_MAX_COORDINATES:
-        exact = _symbolic_solutions(mechanics, U, unknowns, timeout)
+        # Parameters stay symbolic, so one solve serves every slider position.
+        cache = cache_for(mechanics)
+        key = ("equilibria.symbolic", tuple(unknowns))
+        if key not in cache:
+            cache[key] = _symbolic_solutions(mechanics, U, unknowns, timeout)
+        exact = cache[key]
         if exact is not None:
             method = "symbolic"
             for solution in exact:
