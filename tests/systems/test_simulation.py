@@ -1,0 +1,168 @@
+"""The stream contract: blocks, budgets, diagnostics, events, failures, ensembles."""
+
+import math
+
+import numpy as np
+import pytest
+
+from systems.compiled import compile_system
+from systems.integrators import STEPPERS, choose_method
+from systems.mechanics import derive
+from systems.scene import load_scene
+from systems.simulation import PROBLEMS, ensemble, required_wants, stream
+from tests.systems.scenes import DRIVEN_DAMPED, PLANETARY, scene
+
+ALL = ("rhs", "hamiltonian", "velocities", "separable", "drawing")
+
+
+@pytest.fixture(scope="module")
+def oscillator():
+    return compile_system(derive(load_scene("harmonic_oscillator")), ALL)
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return compile_system(derive(load_scene("simple_pendulum")), ALL)
+
+
+def exact_oscillator(t, y0):
+    # m = k = 1 in the catalogue scene
+    return np.column_stack(
+        [y0[0] * np.cos(t) + y0[1] * np.sin(t), -y0[0] * np.sin(t) + y0[1] * np.cos(t)]
+    )
+
+
+@pytest.mark.parametrize(
+    "method", ["leapfrog", "yoshida6", "gauss_legendre4", "dop853", "radau", "logh_yoshida4"]
+)
+def test_every_family_reaches_t_end_exactly_with_accurate_states(oscillator, pendulum, method):
+    system = oscillator
+    if method == "logh_yoshida4":  # needs V < 0: a pendulum hanging below its pivot
+        system = pendulum
+    blocks = list(stream(system, method=method, t_end=7.3, diagnostics=("H",)))
+    assert all(b.status == "running" for b in blocks[:-1])
+    last = blocks[-1]
+    assert last.status == "ok" and last.message == ""
+    assert last.t[-1] == 7.3
+    t = np.concatenate([b.t for b in blocks])
+    assert np.all(np.diff(t) > 0)
+    y = np.concatenate([b.y for b in blocks])
+    H = np.concatenate([b.diagnostics["H"] for b in blocks])
+    assert last.steps > 0 and last.rhs_evaluations >= last.steps
+    if system is oscillator:
+        error = np.abs(y - exact_oscillator(t, system.initial_state())).max()
+        assert error < (1e-3 if method != "radau" else 1e-4)
+    assert np.ptp(H) / abs(H[0]) < 1e-3
+
+
+def test_blocks_respect_the_point_limit_and_compute_only_what_is_asked(oscillator):
+    blocks = list(
+        stream(
+            oscillator, method="leapfrog", t_end=200.0, dt=1e-4, max_points=50, block_seconds=0.01
+        )
+    )
+    assert len(blocks) > 1
+    for b in blocks:
+        assert 1 <= len(b.t) <= 50
+        assert b.diagnostics == {}
+        assert b.y.shape == (len(b.t), 2)
+    # points are evenly spaced in steps inside a block
+    gaps = np.diff(blocks[1].t[:-1])
+    np.testing.assert_allclose(gaps, gaps[0], rtol=1e-9)
+
+
+def test_diagnostics_have_the_documented_shapes(pendulum):
+    b = next(iter(stream(pendulum, t_end=1.0, diagnostics=("H", "qdot", "points"))))
+    k = len(b.t)
+    assert b.diagnostics["H"].shape == (k,)
+    assert b.diagnostics["qdot"].shape == (k, 1)
+    assert b.diagnostics["points"].shape == (k, 1, 2)
+    np.testing.assert_allclose(b.diagnostics["points"][:, 0, 0], np.sin(b.y[:, 0]), atol=1e-12)
+
+
+def test_missing_compiled_functions_are_named():
+    compiled = compile_system(derive(load_scene("simple_pendulum")), ("rhs",))
+    with pytest.raises(ValueError, match="separable"):
+        next(iter(stream(compiled, method="leapfrog", t_end=1.0)))
+    assert required_wants("yoshida4", ("H",)) == {"rhs", "separable", "hamiltonian"}
+
+
+def test_poincare_crossings_are_interpolated_to_high_accuracy(oscillator):
+    # x = 0 upward crossings of x = cos t happen at t = 3 pi / 2 + 2 pi k
+    blocks = list(stream(oscillator, method="yoshida6", dt=0.05, t_end=40.0, section=(0, 0.0, 1)))
+    t = np.concatenate([b.events_t for b in blocks])
+    y = np.concatenate([b.events_y for b in blocks])
+    expected = 1.5 * np.pi + 2 * np.pi * np.arange(len(t))
+    assert len(t) == 6
+    np.testing.assert_allclose(t, expected, atol=1e-6)
+    np.testing.assert_allclose(y[:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(y[:, 1], 1.0, atol=1e-6)
+
+
+def test_energy_error_past_the_threshold_stops_the_run(pendulum):
+    blocks = list(stream(pendulum, method="leapfrog", dt=0.3, t_end=50.0, energy_tolerance=1e-3))
+    last = blocks[-1]
+    assert last.status == "energy_error"
+    assert "energy error" in last.message
+    assert np.all(np.isfinite(np.concatenate([b.y for b in blocks])))
+
+
+def test_a_blow_up_stops_with_a_status_instead_of_nans():
+    # a leapfrog step far beyond the stability limit of a stiff oscillator grows without
+    # bound; without the energy watch the state would overflow to inf and NaN
+    compiled = compile_system(derive(load_scene("harmonic_oscillator")), ALL)
+    stiff = compiled.with_parameters({"k": 1e4})
+    blocks = list(stream(stiff, method="leapfrog", dt=0.5, t_end=1e4, energy_tolerance=math.inf))
+    last = blocks[-1]
+    assert last.status in PROBLEMS and last.status != "energy_error"
+    assert last.message
+    for b in blocks:
+        assert np.all(np.isfinite(b.y))
+
+
+def test_time_dependent_and_dissipative_scenes_run_adaptively():
+    compiled = compile_system(derive(scene(DRIVEN_DAMPED)), ("rhs", "hamiltonian"))
+    method, why = choose_method(compiled.mechanics)
+    assert method == "dop853" and "driven" in why
+    last = list(stream(compiled, t_end=30.0, tol=1e-9))[-1]
+    assert last.status == "ok"
+    loose = list(stream(compiled, t_end=30.0, tol=1e-6))[-1]
+    assert loose.steps < last.steps
+    np.testing.assert_allclose(loose.y[-1], last.y[-1], atol=1e-4)
+
+
+def test_ensemble_matches_single_runs_and_uses_one_call():
+    compiled = compile_system(derive(scene(PLANETARY)), ("rhs", "hamiltonian"))
+    Y0 = np.array([[1.0, 0.0, 0.0, 1.2 + 0.05 * i] for i in range(8)])
+    t, Y, status = ensemble(compiled, Y0, method="gauss_legendre4", t_end=5.0, dt=0.01, samples=10)
+    assert Y.shape == (8, 10, 4) and t.shape == (10,) and np.all(status == 0)
+    assert t[-1] == pytest.approx(5.0)
+    for i in (0, 7):
+        last = list(stream(compiled, method="gauss_legendre4", y0=Y0[i], t_end=5.0, dt=0.01))[-1]
+        np.testing.assert_allclose(Y[i, -1], last.y[-1], rtol=1e-10, atol=1e-12)
+
+
+def test_separable_ensemble(pendulum):
+    Y0 = np.column_stack([np.linspace(0.1, 3.0, 16), np.zeros(16)])
+    t, Y, status = ensemble(pendulum, Y0, method="yoshida4", t_end=10.0, dt=0.01, samples=5)
+    assert np.all(status == 0)
+    H = pendulum.hamiltonian(0.0, Y[:, -1])
+    np.testing.assert_allclose(H, pendulum.hamiltonian(0.0, Y0), atol=1e-5)
+    last = list(stream(pendulum, method="yoshida4", y0=Y0[9], t_end=10.0, dt=0.01))[-1]
+    np.testing.assert_allclose(Y[9, -1], last.y[-1], rtol=1e-10, atol=1e-12)
+
+
+def test_automatic_choices_on_the_catalogue():
+    expected = {
+        "harmonic_oscillator": "yoshida4",
+        "planetary_motion": "gauss_legendre4",
+        "kepler_cartesian": "logh_yoshida6",
+        "double_pendulum": "gauss_legendre4",
+        "driven_damped_pendulum": "dop853",
+        "damped_pendulum": "dop853",
+    }
+    for name, method in expected.items():
+        chosen, why = choose_method(derive(load_scene(name)))
+        assert chosen == method, (name, why)
+        assert why and "\n" not in why
+    assert set(expected.values()) <= set(STEPPERS)
