@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.integrate
+import scipy.linalg
 import scipy.optimize
 import sympy
 
@@ -20,6 +21,7 @@ from systems.mechanics import Mechanics
 from systems.textbook._numeric import cache_for, vectorize, with_parameters
 
 Variation = tuple[np.ndarray, np.ndarray]
+DENSE_LIMIT = 600  # unknowns beyond which the dense scipy.optimize.root fallback is skipped
 
 
 @dataclass(frozen=True)
@@ -281,10 +283,11 @@ def solve_two_point(
 
     The action is discretized with the midpoint rule,
     ``S_d = sum_k h L((q_k + q_k+1)/2, (q_k+1 - q_k)/h, t_k + h/2)``, and the discrete
-    Euler-Lagrange equations ``dS_d/dq_k = 0`` at the interior nodes are solved with
-    ``scipy.optimize.root`` (analytic block-tridiagonal Jacobian). Second-order accurate
-    in h. Which of several stationary paths is found depends on ``guess`` (default: the
-    straight line from A to B).
+    Euler-Lagrange equations ``dS_d/dq_k = 0`` at the interior nodes are solved by
+    Newton's method on their exact block-tridiagonal Jacobian (``solve_banded``, linear in
+    the number of nodes), falling back to ``scipy.optimize.root`` (hybr, dense) for small
+    problems Newton does not settle. Second-order accurate in h. Which of several
+    stationary paths is found depends on ``guess`` (default: the straight line from A to B).
 
     Parameters
     ----------
@@ -311,43 +314,54 @@ def solve_two_point(
     def full(x: np.ndarray) -> np.ndarray:
         return np.vstack([qa, x.reshape(nodes - 2, n), qb])
 
-    def residual(x: np.ndarray):
+    m = nodes - 2
+
+    def blocks(x: np.ndarray):
+        """R (m, n) and the Jacobian's blocks: dR_k/dq_k-1, dR_k/dq_k, dR_k/dq_k+1."""
         q = full(x)
         mid, vel = (q[:-1] + q[1:]) / 2, (q[1:] - q[:-1]) / h
         cols = _columns(t_mid, mid, vel)
-        Lq = functions["Lq"](*cols).T  # (K-1, n)
+        Lq = functions["Lq"](*cols).T  # (K-1, n), one row per segment
         Lv = functions["Lv"](*cols).T
         A, B, C = (
             functions[key](*cols).T.reshape(nodes - 1, n, n) for key in ("Lvv", "Lqv", "Lqq")
         )
         R = (h / 2) * (Lq[:-1] + Lq[1:]) + Lv[:-1] - Lv[1:]  # (K-2, n)
         BT = np.transpose(B, (0, 2, 1))
-        d_lower_prev = (h / 2) * (C / 2 - B / h) + (BT / 2 - A / h)  # dR_k/dq_k-1 via s-
-        d_diag_prev = (h / 2) * (C / 2 + B / h) + (BT / 2 + A / h)  # dR_k/dq_k via s-
-        d_diag_next = (h / 2) * (C / 2 - B / h) - (BT / 2 - A / h)  # dR_k/dq_k via s+
-        d_upper_next = (h / 2) * (C / 2 + B / h) - (BT / 2 + A / h)  # dR_k/dq_k+1 via s+
-        m = nodes - 2
+        # Interior node k + 1 lies between segment k (before it) and segment k + 1 (after).
+        lower = ((h / 2) * (C / 2 - B / h) + (BT / 2 - A / h))[:-1]  # via the segment before
+        diag = ((h / 2) * (C / 2 + B / h) + (BT / 2 + A / h))[:-1] + (
+            (h / 2) * (C / 2 - B / h) - (BT / 2 - A / h)
+        )[1:]
+        upper = ((h / 2) * (C / 2 + B / h) - (BT / 2 + A / h))[1:]  # via the segment after
+        return R, lower, diag, upper
+
+    def residual(x: np.ndarray):
+        R, lower, diag, upper = blocks(x)
         J = np.zeros((m, n, m, n))
-        for k in range(m):  # interior node k + 1: segments k (before) and k + 1 (after)
-            J[k, :, k, :] = d_diag_prev[k] + d_diag_next[k + 1]
+        for k in range(m):
+            J[k, :, k, :] = diag[k]
             if k > 0:
-                J[k, :, k - 1, :] = d_lower_prev[k]
+                J[k, :, k - 1, :] = lower[k]
             if k < m - 1:
-                J[k, :, k + 1, :] = d_upper_next[k + 1]
+                J[k, :, k + 1, :] = upper[k]
         return R.ravel(), J.reshape(m * n, m * n)
 
     x0 = guess[1:-1].ravel()
     with np.errstate(all="ignore"):
-        solution = scipy.optimize.root(
-            residual, x0, jac=True, method="hybr", options={"xtol": 1e-13}
-        )
-    q = full(solution.x)
+        x, success, message = _banded_newton(blocks, x0, n)
+        if not success and m * n <= DENSE_LIMIT:
+            solution = scipy.optimize.root(
+                residual, x0, jac=True, method="hybr", options={"xtol": 1e-13}
+            )
+            x, success, message = solution.x, bool(solution.success), str(solution.message)
+    q = full(x)
     qdot = np.gradient(q, t, axis=0, edge_order=2)
     mid, vel = (q[:-1] + q[1:]) / 2, (q[1:] - q[:-1]) / h
     S = float(h * np.sum(functions["L"](*_columns(t_mid, mid, vel))[0]))
-    size = float(np.max(np.abs(residual(solution.x)[0]))) if nodes > 2 else 0.0
-    converged = bool(solution.success) and np.isfinite(size)
-    return BoundaryPath(t, q, qdot, S, converged, str(solution.message), "action")
+    size = float(np.max(np.abs(blocks(x)[0]))) if nodes > 2 else 0.0
+    converged = bool(success) and np.isfinite(size)
+    return BoundaryPath(t, q, qdot, S, converged, message, "action")
 
 
 def shoot_two_point(
@@ -416,6 +430,58 @@ def shoot_two_point(
 
 
 # -- helpers -----------------------------------------------------------------------------------
+
+
+def _banded_newton(blocks, x0: np.ndarray, n: int, max_iterations: int = 60):
+    """Newton's method with backtracking on a block-tridiagonal system (``solve_banded``).
+
+    ``blocks(x)`` returns R (m, n) and the (m, n, n) blocks below, on and above the
+    diagonal. Returns (x, converged, message).
+    """
+    x = np.array(x0, dtype=float)
+    R, lower, diag, upper = blocks(x)
+    m = R.shape[0]
+    size = m * n
+    bandwidth = 2 * n - 1
+    rows = np.arange(n)[:, None]
+    cols = np.arange(n)[None, :]
+    norm = float(np.max(np.abs(R))) if size else 0.0
+    for _ in range(max_iterations):
+        if not np.isfinite(norm):
+            return x, False, "the residual is not finite"
+        ab = np.zeros((2 * bandwidth + 1, size))
+        for offset, block, start in ((0, diag, 0), (-1, lower, 1), (1, upper, 0)):
+            k = np.arange(start, m - (1 if offset == 1 else 0))
+            if k.size == 0:
+                continue
+            r = (k[:, None, None] * n + rows)[..., :].repeat(n, axis=2)
+            c = ((k + offset)[:, None, None] * n + cols).repeat(n, axis=1)
+            ab[bandwidth + r - c, c] = block[k]
+        try:
+            step = scipy.linalg.solve_banded((bandwidth, bandwidth), ab, R.ravel())
+        except (np.linalg.LinAlgError, ValueError):
+            return x, False, "singular Jacobian"
+        scale = 1.0
+        for _ in range(30):
+            trial = x - scale * step
+            R_trial, *rest = blocks(trial)
+            norm_trial = float(np.max(np.abs(R_trial)))
+            if (
+                np.isfinite(norm_trial)
+                and norm_trial < norm * (1 - 1e-4 * scale)
+                or (np.isfinite(norm_trial) and norm_trial <= 1e-14)
+            ):
+                break
+            scale /= 2
+        else:
+            converged = float(np.max(np.abs(step))) <= 1e-12 * (1 + float(np.max(np.abs(x))))
+            if converged:
+                return x, True, "converged (the residual is at rounding level)"
+            return x, False, "no further decrease of the residual"
+        x, R, (lower, diag, upper), norm = trial, R_trial, rest, norm_trial
+        if float(np.max(np.abs(scale * step))) <= 1e-13 * (1 + float(np.max(np.abs(x)))):
+            return x, True, "converged"
+    return x, False, "too many Newton iterations"
 
 
 def _path(mechanics: Mechanics, t, q, qdot):

@@ -502,7 +502,7 @@ class _Problem:
             hessian=K,
             potential=float(self.U(*x)[0]),
             p={
-                f"p_{name}": float(v)
+                f"p_{name}": _clean(v)
                 for name, v in zip(self.names, self.rest_momenta(q), strict=True)
             },
             exact=exact,
