@@ -116,4 +116,7 @@ def test_two_point_problem_with_two_coupled_coordinates():
     shot = shoot_two_point(mech, qa, qb, 2.0, samples=201)
     assert path.converged and shot.converged
     assert np.max(np.abs(path.q - shot.q)) < 1e-4
+    fine = solve_two_point(mech, qa, qb, 2.0, nodes=1601)  # 3200 unknowns: banded Newton
+    assert fine.converged
+    assert np.max(np.abs(fine.q[::8] - shot.q)) < np.max(np.abs(path.q - shot.q)) / 30
     assert path.q[0] == pytest.approx(qa) and path.q[-1] == pytest.approx(qb)
