@@ -40,6 +40,7 @@ def _text(expr) -> str | None:
 def derivation_report(mechanics) -> dict:
     """The derivation as JSON-ready data; every expression a string sympify reads back."""
     from systems.mechanics import DerivationError
+    from systems.textbook import equilibria_json
 
     scene = mechanics.scene
     try:
@@ -65,6 +66,7 @@ def derivation_report(mechanics) -> dict:
         "cyclic": list(mechanics.cyclic),
         "conserved": {name: _text(expr) for name, expr in mechanics.conserved.items()},
         "classification": mechanics.classification.as_dict(),
+        "equilibria": equilibria_json(mechanics),
     }
 
 
@@ -123,4 +125,24 @@ def readable(mechanics) -> str:
     if mechanics.conserved:
         rows = [(shown.get(name, name), expr) for name, expr in mechanics.conserved.items()]
         lines += _block("Conserved quantities", rows, scene)
+    lines += _equilibria_lines(mechanics, shown)
     return "\n".join(lines)
+
+
+def _equilibria_lines(mechanics, shown: dict[str, str]) -> list[str]:
+    from systems.textbook import search_equilibria
+
+    search = search_equilibria(mechanics)
+    lines = ["", "Equilibria (virtual work: dV/dq = 0)", "------------------------------------"]
+    if not search.equilibria:
+        return lines + [f"none: {search.reason}" if search.reason else "none found"]
+    for eq in search.equilibria:
+        where = ", ".join(f"{shown.get(k, k)} = {v:.6g}" for k, v in eq.q.items())
+        if eq.stable:
+            freqs = ", ".join(f"{w:.6g}" for w in eq.frequencies)
+            lines.append(f"- {where}: stable, small-oscillation frequencies \u03c9 = {freqs}")
+        else:
+            lines.append(f"- {where}: unstable ({eq.kind})")
+    if search.reason:
+        lines.append(f"({search.reason})")
+    return lines

@@ -66,3 +66,15 @@ def test_list(capsys):
     assert main(["list", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert isinstance(rows, list)
+
+
+def test_derive_json_lists_equilibria(tmp_path, capsys):
+    path = tmp_path / "pendulum.toml"
+    path.write_text(PENDULUM)
+    assert main(["derive", str(path), "--json"]) == 0
+    equilibria = json.loads(capsys.readouterr().out)["equilibria"]
+    by_angle = {round(e["q"]["theta"], 9): e for e in equilibria}
+    assert set(by_angle) == {0.0, round(3.141592653589793, 9)}
+    assert by_angle[0.0]["stable"] and not by_angle[round(3.141592653589793, 9)]["stable"]
+    (omega,) = by_angle[0.0]["frequencies"]
+    assert abs(omega - (9.81 / 0.7) ** 0.5) < 1e-9
