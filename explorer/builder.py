@@ -184,7 +184,9 @@ class BuildService(QObject):
             self.described.emit(request, text)
 
     def stop(self) -> None:
-        """End the thread (after the build in progress, if any)."""
+        """End the thread (after the build in progress, if any); no results after this."""
+        self._counter += 1  # any result still on its way is now stale
+        self._worker.latest = self._counter
         if self._thread.isRunning():
             self._thread.quit()
             self._thread.wait()

@@ -66,6 +66,7 @@ class MainWindow(QMainWindow):
         self._rate_window: deque = deque(maxlen=40)
         self._last_error = math.nan
         self.redraws = 0
+        self._closed = False
 
         self.builder = BuildService(self)
         self.builder.built.connect(self._on_builder_built)
@@ -267,6 +268,8 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(failure.message, 8000)
 
     def _on_builder_built(self, built: Built) -> None:
+        if self._closed:
+            return
         self.built = built
         self.editor.show_built(built)
         from systems.integrators import STEPPERS
@@ -328,6 +331,8 @@ class MainWindow(QMainWindow):
 
     def _start_system(self, compiled, launches: list[np.ndarray] | None) -> None:
         """Stop the running worker; start a new one on ``compiled`` from the initial state."""
+        if self._closed:
+            return
         self._stop_worker()
         self.compiled = compiled
         self._generation += 1
@@ -528,10 +533,12 @@ class MainWindow(QMainWindow):
         super().closeEvent(event)
 
     def shutdown(self) -> None:
-        """Stop the redraw timer, the worker and the builder threads."""
+        """Stop the redraw timer, the builder and the worker threads (in that order, so
+        a build finishing meanwhile cannot start a new worker)."""
+        self._closed = True
         self.redraw_timer.stop()
-        self._stop_worker()
-        self.builder.stop()
         self.editor.shutdown()
+        self.builder.stop()
+        self._stop_worker()
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()

@@ -315,11 +315,11 @@ class SystemEditorPanel(QWidget):
 
     def _rebuild_force_rows(self, coordinates, forces: dict, disabled: set) -> None:
         """One force field per coordinate, below the dissipation row (which stays)."""
-        while self.effects_form.rowCount() > 1:
-            self.effects_form.removeRow(1)
         typed = {
             q: (f.text(), self.force_switches[q].isChecked()) for q, f in self.force_fields.items()
         }
+        while self.effects_form.rowCount() > 1:
+            self.effects_form.removeRow(1)
         self.force_fields.clear()
         self.force_switches.clear()
         for q in coordinates:

@@ -53,9 +53,7 @@ class ExpressionField(QWidget):
     def show_error(self, reason: str, position: int | None = None) -> None:
         self.error_label.setText(error_html(reason, self.edit.text(), position))
         self.error_label.setVisible(True)
-        self.edit.setStyleSheet(ERROR_STYLE)
-        if position:
-            self.edit.setCursorPosition(max(position - 1, 0))
+        self.edit.setStyleSheet(ERROR_STYLE)  # the cursor stays put: the user may be typing
 
     def clear_error(self) -> None:
         self.error_label.setVisible(False)

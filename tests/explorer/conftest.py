@@ -1,0 +1,112 @@
+"""Qt fixtures for the explorer's tests.
+
+``_no_dangling_qt`` (autouse, in the manner of napari's conftest) records every
+``QThread`` and ``QTimer`` started during a test and fails the test if one is still
+running when it ends: closing a window must stop everything it started.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+import weakref
+
+import pytest
+from PySide6.QtCore import QThread, QTimer
+
+
+class QtActivity:
+    """Threads and timers started while installed, with where they were started."""
+
+    def __init__(self):
+        self.threads: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        self.timers: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+    def install(self, monkeypatch) -> None:
+        thread_start = QThread.start
+        timer_start = QTimer.start
+        activity = self
+
+        def start_thread(self, *args, **kwargs):
+            activity.threads[self] = _caller()
+            return thread_start(self, *args, **kwargs)
+
+        def start_timer(self, *args, **kwargs):
+            activity.timers[self] = _caller()
+            return timer_start(self, *args, **kwargs)
+
+        monkeypatch.setattr(QThread, "start", start_thread)
+        monkeypatch.setattr(QTimer, "start", start_timer)
+
+    def dangling(self) -> list[str]:
+        """Descriptions of the threads still running and timers still active."""
+        found = []
+        for thread, where in list(self.threads.items()):
+            try:
+                running = thread.isRunning()
+            except RuntimeError:  # the C++ object is gone: it cannot be running
+                continue
+            if running:
+                found.append(f"QThread {thread.objectName()!r} still running, started at\n{where}")
+        for timer, where in list(self.timers.items()):
+            try:
+                active = timer.isActive()
+            except RuntimeError:
+                continue
+            if active:
+                found.append(f"QTimer still active, started at\n{where}")
+        return found
+
+
+def _caller() -> str:
+    frames = [f for f in traceback.extract_stack()[:-2] if "site-packages" not in f.filename]
+    return "".join(traceback.format_list(frames[-3:]))
+
+
+@pytest.fixture(autouse=True)
+def _no_dangling_qt(monkeypatch, request):
+    activity = QtActivity()
+    activity.install(monkeypatch)
+    yield activity
+    # threads that were asked to stop may need a moment to get there
+    deadline = time.monotonic() + 2.0
+    while activity.dangling() and time.monotonic() < deadline:
+        from PySide6.QtWidgets import QApplication
+
+        app = QApplication.instance()
+        if app is not None:
+            app.processEvents()
+        time.sleep(0.02)
+    left = activity.dangling()
+    if left and "allow_dangling_qt" not in request.keywords:
+        pytest.fail("the test left Qt activity behind:\n" + "\n".join(left), pytrace=False)
+
+
+@pytest.fixture
+def qt_activity(_no_dangling_qt) -> QtActivity:
+    """The recorder of the current test's threads and timers."""
+    return _no_dangling_qt
+
+
+@pytest.fixture
+def window(qtbot):
+    """The main window on the simple pendulum, shown; shut down after the test."""
+    from explorer.app import create_window
+
+    win = create_window("simple_pendulum")
+    win.show()
+    qtbot.waitUntil(lambda: win.compiled is not None, timeout=60000)
+    yield win
+    win.close()
+    win.deleteLater()
+    qtbot.wait(10)
+
+
+def wait_for_points(qtbot, win, count: int = 20, timeout: int = 60000, key: int = 0) -> None:
+    """Wait until trajectory ``key`` of the window has ``count`` points."""
+
+    def enough() -> bool:
+        trajectory = win.store.trajectories.get(key)
+        return trajectory is not None and len(trajectory.t) >= count
+
+    qtbot.waitUntil(enough, timeout=timeout)

@@ -1,0 +1,143 @@
+"""The live window: data arrives in every panel, clicks launch orbits, edits take effect."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from tests.explorer.conftest import wait_for_points
+
+
+def _curve_points(curve) -> int:
+    return curve.point_count()
+
+
+def test_pendulum_window_is_alive(qtbot, window):
+    wait_for_points(qtbot, window, 30)
+    qtbot.waitUntil(lambda: window.redraws > 3, timeout=10000)
+    window._on_redraw_timer_timeout()
+    phase = window.phase_view
+    # level sets, the separatrix through the saddles at theta = ±pi, and a moving orbit
+    assert phase.level_sets_available
+    energies = {round(s.energy, 6) for s in phase.saddles}
+    m, g, l = (window.compiled.parameters[i] for i in range(3))
+    assert energies == {round(m * g * l, 6)}
+    assert sorted(round(abs(s.q), 4) for s in phase.saddles) == [round(np.pi, 4)] * 2
+    assert _curve_points(phase._curves[0]) >= 30
+    # the mechanism: one rod from the pivot to the bob, of length l
+    rod_x, rod_y = window.configuration_view._rods.getData()
+    assert np.hypot(rod_x[1] - rod_x[0], rod_y[1] - rod_y[0]) == pytest.approx(l)
+    # the conserved view shows a small relative energy error
+    error_curve = window.conserved_view._energy_curves[0]
+    assert _curve_points(error_curve) >= 30
+    assert "ΔH" in window.error_label.text()
+    assert window.method_label.text().endswith(window.built.method)
+    # one signal per frame, not per point: far fewer frames than points
+    assert window.worker.frames < len(window.store.main.t)
+
+
+def test_click_in_phase_view_launches_a_trajectory(qtbot, window):
+    wait_for_points(qtbot, window, 5)
+    phase = window.phase_view
+    view = phase.plot.getViewBox()
+    scene_point = view.mapViewToScene(view.mapToView(view.rect().center()))
+    scene_point = view.mapViewToScene(
+        type(scene_point)(0.5, 2.0)  # theta = 0.5, p_theta = 2.0
+    )
+    pixel = phase.plot_widget.mapFromScene(scene_point)
+    qtbot.mouseClick(phase.plot_widget.viewport(), Qt.MouseButton.LeftButton, pos=QPoint(pixel))
+    qtbot.waitUntil(lambda: len(window.store) == 2, timeout=5000)
+    launched = window.store.trajectories[1]
+    assert launched.y0 == pytest.approx([0.5, 2.0], abs=0.05)
+    wait_for_points(qtbot, window, 10, key=1)
+    qtbot.waitUntil(lambda: 1 in phase._curves and phase._curves[1].point_count() >= 10)
+    assert launched.colour != window.store.main.colour
+    # its level set is drawn in its colour; clearing removes it again
+    assert 1 in phase._energy_items
+    window.controls.clear_button.click()
+    assert len(window.store) == 1
+    qtbot.waitUntil(lambda: 1 not in phase._curves, timeout=3000)
+
+
+def test_bad_expression_shows_inline_error_and_keeps_text(qtbot, window):
+    editor = window.editor
+    field = editor.fields["potential"]
+    field.edit.clear()
+    qtbot.keyClicks(field.edit, "-m*g*l*cos(theta")
+    qtbot.waitUntil(lambda: field.has_error, timeout=20000)
+    assert field.text() == "-m*g*l*cos(theta"
+    text = field.error_label.text()
+    assert "never closed" in text and "position 11" in text
+    # the running system is untouched by a failed edit
+    assert window.runner is not None and window.runner.running
+    # fixing it clears the error and starts the new system
+    qtbot.keyClicks(field.edit, ")")
+    qtbot.waitUntil(
+        lambda: not field.has_error and editor.state_label.text().startswith("derived"),
+        timeout=30000,
+    )
+
+
+def test_undo_restores_an_edit(qtbot, window):
+    editor = window.editor
+    field = editor.fields["kinetic"]
+    original = field.text()
+    qtbot.keyClicks(field.edit, "*2")
+    qtbot.waitUntil(lambda: editor.undo_button.isEnabled(), timeout=5000)
+    editor.undo()
+    assert field.text() == original
+    assert editor.redo_button.isEnabled()
+    editor.redo()
+    assert field.text() == original + "*2"
+
+
+def test_parameter_change_mid_run_restarts_on_new_values(qtbot, window):
+    wait_for_points(qtbot, window, 10)
+    old_generation = window.worker.generation
+    old_saddle = window.phase_view.saddles[0].energy
+    window.editor.parameter_table.set_value("g", 4.0)
+    qtbot.waitUntil(lambda: window.worker.generation > old_generation, timeout=5000)
+    assert dict(zip(window.compiled.parameter_names, window.compiled.parameters))["g"] == 4.0
+    wait_for_points(qtbot, window, 10)
+    assert window.phase_view.saddles[0].energy == pytest.approx(old_saddle * 4.0 / 9.81)
+    # the old worker's thread ended
+    assert window.worker.frames > 0
+
+
+def test_hidden_panel_gets_no_diagnostics(qtbot, window):
+    wait_for_points(qtbot, window, 5)
+    assert "H" in window.settings.diagnostics
+    window.docks["conserved"].hide()
+    qtbot.waitUntil(lambda: "H" not in window.worker.settings.diagnostics, timeout=3000)
+    count = len(window.store.main.t)
+    wait_for_points(qtbot, window, count + 5)
+    assert np.isnan(window.store.main.energy.data[-1])
+    window.docks["conserved"].show()
+    qtbot.waitUntil(lambda: "H" in window.worker.settings.diagnostics, timeout=3000)
+
+
+def test_pause_step_and_reset(qtbot, window):
+    wait_for_points(qtbot, window, 5)
+    window.controls.play_button.setChecked(False)
+    qtbot.wait(150)
+    frozen = len(window.store.main.t)
+    qtbot.wait(200)
+    assert len(window.store.main.t) == frozen
+    window.controls.step_button.click()
+    qtbot.waitUntil(lambda: len(window.store.main.t) > frozen, timeout=3000)
+    window.controls.play_button.setChecked(True)
+    window.controls.reset_button.click()
+    wait_for_points(qtbot, window, 3)
+    assert window.store.main.t.data[0] == 0.0
+
+
+def test_close_stops_every_thread(qtbot, qt_activity):
+    from explorer.app import create_window
+
+    win = create_window("simple_pendulum")
+    win.show()
+    qtbot.waitUntil(lambda: win.runner is not None, timeout=60000)
+    assert qt_activity.dangling()  # the worker, the builder and the redraw timer
+    win.close()
+    assert qt_activity.dangling() == []
