@@ -179,7 +179,7 @@ class _Fixed:
                 code = 5
         t = np.concatenate(ts) if ts else np.empty(0)
         y = np.concatenate(ys) if ys else np.empty((0, self.m))
-        if code == 0 or code == 5:
+        if code in (0, 1, 2, 5):  # the loops leave y at the last good state
             t, y = _with_last(t, y, self.t_end if code == 5 else self.t, self.y)
         events = _merge_events(evs, self.m)
         return _Outcome(t, y, code, events, steps, evals)
@@ -220,7 +220,7 @@ class _LogH:
         evs = [(ev_t[:n_ev], ev_y[:n_ev])]
         if code == 5:
             evals += self._finish(evs)
-        if code in (0, 5):
+        if code in (0, 1, 3, 5):
             t, y = _with_last(t, y, self.t, self.y)
         return _Outcome(t, y, code, _merge_events(evs, m), steps, evals)
 
@@ -563,14 +563,7 @@ def stream(
                     f"t = {t[-1]:.6g}; reduce the step or tolerance"
                 )
         if status in PROBLEMS and status != "singular" and len(t):
-            size = _rhs_size(compiled, t[-1], y[-1])
-            if not size < SINGULAR_GROWTH * f0:
-                status = "singular"
-                message = (
-                    f"the equations are singular near t = {t[-1]:.6g} (|dy/dt| grew from "
-                    f"{f0:.3g} to {size:.3g}: a collision or a coordinate singularity); "
-                    f"stopped there. " + message
-                )
+            status, message = _diagnose(compiled, runner, t[-1], y[-1], f0, status, message)
         ev_t, ev_y = np.empty(0), np.empty((0, len(y0)))
         if section is not None and len(out.events[0]):
             ev_t, ev_y = locate_crossings(
@@ -594,6 +587,43 @@ def stream(
             rate = elapsed / out.steps
             target = block_seconds / max(rate, 1e-12)
             nsteps = int(min(max(target, nsteps / 4, 1), nsteps * 8, 1e9))
+
+
+def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str, message: str):
+    """Tell a singularity from a step that is merely too long, after a stop at (t, y).
+
+    A short accurate adaptive run from the last good state over the next few steps shows
+    whether |dy/dt| runs away (or the adaptive step collapses too): then the problem is a
+    singularity of the equations (a collision, r = 0, a coordinate pole), named as such.
+    Otherwise the message says how fast the motion gets there.
+    """
+    size = _rhs_size(compiled, t, y)
+    peak, collapsed, t_stop = size, False, t
+    horizon = 4.0 * getattr(runner, "dt", 0.0)
+    if math.isfinite(size) and horizon > 0.0 and "rhs" in compiled.wanted:
+        probe = _Dop853(compiled, STEPPERS["dop853"], y, t, t + horizon, 1e-8, _no_section())
+        try:
+            out = probe.advance(20000, 20000)
+        except ZeroDivisionError:
+            out = None
+        collapsed = out is None or out.code in (1, 4)
+        if out is not None and len(out.t):
+            t_stop = float(out.t[-1])
+            sizes = [_rhs_size(compiled, ti, yi) for ti, yi in zip(out.t, out.y, strict=True)]
+            peak = max(peak, *sizes)
+    if collapsed or not peak < SINGULAR_GROWTH * f0:
+        where = t_stop if collapsed else t
+        return "singular", (
+            f"the equations are singular near t = {where:.6g} (|dy/dt| grows from "
+            f"{f0:.3g} to {peak:.3g}: a collision, r = 0 or a coordinate singularity); "
+            f"stopped at t = {t:.6g}. " + message
+        )
+    if peak > 10.0 * size:
+        message += (
+            f" (|dy/dt| grows to {peak:.3g} within the next steps, from {size:.3g} here;"
+            " an adaptive method such as dop853 follows that)"
+        )
+    return status, message
 
 
 def _division(exc: Exception) -> str:

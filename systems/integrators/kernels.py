@@ -20,7 +20,8 @@ the functions are never called from here. Conventions shared by all ``*_run`` lo
 - ``info`` (int64, shape ``(8,)``) returns ``[steps, outputs, status, events,
   rhs_evaluations, iterations_max, 0, 0]``. Status 0 is fine, 1 a non-finite state,
   2 an implicit solve that did not converge, 3 an invalid time transformation, 4 a step
-  size that collapsed, 5 the end time was reached.
+  size that collapsed, 5 the end time was reached. On a problem, ``y`` is left at the
+  last good state and ``steps`` counts the good steps.
 """
 
 import math
@@ -104,9 +105,8 @@ def compose_run(
     count = 0
     for i in range(nsteps):
         t = t0 + i * dt
-        if ev_index >= 0:
-            for k in range(2 * n):
-                yprev[k] = y[k]
+        for k in range(2 * n):
+            yprev[k] = y[k]
         tau = t
         for j in range(ns + 1):
             h = kick[j] * dt
@@ -135,7 +135,10 @@ def compose_run(
                 grad_potential(tau, q, P, F)
                 evals += 1
         if not _finite(y):
-            info[0] = i + 1
+            # report the last finite state: undo the failed step
+            for k in range(2 * n):
+                y[k] = yprev[k]
+            info[0] = i
             info[2] = 1
             info[4] = evals
             return
@@ -301,9 +304,8 @@ def gauss_run(
             for j in range(s):
                 for k in range(m):
                     Z[j, k] = c[j] * dt * F[0, k]
-        if ev_index >= 0:
-            for k in range(m):
-                yprev[k] = y[k]
+        for k in range(m):
+            yprev[k] = y[k]
         its, ok = _gauss_step(t, y, P, dt, A, b, c, Z, F, Yst, tol, maxit)
         evals += its * s
         if its > itmax:
@@ -328,7 +330,9 @@ def gauss_run(
             else:
                 y[k] += d
         if not _finite(y):
-            info[0] = i + 1
+            for k in range(m):
+                y[k] = yprev[k]
+            info[0] = i
             info[2] = 1
             info[4] = evals
             info[5] = itmax

@@ -36,21 +36,64 @@ def fastest_rate(compiled, t0: float, y0: np.ndarray) -> float:
     return float(np.abs(np.linalg.eigvals(J)).max())
 
 
-def default_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float) -> float:
-    """A fixed step for ``stepper``: a fixed number of steps per fastest period at ``y0``.
+def default_step(
+    compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float, probe: bool = True
+) -> float:
+    """A fixed step for ``stepper``: ``STEPS_PER_PERIOD`` steps per fastest period.
 
-    Falls back to ``(t_end - t0) / 1000`` (or 0.01) when the linearisation has no
-    rate (free motion). For time-transformed steppers see ``fictitious_step``.
+    The fastest rate is the largest |eigenvalue| of the Jacobian at ``y0`` and, with
+    ``probe``, at states sampled along a short run of the method itself (about 20 periods
+    of the initial motion): a pendulum released at rest moves much faster later. A probe
+    that fails (an implicit solve that does not converge) is repeated with half the step.
+    Falls back to 0.01 when the linearisation has no rate (free motion); never more than
+    a tenth of a finite run. For time-transformed steppers see ``fictitious_step``.
     """
-    rate = fastest_rate(compiled, t0, y0)
     per_period = STEPS_PER_PERIOD.get(stepper.order, 60)
-    if rate > 0.0:
-        dt = 2.0 * math.pi / rate / per_period
-    else:
-        dt = 0.01
+    rate = fastest_rate(compiled, t0, y0)
+    dt = 2.0 * math.pi / rate / per_period if rate > 0.0 else 0.01
     if math.isfinite(t_end) and t_end > t0:
         dt = min(dt, (t_end - t0) / 10.0)
-    return dt
+    if not probe or rate <= 0.0 or stepper.family not in ("composition", "gauss"):
+        return dt
+    for _ in range(6):
+        states = _probe(compiled, stepper, t0, y0, dt, 20 * per_period)
+        if states is not None:
+            break
+        dt /= 2.0
+    else:
+        return dt
+    for t, y in states:
+        rate = max(rate, fastest_rate(compiled, t, y))
+    return min(dt, 2.0 * math.pi / rate / per_period)
+
+
+def _probe(compiled, stepper, t0, y0, dt, nsteps, samples=24):
+    """States ``(t, y)`` along ``nsteps`` steps of ``stepper``, or None if it failed."""
+    from systems.integrators.registry import gauss_tableau
+
+    y = np.array(y0, dtype=float)
+    m = len(y)
+    stride = max(1, nsteps // samples)
+    cap = nsteps // stride + 1
+    out_t, out_y = np.empty(cap), np.empty((cap, m))
+    ev = (np.array([-1.0, 0.0, 0.0]), out_t, out_y, np.empty((1, 2)), np.empty((1, 2, m)))
+    info = np.zeros(8, dtype=np.int64)
+    K, P = compiled.kernels, compiled.parameters
+    try:
+        if stepper.family == "composition":
+            kick, drift = stepper.kick_drift()
+            K.compose_run(t0, y, np.zeros(m + 1), P, dt, nsteps, stride, kick, drift, False,
+                          *ev, info)  # fmt: skip
+        else:
+            A, b, c, E = gauss_tableau(stepper.stages)
+            Z, zvalid = np.zeros((stepper.stages, m)), np.zeros(1, dtype=np.int64)
+            K.gauss_run(t0, y, np.zeros(m + 1), P, dt, nsteps, stride, A, b, c, E, Z, zvalid,
+                        1e-12, 50, False, *ev, info)  # fmt: skip
+    except ZeroDivisionError:
+        return None
+    if info[2] != 0:
+        return None
+    return list(zip(out_t[: info[1]], out_y[: info[1]], strict=True))
 
 
 def fictitious_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float) -> float:
