@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QPoint, QPointF, Qt
 
 from tests.explorer.conftest import wait_for_points
 
@@ -41,10 +41,7 @@ def test_click_in_phase_view_launches_a_trajectory(qtbot, window):
     wait_for_points(qtbot, window, 5)
     phase = window.phase_view
     view = phase.plot.getViewBox()
-    scene_point = view.mapViewToScene(view.mapToView(view.rect().center()))
-    scene_point = view.mapViewToScene(
-        type(scene_point)(0.5, 2.0)  # theta = 0.5, p_theta = 2.0
-    )
+    scene_point = view.mapViewToScene(QPointF(0.5, 2.0))  # theta = 0.5, p_theta = 2.0
     pixel = phase.plot_widget.mapFromScene(scene_point)
     qtbot.mouseClick(phase.plot_widget.viewport(), Qt.MouseButton.LeftButton, pos=QPoint(pixel))
     qtbot.waitUntil(lambda: len(window.store) == 2, timeout=5000)
@@ -98,7 +95,8 @@ def test_parameter_change_mid_run_restarts_on_new_values(qtbot, window):
     old_saddle = window.phase_view.saddles[0].energy
     window.editor.parameter_table.set_value("g", 4.0)
     qtbot.waitUntil(lambda: window.worker.generation > old_generation, timeout=5000)
-    assert dict(zip(window.compiled.parameter_names, window.compiled.parameters))["g"] == 4.0
+    values = dict(zip(window.compiled.parameter_names, window.compiled.parameters, strict=True))
+    assert values["g"] == 4.0
     wait_for_points(qtbot, window, 10)
     assert window.phase_view.saddles[0].energy == pytest.approx(old_saddle * 4.0 / 9.81)
     # the old worker's thread ended
