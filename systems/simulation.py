@@ -188,8 +188,9 @@ class _Fixed:
 class _LogH:
     """Logarithmic-Hamiltonian leapfrog compositions in fictitious time ``ds``."""
 
-    def __init__(self, compiled, stepper: Stepper, y0, t0, t_end, ds, section):
+    def __init__(self, compiled, stepper: Stepper, y0, t0, t_end, ds, section, kahan=True):
         self.c, self.s = compiled, stepper
+        self.kahan = kahan
         self.y = np.array(y0, dtype=float)
         self.m = len(self.y)
         self.comp = np.zeros(self.m + 1)
@@ -212,7 +213,8 @@ class _LogH:
         t_end = self.t_end if math.isfinite(self.t_end) else 1e300
         self.c.kernels.logh_run(
             self.tq, self.y, self.comp, self.c.parameters, self.ds, nsteps, stride, self.kick,
-            self.drift, self.energy, t_end, True, self.section, out_t, out_y, ev_t, ev_y, info,
+            self.drift, self.energy, t_end, self.kahan, self.section, out_t, out_y, ev_t, ev_y,
+            info,
         )  # fmt: skip
         code, steps, evals = int(info[2]), int(info[0]), int(info[4])
         n_out, n_ev = int(info[1]), int(info[3])
@@ -444,15 +446,15 @@ def locate_crossings(
 # -- the stream -------------------------------------------------------------------------
 
 
-def _make_runner(compiled, stepper, y0, t0, t_end, dt, tol, section):
+def _make_runner(compiled, stepper, y0, t0, t_end, dt, tol, section, compensated=True):
     family = stepper.family
     if family in ("composition", "gauss"):
         if dt is None:
             dt = default_step(compiled, stepper, t0, y0, t_end)
-        return _Fixed(compiled, stepper, y0, t0, t_end, dt, section)
+        return _Fixed(compiled, stepper, y0, t0, t_end, dt, section, compensated)
     if family == "logh":
         ds = dt if dt is not None else fictitious_step(compiled, stepper, t0, y0, t_end)
-        return _LogH(compiled, stepper, y0, t0, t_end, ds, section)
+        return _LogH(compiled, stepper, y0, t0, t_end, ds, section, compensated)
     if family == "dop853":
         tol = DEFAULT_TOL if tol is None else tol
         return _Dop853(compiled, stepper, y0, t0, t_end, tol, section)
@@ -483,6 +485,7 @@ def stream(
     max_points: int = 4096,
     section: tuple[int, float, int] | None = None,
     energy_tolerance: float = 1e-2,
+    compensated: bool = True,
 ) -> Iterator[Block]:
     """Integrate ``compiled`` and yield ``Block``s, each after about ``block_seconds``.
 
@@ -504,6 +507,9 @@ def stream(
     energy_tolerance : float
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
         this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8).
+    compensated : bool
+        Kahan-compensated summation of the state in fixed-step and log-H loops, so
+        round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
 
     Yields
     ------
@@ -527,7 +533,7 @@ def stream(
     if t_end <= t0:
         raise ValueError("t_end must be after t0")
     sec = _no_section() if section is None else np.array(section, dtype=float)
-    runner = _make_runner(compiled, stepper, y0, t0, t_end, dt, tol, sec)
+    runner = _make_runner(compiled, stepper, y0, t0, t_end, dt, tol, sec, compensated)
     c = compiled.mechanics.classification
     watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
     H0 = float(compiled.hamiltonian(t0, y0[None, :])[0]) if watch_energy else 0.0
