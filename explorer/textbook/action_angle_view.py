@@ -1,0 +1,182 @@
+"""Action–angle quantities of one-degree systems: J(E) and T(E) = dJ/dE against E."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
+
+from explorer.textbook import compute
+from explorer.textbook.base import TextbookTabView
+from explorer.textbook.plots import (
+    BLUE,
+    GREY,
+    ORANGE,
+    PURPLE,
+    RED,
+    clear_plot,
+    make_plot,
+    note_label,
+    pen,
+)
+from systems.display import pretty_name
+
+
+def action_angle_job(compiled, cancel=compute.NEVER) -> compute.ActionAngleResult:
+    """Equilibria (for the well and the separatrix), then J and T over the energies."""
+    found = compute.equilibria(compiled, cancel)
+    cancel.check()
+    return compute.action_angle_data(compiled, found.search, cancel=cancel)
+
+
+class ActionAngleView(TextbookTabView):
+    """J(E) = ∮ p dq and T(E) = dJ/dE from the bottom of the well to past the separatrix."""
+
+    title = "Action–angle"
+
+    def __init__(self, runner, parent: QWidget | None = None):
+        super().__init__(runner, parent)
+        self.result: compute.ActionAngleResult | None = None
+        self.summary = note_label("")
+        self.action_plot = make_plot("Action J(E)", "E", "J = ∮ p dq")
+        self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T")
+        self.splitter = QSplitter()
+        self.splitter.addWidget(self.action_plot)
+        self.splitter.addWidget(self.period_plot)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(4, 4, 4, 4)
+        layout.addWidget(self.summary)
+        layout.addWidget(self.splitter, 1)
+
+    def _clear(self) -> None:
+        self.result = None
+        clear_plot(self.action_plot)
+        clear_plot(self.period_plot)
+        self.splitter.setVisible(True)
+        self.summary.setText("Integrating J(E) and T(E)…")
+
+    def _start(self) -> None:
+        reason = compute.action_angle_reason(self.compiled)
+        if reason:
+            self._show_reason(reason)
+            return
+        generation = self.generation
+        self.runner.submit(
+            self.key,
+            action_angle_job,
+            self.compiled,
+            on_done=lambda result: self._on_table_done(result, generation),
+            on_failed=lambda message: self._show_reason(message.split(": ", 1)[-1]),
+        )
+
+    def _show_reason(self, reason: str) -> None:
+        self.splitter.setVisible(False)
+        self.summary.setText(
+            f"<b>Not available:</b> {reason}. Action–angle variables apply to autonomous "
+            "one-degree systems with periodic motion, such as the simple pendulum."
+        )
+
+    def _on_table_done(self, result: compute.ActionAngleResult, generation: int) -> None:
+        if generation != self.generation:
+            return
+        self.result = result
+        name = pretty_name(self.compiled.mechanics.scene.coordinates[0])
+        E = result.energies
+        librating = np.array([m == "libration" for m in result.motion])
+        rotating = np.array([m == "rotation" for m in result.motion])
+        for widget, values, label in (
+            (self.action_plot, result.action, f"J = ∮ p<sub>{name}</sub> d{name}"),
+            (self.period_plot, result.period, "T"),
+        ):
+            clear_plot(widget)
+            plot = widget.getPlotItem()
+            plot.setLabel("bottom", "E  (energy of the orbit)")
+            plot.setLabel("left", label)
+            plot.plot(
+                E,
+                np.where(librating, values, np.nan),
+                pen=pen(BLUE),
+                connect="finite",
+                name="libration",
+            )
+            if rotating.any():
+                plot.plot(
+                    E,
+                    np.where(rotating, values, np.nan),
+                    pen=pen(PURPLE),
+                    connect="finite",
+                    name="rotation (full turns)",
+                )
+            if result.separatrix is not None:
+                plot.addItem(
+                    pg.InfiniteLine(
+                        result.separatrix,
+                        angle=90,
+                        pen=pen(RED, 1.5, dash=True),
+                        label=f"separatrix E = {result.separatrix:.4g}",
+                        labelOpts={"position": 0.85, "color": RED, "fill": (255, 255, 255, 210)},
+                    )
+                )
+            plot.addItem(
+                pg.InfiniteLine(
+                    result.current,
+                    angle=90,
+                    pen=pen(ORANGE, 1.2, dot=True),
+                    label="this orbit",
+                    labelOpts={"position": 0.1, "color": ORANGE, "fill": (255, 255, 255, 210)},
+                )
+            )
+        plot = self.period_plot.getPlotItem()
+        plot.legend.anchor((0, 0), (0, 0), offset=(60, 10))
+        plot.setTitle("Period T(E) = dJ/dE", color="#222", size="10pt")
+        self.action_plot.getPlotItem().setTitle("Action J(E)", color="#222", size="10pt")
+        if result.small_period is not None:
+            plot.plot(
+                [E[0], E[-1]],
+                [result.small_period] * 2,
+                pen=pen(GREY, 1.2, dash=True),
+                name=f"2π/ω = {result.small_period:.4g} (small oscillations)",
+            )
+        finite = np.isfinite(result.period)
+        check = ""
+        if result.exact is not None:
+            show = np.isfinite(result.exact) & librating
+            plot.plot(
+                E[show][::3],
+                result.exact[show][::3],
+                pen=None,
+                symbol="o",
+                symbolSize=5,
+                symbolBrush=None,
+                symbolPen=pen(RED, 1.2),
+                name="exact 4√(M/c) K(k²)",
+            )
+            if show.any():
+                deviation = np.abs(result.period[show] / result.exact[show] - 1)
+                check = (
+                    f" Exact elliptic-integral period {result.exact_formula}: largest relative "
+                    f"difference below the separatrix <b>{np.nanmax(deviation):.1e}</b>."
+                )
+        if finite.any():
+            top = float(np.nanmax(result.period[finite]))
+            low = float(np.nanmin(result.period[finite]))
+            plot.setYRange(0.0 if low > 0 else low, min(top, 6 * low if low > 0 else top) * 1.05)
+        sep = (
+            f" T diverges at the separatrix E = {result.separatrix:.5g}, where the motion "
+            "takes forever to reach the unstable equilibrium."
+            if result.separatrix is not None
+            else ""
+        )
+        small = (
+            f" At the bottom of the well T → 2π/ω = {result.small_period:.5g}."
+            if result.small_period is not None
+            else ""
+        )
+        self.summary.setText(
+            f"Orbits through {name} = {result.q0:.4g} (U<sub>min</sub> = {result.minimum:.5g}); "
+            "J is the area enclosed by the level set H = E (for a rotation, the area under one "
+            "turn: half the area inside the separatrix); T = dJ/dE is integrated on its own."
+            + small
+            + sep
+            + check
+        )

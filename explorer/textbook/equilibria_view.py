@@ -1,0 +1,270 @@
+"""Equilibria by virtual work: a table, and markers in the phase view."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QHeaderView,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+
+from explorer.textbook import compute
+from explorer.textbook.base import TextbookTabView
+from explorer.textbook.plots import GREEN, RED, note_label
+from systems.display import pretty_name
+
+KIND_TEXT = {
+    "minimum": "stable (minimum of U)",
+    "saddle": "unstable (saddle of U)",
+    "maximum": "unstable (maximum of U)",
+    "degenerate": "undecided (degenerate)",
+}
+
+
+def _number(value: float) -> str:
+    if abs(value - math.pi) < 1e-9:
+        return "π"
+    if abs(value + math.pi) < 1e-9:
+        return "−π"
+    text = f"{value:.6g}"
+    return "0" if text in ("0", "-0") else text.replace("-", "−")
+
+
+def frequency_text(equilibrium) -> str:
+    """ω of every normal mode (stable), or the growth rates of the unstable directions."""
+    if equilibrium.stable:
+        parts = []
+        for i, w in enumerate(equilibrium.frequencies):
+            label = f"ω{_subscript(i)}" if len(equilibrium.frequencies) > 1 else "ω"
+            extra = f"  (ω² = {w * w:.6g}, period {2 * math.pi / w:.5g})" if w > 0 else ""
+            parts.append(f"{label} = {w:.6g}{extra}")
+        return ";  ".join(parts)
+    rates = [math.sqrt(-w2) for w2 in equilibrium.omega_squared if w2 < 0]
+    if not rates:
+        return "—"
+    return "unstable: growth rate " + ", ".join(f"λ = {r:.4g}" for r in rates)
+
+
+def _subscript(i: int) -> str:
+    return str(i + 1).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
+
+
+def mode_text(equilibrium, names: tuple[str, ...]) -> str:
+    """Each normal mode as the relative amplitudes of the coordinates."""
+    modes = np.asarray(equilibrium.modes)
+    if modes.ndim != 2 or modes.shape[0] < 2:
+        return "—"
+    parts = []
+    for j in range(modes.shape[1]):
+        v = modes[:, j]
+        big = float(np.max(np.abs(v))) or 1.0
+        v = v / big
+        if v[np.argmax(np.abs(v))] < 0:
+            v = -v
+        shape = ", ".join(f"{x:+.3g}".replace("-", "−") for x in v)
+        parts.append(f"({shape})")
+    return "  ".join(parts)
+
+
+class EquilibriaView(TextbookTabView):
+    """The equilibria of the current system (computed even while hidden, for the markers).
+
+    Signals
+    -------
+    equilibria_found(object)
+        An ``compute.EquilibriaResult``; None when a new system is being searched.
+    """
+
+    title = "Equilibria"
+    equilibria_found = Signal(object)
+
+    def __init__(self, runner, parent: QWidget | None = None):
+        super().__init__(runner, parent)
+        self.result: compute.EquilibriaResult | None = None
+        self.status = note_label("Open a system to find where it can rest.")
+        self.table = QTableWidget(0, 0)
+        self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.table.verticalHeader().setVisible(False)
+        self.table.setAlternatingRowColors(True)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(4, 4, 4, 4)
+        layout.addWidget(self.status)
+        layout.addWidget(self.table, 1)
+
+    def set_system(self, compiled) -> None:
+        super().set_system(compiled)
+        self.refresh()  # the phase view's markers need the equilibria even if hidden
+
+    def _clear(self) -> None:
+        self.result = None
+        self.table.setRowCount(0)
+        self.status.setText("Searching for equilibria: dU/dq = 0 (virtual work)…")
+        self.equilibria_found.emit(None)
+
+    def _start(self) -> None:
+        generation = self.generation
+        self.runner.submit(
+            self.key,
+            compute.equilibria,
+            self.compiled,
+            on_done=lambda result: self._on_search_done(result, generation),
+            on_failed=self._on_search_failed,
+        )
+
+    def _on_search_failed(self, message: str) -> None:
+        self.status.setText(f"The search failed: {message}")
+
+    def _on_search_done(self, result: compute.EquilibriaResult, generation: int) -> None:
+        if generation != self.generation:
+            return
+        self.result = result
+        search = result.search
+        self._fill(result)
+        found = len(search.equilibria)
+        how = {
+            "symbolic": "solved exactly by sympy",
+            "symbolic+numeric": "solved by sympy, completed by a numeric scan",
+            "numeric": "found by a numeric scan of the view",
+        }.get(search.method, "")
+        lines = []
+        if found:
+            lines.append(
+                f"<b>{found} equilibri{'um' if found == 1 else 'a'}</b> where the generalized "
+                f"forces −∂U/∂q vanish ({how}). Small oscillations solve K v = ω² M v."
+            )
+        else:
+            lines.append("<b>No equilibria.</b>")
+        if search.reason:
+            text = search.reason
+            for name in search.free:
+                text = text.replace(f"depend on {name}", f"depend on {pretty_name(name)}")
+            lines.append(f"<i>Note:</i> {text}.")
+        self.status.setText(" ".join(lines))
+        self.equilibria_found.emit(result)
+
+    def _fill(self, result: compute.EquilibriaResult) -> None:
+        search, names = result.search, result.names
+        shown = [name for name in names if name not in search.free] or list(names)
+        exact = any(e.exact for e in search.equilibria)
+        headers = [pretty_name(name) for name in shown]
+        if exact:
+            headers.append("closed form (sympy)")
+        headers += ["kind", "U (= H at rest)", "small oscillations"]
+        if len(names) > 1:
+            headers.append("normal modes (" + ", ".join(pretty_name(n) for n in names) + ")")
+        self.table.clear()
+        self.table.setColumnCount(len(headers))
+        self.table.setHorizontalHeaderLabels(headers)
+        self.table.setRowCount(len(search.equilibria))
+        for row, e in enumerate(search.equilibria):
+            cells = [_number(e.q[name]) for name in shown]
+            if exact:
+                forms = [
+                    f"{pretty_name(name)} = {self._closed_form(e.exact[name])}"
+                    + (" (mod 2π)" if name in search.periodic else "")
+                    for name in shown
+                    if name in e.exact
+                ]
+                cells.append(",  ".join(forms) or "(numeric)")
+            kind_column = len(cells)
+            cells += [KIND_TEXT.get(e.kind, e.kind), f"{e.potential:.6g}", frequency_text(e)]
+            if len(names) > 1:
+                cells.append(mode_text(e, names))
+            for column, text in enumerate(cells):
+                item = QTableWidgetItem(text)
+                if column == kind_column:
+                    item.setForeground(pg.mkColor(GREEN if e.stable else RED))
+                self.table.setItem(row, column, item)
+        header = self.table.horizontalHeader()
+        header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        header.setStretchLastSection(True)
+
+    def _closed_form(self, text: str) -> str:
+        import sympy
+
+        from explorer.textbook.plots import readable
+        from systems.display import for_display
+
+        try:
+            return readable(for_display(sympy.sympify(text), self.compiled.mechanics.scene))
+        except (sympy.SympifyError, TypeError, ValueError, AttributeError):
+            return text
+
+    def row_texts(self) -> list[list[str]]:
+        """The table's cells (for tests and exports)."""
+        return [
+            [self.table.item(r, c).text() for c in range(self.table.columnCount())]
+            for r in range(self.table.rowCount())
+        ]
+
+
+class EquilibriumMarkers:
+    """Dots (stable) and crosses (unstable) at the equilibria in the phase view's plot."""
+
+    def __init__(self, plot: pg.PlotItem):
+        self.plot = plot
+        self.item = pg.ScatterPlotItem(hoverable=True, tip=self._tip, pxMode=True)
+        self.item.setZValue(20)
+        plot.addItem(self.item, ignoreBounds=True)
+        self.result: compute.EquilibriaResult | None = None
+        self.index = 0
+        self.visible = True
+
+    @staticmethod
+    def _tip(x: float, y: float, data) -> str:
+        return str(data)
+
+    def show_result(self, result: compute.EquilibriaResult | None) -> None:
+        self.result = result
+        self.update()
+
+    def set_pair(self, index: int, visible: bool) -> None:
+        """Show the coordinate pair ``index`` (q_i, p_i); hide in the Poincaré mode."""
+        self.index = index
+        self.visible = visible
+        self.update()
+
+    def spots(self) -> list[dict]:
+        """The markers as pyqtgraph spot dictionaries (x, y, symbol, brush, pen, data)."""
+        if self.result is None or not self.visible:
+            return []
+        search, names = self.result.search, self.result.names
+        if self.index >= len(names):
+            return []
+        name = names[self.index]
+        spots = []
+        for e in search.equilibria:
+            q = e.q.get(name, 0.0)
+            p = e.p.get(f"p_{name}", 0.0)
+            copies = [q]
+            if name in search.periodic:
+                copies += [q - 2 * math.pi, q + 2 * math.pi]
+            where = ", ".join(f"{pretty_name(k)} = {_number(v)}" for k, v in e.q.items())
+            tip = f"equilibrium {where}\n{KIND_TEXT.get(e.kind, e.kind)}\n{frequency_text(e)}"
+            if e.stable and e.frequencies:
+                tip += "\nperiods 2π/ω = " + ", ".join(
+                    f"{2 * math.pi / w:.5g}" for w in e.frequencies if w > 0
+                )
+            tip += f"\nU = {e.potential:.6g}"
+            for x in copies:
+                if e.stable:
+                    style = {"symbol": "o", "brush": pg.mkBrush(GREEN), "pen": pg.mkPen("w")}
+                else:
+                    style = {"symbol": "x", "brush": pg.mkBrush(RED), "pen": pg.mkPen(RED)}
+                spots.append({"pos": (x, p), "size": 14, "data": tip, **style})
+        return spots
+
+    def update(self) -> None:
+        self.item.setData(self.spots())
+
+    def remove(self) -> None:
+        self.plot.removeItem(self.item)

@@ -1,0 +1,78 @@
+"""Plot helpers in the house style for the Textbook tabs."""
+
+from __future__ import annotations
+
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QLabel
+
+from explorer.panels.curves import style_plot
+
+BLUE, RED, GREEN, ORANGE, PURPLE, GREY = (
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#ff7f0e",
+    "#9467bd",
+    "#7f7f7f",
+)
+
+
+def pen(colour: str, width: float = 2.0, dash: bool = False, dot: bool = False):
+    style = Qt.PenStyle.SolidLine
+    if dash:
+        style = Qt.PenStyle.DashLine
+    if dot:
+        style = Qt.PenStyle.DotLine
+    return pg.mkPen(colour, width=width, style=style)
+
+
+def make_plot(title: str, bottom: str, left: str) -> pg.PlotWidget:
+    """A white plot with a grid, axis labels (HTML allowed) and a legend."""
+    widget = pg.PlotWidget(background="w")
+    plot = widget.getPlotItem()
+    style_plot(plot)
+    plot.setTitle(title, color="#222", size="10pt")
+    plot.setLabel("bottom", bottom)
+    plot.setLabel("left", left)
+    plot.addLegend(
+        offset=(-10, 10),
+        labelTextColor="#222",
+        brush=pg.mkBrush(255, 255, 255, 240),
+        pen=pg.mkPen("#c8c8c8"),
+    )
+    widget.setMinimumSize(220, 160)
+    return widget
+
+
+def clear_plot(widget: pg.PlotWidget) -> None:
+    """Remove every item and legend entry."""
+    plot = widget.getPlotItem()
+    plot.clear()
+    if plot.legend is not None:
+        plot.legend.clear()
+
+
+def note_label(text: str = "") -> QLabel:
+    """A wrapped explanatory line of rich text."""
+    label = QLabel(text)
+    label.setWordWrap(True)
+    label.setTextFormat(Qt.TextFormat.RichText)
+    label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+    label.setStyleSheet("color: #333; padding: 2px")
+    return label
+
+
+def sub(name: str, index: str) -> str:
+    """``name<sub>index</sub>``."""
+    return f"{name}<sub>{index}</sub>"
+
+
+def readable(expression) -> str:
+    """A sympy expression as one line for people: ``p_θ²/(2·m·r²) − k/r``."""
+    import sympy
+
+    text = sympy.sstr(expression)
+    for power, glyph in (("**2", "²"), ("**3", "³"), ("**4", "⁴")):
+        text = text.replace(power, glyph)
+    return text.replace("**", "^").replace("*", "·").replace("-", "−")
