@@ -1,0 +1,292 @@
+"""Work-precision sweeps: what accuracy costs in time, one curve per method.
+
+``sweep`` runs each method over a range of step sizes (fixed-step and log-H methods) or
+tolerances (adaptive ones) to the same end time, and records the wall time of the
+integration (compilation excluded), the final-state error against a reference, and the
+maximum relative energy error. The reference is exact where one is known (linear
+systems through the matrix exponential; Kepler orbits after whole periods) and otherwise
+a converged DOP853 run; ``WorkPrecision.reference`` says which. Progress is reported
+through a callback and a sweep can be cancelled between blocks.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import sympy
+
+from systems.expressions import as_expr
+from systems.integrators import STEPPERS, choose_method, get_stepper
+from systems.integrators.stepsize import default_step, fictitious_step
+from systems.simulation import stream
+
+KEPLER_SCENES = {"kepler_cartesian": "cartesian", "planetary_motion": "polar"}
+CSV_COLUMNS = (
+    "method",
+    "setting",
+    "value",
+    "wall_s",
+    "steps",
+    "rhs_evaluations",
+    "final_error",
+    "energy_error",
+    "status",
+)
+
+
+class Cancelled(Exception):
+    """Raised inside a sweep when the caller's ``cancelled()`` says so."""
+
+
+@dataclass(frozen=True)
+class WorkPoint:
+    """One run of a sweep.
+
+    Attributes
+    ----------
+    setting : str
+        ``"dt"``, ``"ds"`` (fictitious-time step) or ``"tol"``.
+    final_error : float
+        Max-norm of the final state (q, p) minus the reference.
+    energy_error : float or None
+        Max over the run of |H - H0| / |H0| (None when H is not conserved).
+    """
+
+    method: str
+    setting: str
+    value: float
+    wall_s: float
+    steps: int
+    rhs_evaluations: int
+    final_error: float
+    energy_error: float | None
+    status: str
+
+    def row(self) -> list:
+        return [getattr(self, name) for name in CSV_COLUMNS]
+
+
+@dataclass(frozen=True)
+class WorkPrecision:
+    """The result of a sweep: points of all methods, and how errors were measured."""
+
+    title: str
+    t_end: float
+    reference: str
+    methods: tuple[str, ...]
+    points: tuple[WorkPoint, ...] = field(default_factory=tuple)
+    cancelled: bool = False
+
+    def curve(self, method: str) -> list[WorkPoint]:
+        """The points of ``method`` that finished, in sweep order."""
+        return [p for p in self.points if p.method == method and p.status == "ok"]
+
+    def write_csv(self, path: str | Path) -> Path:
+        path = Path(path)
+        with path.open("w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(CSV_COLUMNS)
+            for point in self.points:
+                writer.writerow(point.row())
+        return path
+
+
+def default_methods(mechanics) -> list[str]:
+    """The automatic choice and the other methods that apply, cheapest families first."""
+    chosen, _ = choose_method(mechanics)
+    c = mechanics.classification
+    if not c.conservative or not c.hamiltonian_conserved:
+        names = ["dop853", "gauss_legendre4", "gauss_legendre6"]
+    elif c.separable:
+        names = ["leapfrog", "yoshida4", "yoshida6", "yoshida8", "gauss_legendre4", "dop853"]
+    else:
+        names = ["implicit_midpoint", "gauss_legendre4", "gauss_legendre6", "dop853"]
+    if chosen not in names:
+        names.insert(0, chosen)
+    return names
+
+
+def settings_for(compiled, method: str, y0: np.ndarray, t_end: float, levels: int) -> list:
+    """(setting name, values) of a sweep of ``method``: halving steps or decade tolerances."""
+    stepper = get_stepper(method)
+    if stepper.adaptive:
+        low = 1e-3 if stepper.family == "dop853" else 1e-3
+        high = 1e-13 if stepper.family == "dop853" else 1e-9
+        return "tol", list(np.logspace(math.log10(low), math.log10(high), levels))
+    if stepper.family == "logh":
+        base = fictitious_step(compiled, stepper, 0.0, y0, t_end)
+        name = "ds"
+    else:
+        base = default_step(compiled, stepper, 0.0, y0, t_end)
+        name = "dt"
+    return name, [base * 2.0 ** (1 - j) for j in range(levels)]
+
+
+# -- references -----------------------------------------------------------------------
+
+
+def linear_reference(compiled, y0: np.ndarray, t_end: float) -> np.ndarray | None:
+    """exp(J t) y0 when Hamilton's equations are linear with constant coefficients."""
+    from scipy.linalg import expm
+
+    mech = compiled.mechanics
+    variables = (*mech.q, *mech.p)
+    rhs = sympy.Matrix([as_expr(e) for e in mech.hamilton_equations])
+    J = rhs.jacobian(variables)
+    if any(J[i, j].has(*variables, mech.t) for i in range(J.rows) for j in range(J.cols)):
+        return None
+    if any(e.subs(dict.fromkeys(variables, 0)) != 0 for e in rhs):
+        return None
+    values = {mech.params[name]: value for name, value in zip(
+        compiled.parameter_names, compiled.parameters, strict=True)}  # fmt: skip
+    A = np.array(J.xreplace(values).evalf(), dtype=float)
+    return expm(A * t_end) @ y0
+
+
+def kepler_period(compiled, y0: np.ndarray) -> float | None:
+    """The period of a bound Kepler orbit for the catalogue's Kepler scenes, else None."""
+    scene = compiled.mechanics.scene
+    if scene.name not in KEPLER_SCENES:
+        return None
+    values = dict(zip(compiled.parameter_names, compiled.parameters, strict=True))
+    m, k = values["m"], values["k"]
+    E = float(compiled.hamiltonian(0.0, y0[None])[0])
+    if not E < 0:
+        return None
+    a = -k / (2 * E)
+    return 2 * math.pi * math.sqrt(m * a**3 / k)
+
+
+def reference_state(compiled, y0: np.ndarray, t_end: float) -> tuple[np.ndarray, float, str]:
+    """(reference final state, possibly adjusted t_end, a sentence naming the reference).
+
+    For a Kepler scene ``t_end`` is rounded to a whole number of periods.
+    """
+    period = kepler_period(compiled, y0)
+    if period is not None:
+        orbits = max(1, round(t_end / period))
+        t_end = orbits * period
+        y_ref = y0.copy()
+        if KEPLER_SCENES[compiled.mechanics.scene.name] == "polar":
+            y_ref[1] += 2 * math.pi * orbits
+        return y_ref, t_end, f"exact: the initial state after {orbits} whole Kepler periods"
+    exact = linear_reference(compiled, y0, t_end)
+    if exact is not None:
+        return exact, t_end, "exact: matrix exponential of the linear equations"
+    last = None
+    for block in stream(compiled, method="dop853", y0=y0, t_end=t_end, tol=1e-14):
+        last = block
+    if last is None or last.status != "ok":
+        raise RuntimeError("the reference run did not reach t_end: " + (last.message or ""))
+    return last.y[-1].copy(), t_end, "a converged DOP853 run (tol 1e-14)"
+
+
+# -- the sweep ------------------------------------------------------------------------
+
+
+def _timed_run(compiled, method, y0, t_end, setting, value, watch_energy, cancelled):
+    kwargs = {"dt": value} if setting in ("dt", "ds") else {"tol": value}
+    diagnostics = ("H",) if watch_energy else ()
+    best = math.inf
+    for _ in range(3):  # repeat short runs: the minimum is the least disturbed timing
+        start = time.perf_counter()
+        last, worst = None, 0.0
+        for block in stream(
+            compiled, method=method, y0=y0, t_end=t_end, diagnostics=diagnostics,
+            energy_tolerance=math.inf, max_points=512, **kwargs,
+        ):  # fmt: skip
+            last = block
+            if watch_energy and len(block.t):
+                worst = max(worst, float(np.max(np.abs(block.diagnostics["H"] - watch_energy[0]))))
+            if cancelled is not None and cancelled():
+                raise Cancelled
+        best = min(best, time.perf_counter() - start)
+        if best > 0.05:
+            break
+    energy = worst / watch_energy[1] if watch_energy else None
+    return last, best, energy
+
+
+def sweep(
+    compiled,
+    methods: Sequence[str] | None = None,
+    *,
+    t_end: float,
+    y0: np.ndarray | None = None,
+    levels: int = 6,
+    progress: Callable[[int, int, str], None] | None = None,
+    cancelled: Callable[[], bool] | None = None,
+) -> WorkPrecision:
+    """Measure error against wall time for each method over a sweep of its setting.
+
+    Parameters
+    ----------
+    compiled : CompiledSystem
+        With ``rhs`` and ``hamiltonian`` (and ``separable`` for the explicit methods).
+    methods : sequence of str, optional
+        Defaults to ``default_methods``; methods the compiled system cannot run are
+        skipped.
+    y0 : ndarray, shape (2n,), optional
+    levels : int
+        Points per curve.
+    progress : callable(done, total, text), optional
+    cancelled : callable() -> bool, optional
+        Polled between blocks; a cancelled sweep returns what it has, ``cancelled=True``.
+
+    Returns
+    -------
+    WorkPrecision
+    """
+    mech = compiled.mechanics
+    methods = list(methods) if methods else default_methods(mech)
+    for name in methods:
+        get_stepper(name)
+    runnable = [m for m in methods if STEPPERS[m].wants <= compiled.wanted | {"rhs"}]
+    y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    y_ref, t_end, reference = reference_state(compiled, y0, t_end)
+    watch = None
+    if mech.classification.hamiltonian_conserved:
+        H0 = float(compiled.hamiltonian(0.0, y0[None])[0])
+        watch = (H0, abs(H0) if abs(H0) > 1e-8 else 1.0)
+    plan = [(m, *settings_for(compiled, m, y0, t_end, levels)) for m in runnable]
+    total = sum(len(values) for _, _, values in plan)
+    done = 0
+    points: list[WorkPoint] = []
+    title = mech.scene.title
+    try:
+        for method, setting, values in plan:
+            # compile (or load) the method's kernels before any timing
+            for _ in stream(compiled, method=method, y0=y0, t_end=t_end * 1e-6 + 1e-12):
+                pass
+            for value in values:
+                if progress is not None:
+                    progress(done, total, f"{method} {setting}={value:.3g}")
+                last, wall, energy = _timed_run(
+                    compiled, method, y0, t_end, setting, value, watch, cancelled
+                )
+                error = float(np.max(np.abs(last.y[-1] - y_ref))) if len(last.t) else math.inf
+                points.append(
+                    WorkPoint(
+                        method,
+                        setting,
+                        float(value),
+                        wall,
+                        int(last.steps),
+                        int(last.rhs_evaluations),
+                        error,
+                        energy,
+                        last.status,
+                    )  # fmt: skip
+                )
+                done += 1
+    except Cancelled:
+        return WorkPrecision(title, t_end, reference, tuple(runnable), tuple(points), True)
+    if progress is not None:
+        progress(total, total, "done")
+    return WorkPrecision(title, t_end, reference, tuple(runnable), tuple(points))
