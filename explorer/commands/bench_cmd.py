@@ -1,0 +1,88 @@
+"""``bench SCENE``: the work-precision diagram (error against wall time, per method)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from explorer.commands.errors import UserError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "bench", help="work-precision diagram: error against wall time for several methods"
+    )
+    parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
+    parser.add_argument("--t-end", type=float, default=None, help="end time (default: scene's)")
+    parser.add_argument(
+        "--methods", default=None, help="comma-separated stepper names (default: those that fit)"
+    )
+    parser.add_argument("--levels", type=int, default=6, help="points per curve (default 6)")
+    parser.add_argument("--out", default=None, help="draw the diagram to FILE.png or FILE.svg")
+    parser.add_argument("--csv", default=None, help="write the measurements to FILE.csv")
+
+
+def _progress(done: int, total: int, text: str) -> None:
+    width = 24
+    filled = int(width * done / max(total, 1))
+    line = f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {text}"
+    print(f"{line:<80}", end="" if done < total else "\n", file=sys.stderr, flush=True)
+
+
+def render(result, path: str) -> Path:
+    """The GUI's renderer when it is there, else the minimal one of this package."""
+    try:
+        from explorer.export import render_workprecision
+
+        return render_workprecision(result, path)
+    except ImportError:
+        from explorer.commands.bench_plot import render as fallback
+
+        return fallback(result, path)
+
+
+def run(args: argparse.Namespace) -> int:
+    from explorer.commands.run_cmd import check_method, prepare
+    from systems.integrators import STEPPERS
+    from systems.workprecision import default_methods, sweep
+
+    if args.out is not None and Path(args.out).suffix.lower() not in (".png", ".svg"):
+        raise UserError(f"--out must end in .png or .svg, not {args.out!r}")
+    if args.levels < 2:
+        raise UserError("--levels must be at least 2")
+    scene, mechanics, _, _, compiled = prepare(args.scene, None, extra_wants=())
+    if args.methods:
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        for method in methods:
+            if method not in STEPPERS:
+                raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
+            check_method(mechanics, method)
+    else:
+        methods = default_methods(mechanics)
+    if any(STEPPERS[m].needs_separable for m in methods):
+        from systems.compiled import compile_system
+
+        compiled = compile_system(mechanics, compiled.wanted | {"separable"})
+    t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
+    if not t_end > 0:
+        raise UserError("--t-end must be positive")
+    result = sweep(compiled, methods, t_end=t_end, levels=args.levels, progress=_progress)
+    print(f"{result.title}: t_end = {result.t_end:.6g}; reference: {result.reference}")
+    print(f"{'method':<18} {'setting':>12} {'wall s':>9} {'steps':>9} {'error':>9} {'energy':>9}")
+    for p in result.points:
+        energy = "-" if p.energy_error is None else f"{p.energy_error:9.2e}"
+        error = f"{p.final_error:9.2e}" if math.isfinite(p.final_error) else "      inf"
+        status = "" if p.status == "ok" else f"  ({p.status})"
+        print(
+            f"{p.method:<18} {p.setting + '=' + format(p.value, '.3g'):>12} {p.wall_s:9.2e} "
+            f"{p.steps:9d} {error} {energy:>9}{status}"
+        )
+    if args.csv:
+        result.write_csv(args.csv)
+        print(f"wrote {args.csv}")
+    if args.out:
+        render(result, args.out)
+        print(f"wrote {args.out}")
+    return 0
