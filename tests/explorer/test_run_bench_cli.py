@@ -1,0 +1,140 @@
+"""The ``run`` and ``bench`` commands: outputs, JSON keys, user errors."""
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from explorer.cli import main
+from tests.systems.scenes import DRIVEN_DAMPED, PLANETARY
+
+ROOT = Path(__file__).resolve().parents[2]
+JSON_KEYS = {
+    "method",
+    "why",
+    "steps",
+    "rhs_evaluations",
+    "wall_s",
+    "compile_s",
+    "t_end",
+    "final",
+    "max_rel_energy_error",
+    "status",
+    "message",
+}
+
+
+def run_json(capsys, *args):
+    code = main(["run", *args, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_run_json_report_and_csv(tmp_path, capsys):
+    out = tmp_path / "osc.csv"
+    code, report = run_json(capsys, "harmonic_oscillator", "--t-end", "3.0", "--out", str(out))
+    assert code == 0
+    assert set(report) == JSON_KEYS
+    assert report["status"] == "ok" and report["message"] == ""
+    assert report["t_end"] == 3.0
+    assert report["method"] == "yoshida4" and "separable" in report["why"]
+    assert report["steps"] > 0 and report["rhs_evaluations"] >= report["steps"]
+    assert report["wall_s"] >= 0 and report["compile_s"] > 0
+    final = report["final"]
+    assert final["q"]["x"] == pytest.approx(math.cos(3.0), abs=1e-4)
+    assert final["qdot"]["x"] == pytest.approx(-math.sin(3.0), abs=1e-4)
+    assert final["p"]["x"] == pytest.approx(-math.sin(3.0), abs=1e-4)
+    assert report["max_rel_energy_error"] < 1e-4
+    with out.open() as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == ["t", "x", "x_dot", "p_x", "H"]
+    table = np.array(rows[1:], dtype=float)
+    assert table[0, 0] == 0.0 and table[-1, 0] == 3.0
+    np.testing.assert_allclose(table[:, 1], np.cos(table[:, 0]), atol=1e-4)
+    np.testing.assert_allclose(table[:, 4], 0.5, atol=1e-4)
+
+
+def test_run_npz_with_a_method_and_step(tmp_path, capsys):
+    scene = tmp_path / "planet.toml"
+    scene.write_text(PLANETARY)
+    out = tmp_path / "planet.npz"
+    code, report = run_json(
+        capsys, str(scene), "--t-end", "5", "--method", "gauss_legendre6", "--dt", "0.01",
+        "--out", str(out),
+    )  # fmt: skip
+    assert code == 0
+    assert report["method"] == "gauss_legendre6" and report["why"].startswith("requested")
+    assert report["steps"] == 500
+    data = np.load(out)
+    assert data["q"].shape[1] == 2 and data["p"].shape == data["q"].shape
+    assert list(data["columns"]) == ["t", "r", "theta", "r_dot", "theta_dot", "p_r", "p_theta", "H"]
+
+
+def test_run_energy_error_is_null_when_h_is_not_conserved(tmp_path, capsys):
+    scene = tmp_path / "driven.toml"
+    scene.write_text(DRIVEN_DAMPED)
+    code, report = run_json(capsys, str(scene), "--t-end", "5", "--tol", "1e-8")
+    assert code == 0
+    assert report["method"] == "dop853"
+    assert report["max_rel_energy_error"] is None
+
+
+def test_run_stops_with_a_problem_status_and_exit_code(capsys):
+    code, report = run_json(
+        capsys, "simple_pendulum", "--method", "leapfrog", "--dt", "1.5", "--t-end", "100"
+    )
+    assert code == 1
+    assert report["status"] in ("energy_error", "non_finite", "singular", "stalled")
+    assert report["message"]
+    assert all(math.isfinite(v) for v in report["final"]["q"].values())
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["run", "simple_pendulum", "--method", "euler"], "unknown method"),
+        (["run", "planetary_motion", "--method", "leapfrog"], "separable"),
+        (["run", "simple_pendulum", "--dt", "-1"], "--dt must be positive"),
+        (["run", "simple_pendulum", "--out", "x.txt"], ".csv or .npz"),
+        (["bench", "simple_pendulum", "--out", "x.jpg"], ".png or .svg"),
+        (["bench", "simple_pendulum", "--methods", "rk4"], "unknown method"),
+    ],
+)
+def test_user_errors(args, fragment, capsys):
+    assert main(args) == 2
+    assert fragment in capsys.readouterr().err
+
+
+def test_dt_and_tol_are_exclusive():
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "main.py"), "run", "simple_pendulum", "--dt", "0.1",
+         "--tol", "1e-6"],
+        capture_output=True, text=True, cwd=ROOT,
+    )  # fmt: skip
+    assert result.returncode == 2 and "not allowed with" in result.stderr
+
+
+def test_bench_writes_csv_and_figures(tmp_path, capsys):
+    table = tmp_path / "wp.csv"
+    png = tmp_path / "wp.png"
+    args = ["bench", "harmonic_oscillator", "--t-end", "5", "--methods", "leapfrog,dop853"]
+    assert main([*args, "--levels", "3", "--csv", str(table), "--out", str(png)]) == 0
+    captured = capsys.readouterr()
+    assert "3/6" in captured.err  # the progress line
+    assert "matrix exponential" in captured.out
+    with table.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 6
+    leapfrog = [r for r in rows if r["method"] == "leapfrog"]
+    errors = [float(r["final_error"]) for r in leapfrog]
+    assert errors[0] > errors[1] > errors[2]  # halving the step helps
+    assert float(leapfrog[0]["energy_error"]) > 0
+    assert png.stat().st_size > 5000
+    svg = tmp_path / "wp.svg"
+    assert main([*args, "--levels", "2", "--out", str(svg)]) == 0
+    text = svg.read_text()
+    assert text.startswith("<?xml") and "<path" in text
