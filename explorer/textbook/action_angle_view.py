@@ -38,8 +38,8 @@ class ActionAngleView(TextbookTabView):
         super().__init__(runner, parent)
         self.result: compute.ActionAngleResult | None = None
         self.summary = note_label("")
-        self.action_plot = make_plot("Action J(E)", "E", "J = ∮ p dq")
-        self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T")
+        self.action_plot = make_plot("Action J(E)", "E", "J = ∮ p dq", corner="top-left")
+        self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T", corner="top-left")
         self.splitter = QSplitter()
         self.splitter.addWidget(self.action_plot)
         self.splitter.addWidget(self.period_plot)
@@ -114,7 +114,11 @@ class ActionAngleView(TextbookTabView):
                         angle=90,
                         pen=pen(RED, 1.5, dash=True),
                         label=f"separatrix E = {result.separatrix:.4g}",
-                        labelOpts={"position": 0.85, "color": RED, "fill": (255, 255, 255, 210)},
+                        labelOpts={
+                            "position": 0.9 if widget is self.period_plot else 0.55,
+                            "color": RED,
+                            "fill": (255, 255, 255, 210),
+                        },
                     )
                 )
             plot.addItem(
@@ -127,7 +131,6 @@ class ActionAngleView(TextbookTabView):
                 )
             )
         plot = self.period_plot.getPlotItem()
-        plot.legend.anchor((0, 0), (0, 0), offset=(60, 10))
         plot.setTitle("Period T(E) = dJ/dE", color="#222", size="10pt")
         self.action_plot.getPlotItem().setTitle("Action J(E)", color="#222", size="10pt")
         if result.small_period is not None:

@@ -7,7 +7,17 @@ from PySide6.QtWidgets import QHBoxLayout, QLabel, QSplitter, QVBoxLayout, QWidg
 
 from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
-from explorer.textbook.plots import BLUE, GREEN, ORANGE, RED, clear_plot, make_plot, note_label, pen
+from explorer.textbook.plots import (
+    BLUE,
+    GREEN,
+    ORANGE,
+    RED,
+    clear_plot,
+    headroom,
+    make_plot,
+    note_label,
+    pen,
+)
 from explorer.textbook.principle_view import _spin
 
 
@@ -138,12 +148,12 @@ class EnergyTheoremView(TextbookTabView):
         if b.energy is not None and not result.hamiltonian_is_energy:
             plot.plot(b.t, b.energy, pen=pen(RED, 1.8), name="T + V")
             values.append(b.energy)
-        self._pad(plot, np.concatenate(values))
+        self._pad(plot, np.concatenate(values), 0.45 if len(values) == 1 else 0.9)
         complete = "" if result.run.complete else f" (the run stopped early: {result.run.message})"
         self.summary.setText(explanation(result) + complete)
 
     @staticmethod
-    def _pad(plot, values: np.ndarray) -> None:
+    def _pad(plot, values: np.ndarray, top: float = 0.45) -> None:
         """A y range that does not magnify rounding noise on a conserved quantity."""
         values = values[np.isfinite(values)]
         if not values.size:
@@ -154,4 +164,4 @@ class EnergyTheoremView(TextbookTabView):
             middle = (hi + lo) / 2
             half = max(abs(middle) * 0.05, 1e-3)
             lo, hi = middle - half, middle + half
-        plot.setYRange(lo, hi, padding=0.08)
+        headroom(plot, lo, hi, top)

@@ -50,7 +50,11 @@ def frequency_text(equilibrium) -> str:
     rates = [math.sqrt(-w2) for w2 in equilibrium.omega_squared if w2 < 0]
     if not rates:
         return "—"
-    return "unstable: growth rate " + ", ".join(f"λ = {r:.4g}" for r in rates)
+    text = "unstable: grows at rate " + ", ".join(f"λ = {r:.4g}" for r in rates)
+    others = [math.sqrt(w2) for w2 in equilibrium.omega_squared if w2 > 0]
+    if others:
+        text += ";  oscillates along the other mode at " + ", ".join(f"ω = {w:.4g}" for w in others)
+    return text
 
 
 def _subscript(i: int) -> str:
@@ -154,7 +158,7 @@ class EquilibriaView(TextbookTabView):
     def _fill(self, result: compute.EquilibriaResult) -> None:
         search, names = result.search, result.names
         shown = [name for name in names if name not in search.free] or list(names)
-        exact = any(e.exact for e in search.equilibria)
+        exact = any(self._symbolic(e) for e in search.equilibria)
         headers = [pretty_name(name) for name in shown]
         if exact:
             headers.append("closed form (sympy)")
@@ -174,7 +178,7 @@ class EquilibriaView(TextbookTabView):
                     for name in shown
                     if name in e.exact
                 ]
-                cells.append(",  ".join(forms) or "(numeric)")
+                cells.append(",  ".join(forms) if self._symbolic(e) else "")
             kind_column = len(cells)
             cells += [KIND_TEXT.get(e.kind, e.kind), f"{e.potential:.6g}", frequency_text(e)]
             if len(names) > 1:
@@ -187,6 +191,19 @@ class EquilibriaView(TextbookTabView):
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
         header.setStretchLastSection(True)
+
+    @staticmethod
+    def _symbolic(equilibrium) -> bool:
+        """Whether sympy's closed form involves the parameters (worth a column)."""
+        import sympy
+
+        for text in equilibrium.exact.values():
+            try:
+                if sympy.sympify(text).free_symbols:
+                    return True
+            except (sympy.SympifyError, TypeError, ValueError):
+                continue
+        return False
 
     def _closed_form(self, text: str) -> str:
         import sympy

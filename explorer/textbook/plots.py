@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel
@@ -27,8 +29,11 @@ def pen(colour: str, width: float = 2.0, dash: bool = False, dot: bool = False):
     return pg.mkPen(colour, width=width, style=style)
 
 
-def make_plot(title: str, bottom: str, left: str) -> pg.PlotWidget:
-    """A white plot with a grid, axis labels (HTML allowed) and a legend."""
+CORNERS = {"top-right": (-10, 10), "top-left": (10, 10), "bottom-right": (-10, -10)}
+
+
+def make_plot(title: str, bottom: str, left: str, corner: str = "top-right") -> pg.PlotWidget:
+    """A white plot with a grid, axis labels (HTML allowed) and a legend in ``corner``."""
     widget = pg.PlotWidget(background="w")
     plot = widget.getPlotItem()
     style_plot(plot)
@@ -36,9 +41,9 @@ def make_plot(title: str, bottom: str, left: str) -> pg.PlotWidget:
     plot.setLabel("bottom", bottom)
     plot.setLabel("left", left)
     plot.addLegend(
-        offset=(-10, 10),
+        offset=CORNERS[corner],
         labelTextColor="#222",
-        brush=pg.mkBrush(255, 255, 255, 240),
+        brush=pg.mkBrush(255, 255, 255, 190),
         pen=pg.mkPen("#c8c8c8"),
     )
     widget.setMinimumSize(220, 160)
@@ -75,4 +80,11 @@ def readable(expression) -> str:
     text = sympy.sstr(expression)
     for power, glyph in (("**2", "²"), ("**3", "³"), ("**4", "⁴")):
         text = text.replace(power, glyph)
+    text = re.sub(r"\bpi\b", "π", text)
     return text.replace("**", "^").replace("*", "·").replace("-", "−")
+
+
+def headroom(plot: pg.PlotItem, low: float, high: float, top: float = 0.5) -> None:
+    """A y range over [low, high] with ``top`` of the span free above, for the legend."""
+    span = max(high - low, 1e-9 * max(abs(high), abs(low), 1.0))
+    plot.setYRange(low - 0.06 * span, high + top * span, padding=0)

@@ -26,6 +26,7 @@ from explorer.textbook.plots import (
     PURPLE,
     RED,
     clear_plot,
+    headroom,
     make_plot,
     note_label,
     pen,
@@ -237,8 +238,12 @@ class PrincipleView(TextbookTabView):
         plot.plot(
             t, q + eps * result.eta[:, i], pen=pen(ORANGE, dash=True), name=f"varied, ε = {eps:.3g}"
         )
+        shown = [q, q + eps * result.eta[:, i]]
         if self.boundary is not None:
             self._draw_boundary(plot, i)
+            shown.append(self.boundary.action_path.q[:, i])
+        values = np.concatenate(shown)
+        headroom(plot, float(np.nanmin(values)), float(np.nanmax(values)), 0.6)
         if not self.point_b.text().strip() and len(t):
             self.point_b.setText(", ".join(f"{v:.4g}" for v in result.run.y[-1, : self.compiled.n]))
             self.boundary_time.setValue(float(t[-1]))

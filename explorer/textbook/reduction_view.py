@@ -193,7 +193,7 @@ class ReductionView(TextbookTabView):
             curves.q,
             np.where(finite, curves.v_eff, np.nan),
             pen=pen(BLUE),
-            name="V_eff",
+            name=f"V<sub>eff</sub>({q_name})",
             connect="finite",
         )
         plot.plot(
@@ -227,7 +227,7 @@ class ReductionView(TextbookTabView):
             vmin = float(np.min(curves.v_eff[finite]))
             top = max(curves.energy, vmin)
             span = max(top - vmin, 0.5 * abs(vmin), 1e-6)
-            plot.setYRange(vmin - 0.3 * span, top + 1.2 * span, padding=0)
+            plot.setYRange(vmin - 0.3 * span, top + 1.6 * span, padding=0)
         plot.setXRange(float(curves.q[0]), float(curves.q[-1]), padding=0.02)
         # the reduced phase portrait
         clear_plot(self.portrait_plot)
@@ -243,7 +243,7 @@ class ReductionView(TextbookTabView):
                 y,
                 pen=pen(GREY, 1.0),
                 connect="finite",
-                name="level sets of H_red" if first else None,
+                name="level sets of H<sub>red</sub>" if first else None,
             )
             first = False
         x, y = contour(curves.grid, curves.energy)

@@ -53,8 +53,9 @@ def test_install_adds_a_dock_and_pendulum_equilibria(qtbot, textbook):
     assert bottom.frequencies[0] == pytest.approx(math.sqrt(g["g"] / g["l"]), rel=1e-9)
     assert abs(top.q["theta"]) == pytest.approx(math.pi) and not top.stable
     rows = panel.equilibria.row_texts()
-    assert rows[0][0] == "0" and "stable" in rows[0][2] and "3.13209" in rows[0][4]
-    assert rows[1][0] == "π" and "unstable" in rows[1][2]
+    first, second = (" | ".join(row) for row in rows)
+    assert rows[0][0] == "0" and "| stable" in first and "ω = 3.13209" in first
+    assert rows[1][0] == "π" and "| unstable" in second
     # markers in the phase view: a dot at theta = 0, crosses at ±pi (and the 2pi copies)
     spots = panel.markers.spots()
     assert panel.markers.item in window.phase_view.plot.items
@@ -89,6 +90,17 @@ def test_principle_slope_vanishes_and_action_angle_period(qtbot, textbook):
     assert abs(result.slope) < 1e-5 * abs(result.curvature)
     assert result.nature == "minimum"
     assert "minimum" in principle.summary.text()
+    # past half a period of the swing there is a conjugate point: only stationary
+    principle.duration.setValue(2.5)
+    qtbot.waitUntil(
+        lambda: principle.result is not None and principle.result.index == 0, timeout=60000
+    )
+    assert principle.result.run.t[-1] == pytest.approx(2.5)
+    assert principle.result.nature == "saddle"
+    assert "past a conjugate point" in principle.summary.text()
+    assert abs(principle.result.slope) < 1e-5 * abs(principle.result.curvature)
+    principle.duration.setValue(1.0)
+    _wait_result(qtbot, principle)
     # the two-point problem: both methods reach B and agree
     principle._on_solve_clicked()
     _wait_result(qtbot, principle, "boundary")
