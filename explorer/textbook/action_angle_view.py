@@ -15,6 +15,7 @@ from explorer.textbook.plots import (
     PURPLE,
     RED,
     clear_plot,
+    headroom,
     make_plot,
     note_label,
     pen,
@@ -24,6 +25,9 @@ from systems.display import pretty_name
 
 def action_angle_job(compiled, cancel=compute.NEVER) -> compute.ActionAngleResult:
     """Equilibria (for the well and the separatrix), then J and T over the energies."""
+    reason = compute.action_angle_reason(compiled)
+    if reason:
+        raise ValueError(reason)
     found = compute.equilibria(compiled, cancel)
     cancel.check()
     return compute.action_angle_data(compiled, found.search, cancel=cancel)
@@ -163,7 +167,8 @@ class ActionAngleView(TextbookTabView):
         if finite.any():
             top = float(np.nanmax(result.period[finite]))
             low = float(np.nanmin(result.period[finite]))
-            plot.setYRange(0.0 if low > 0 else low, min(top, 6 * low if low > 0 else top) * 1.05)
+            high = min(top, 6 * low) if low > 0 else top
+            headroom(plot, min(0.0, low), high, 0.8)
         sep = (
             f" T diverges at the separatrix E = {result.separatrix:.5g}, where the motion "
             "takes forever to reach the unstable equilibrium."

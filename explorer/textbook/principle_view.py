@@ -108,6 +108,11 @@ class PrincipleView(TextbookTabView):
 
         self.action_plot = make_plot("Action of the varied paths", "ε", "S(ε)")
         self.path_plot = make_plot("True and varied path", "t", "q")
+        for widget in (self.action_plot, self.path_plot):
+            widget.getPlotItem().legend.setColumnCount(2)
+        self._b_edited = False
+        self.point_b.textEdited.connect(self._on_point_b_edited)
+        self.point_a.textEdited.connect(self._on_point_b_edited)
         splitter = QSplitter()
         splitter.addWidget(self.action_plot)
         splitter.addWidget(self.path_plot)
@@ -132,9 +137,7 @@ class PrincipleView(TextbookTabView):
             self.coordinate.clear()
             self.coordinate.addItems(wanted)
             self.coordinate.blockSignals(False)
-            q0 = compiled.initial_state()[: compiled.n]
-            self.point_a.setText(", ".join(f"{v:.4g}" for v in q0))
-            self.point_b.setText("")
+            self._b_edited = False
         super().set_system(compiled)
 
     def _clear(self) -> None:
@@ -201,7 +204,13 @@ class PrincipleView(TextbookTabView):
         plot.plot([0.0], [s0], pen=None, symbol="o", symbolBrush=RED, symbolSize=8)
         low, high = float(np.min(result.action)), float(np.max(result.action))
         span = max(high - low, 1e-9 * max(abs(high), 1.0))
-        plot.setYRange(low - 0.05 * span, high + 0.55 * span, padding=0)  # room for the legend
+        legend = plot.legend
+        if result.curvature >= 0:  # a cup: the legend goes top centre, above the curve
+            plot.setYRange(low - 0.05 * span, high + 0.55 * span, padding=0)
+            legend.anchor((0.5, 0), (0.5, 0), offset=(0, 8))
+        else:  # a cap: bottom centre, below it
+            plot.setYRange(low - 0.55 * span, high + 0.05 * span, padding=0)
+            legend.anchor((0.5, 1), (0.5, 1), offset=(0, -8))
         scale = max(abs(result.curvature) * float(np.max(np.abs(result.eps))), 1e-300)
         verdict = NATURE_TEXT.get(result.nature, result.nature)
         relative = abs(result.slope) / scale
@@ -243,12 +252,17 @@ class PrincipleView(TextbookTabView):
             self._draw_boundary(plot, i)
             shown.append(self.boundary.action_path.q[:, i])
         values = np.concatenate(shown)
-        headroom(plot, float(np.nanmin(values)), float(np.nanmax(values)), 0.6)
-        if not self.point_b.text().strip() and len(t):
-            self.point_b.setText(", ".join(f"{v:.4g}" for v in result.run.y[-1, : self.compiled.n]))
+        headroom(plot, float(np.nanmin(values)), float(np.nanmax(values)), 0.9)
+        if not self._b_edited and len(t):  # A and B follow the true path until edited
+            n = self.compiled.n
+            self.point_a.setText(", ".join(f"{v:.6g}" for v in result.run.y[0, :n]))
+            self.point_b.setText(", ".join(f"{v:.6g}" for v in result.run.y[-1, :n]))
             self.boundary_time.setValue(float(t[-1]))
 
     # -- the two-point problem --------------------------------------------------------------
+
+    def _on_point_b_edited(self, _text: str) -> None:
+        self._b_edited = True
 
     def _on_solve_clicked(self) -> None:
         if self.compiled is None:
@@ -280,20 +294,23 @@ class PrincipleView(TextbookTabView):
         path, shot = result.action_path, result.shooting_path
         text = (
             f"Stationary discrete action: S = {path.action:.8g} "
-            f"({'converged' if path.converged else 'not converged'})."
+            f"({'converged' if path.converged else 'Newton did not converge'})."
         )
         if shot is not None:
+            miss = float(np.max(np.abs(shot.q[-1] - path.q[-1])))
             on_nodes = np.column_stack(
                 [np.interp(path.t, shot.t, shot.q[:, j]) for j in range(path.q.shape[1])]
             )
             difference = float(np.max(np.abs(on_nodes - path.q)))
             text += (
-                f" Shooting: S = {shot.action:.8g} "
-                f"({'converged' if shot.converged else 'not converged'}); "
-                f"largest difference of the paths {difference:.2g} (O(h²) of the 201 nodes)."
+                f" Shooting: S = {shot.action:.8g} (ends {miss:.1e} from B); "
+                f"largest difference of the paths {difference:.2g} (the discrete path is "
+                "second-order accurate, O(h²) with 201 nodes)."
             )
         else:
             text += f" Shooting failed: {result.shooting_error}"
+        if not self._b_edited:
+            text += " (A and B are the ends of the true path, so all three paths coincide.)"
         self.boundary_note.setText(text)
         self._draw_paths()
 

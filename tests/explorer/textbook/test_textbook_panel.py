@@ -179,3 +179,27 @@ def test_bare_window_without_phase_view(qtbot):
     assert panel.equilibria.result.search.equilibria[0].frequencies[0] == pytest.approx(1.0)
     window.close()
     assert panel.runner.pool.activeThreadCount() == 0
+
+
+def test_markers_follow_the_phase_pair(qtbot):
+    """Markers sit at (q_i, 0) of the pair shown; none in the Poincaré mode."""
+    import pyqtgraph as pg
+
+    from explorer.builder import build
+    from explorer.textbook import compute
+    from explorer.textbook.equilibria_view import EquilibriumMarkers
+    from systems.scene import load_scene
+
+    widget = pg.PlotWidget()
+    qtbot.addWidget(widget)
+    markers = EquilibriumMarkers(widget.getPlotItem())
+    result = compute.equilibria(build(load_scene("double_pendulum")).compiled)
+    markers.show_result(result)
+    stable = [s["pos"] for s in markers.spots() if s["symbol"] == "o"]
+    assert (0.0, 0.0) in stable and len(markers.spots()) == 4 * 3  # with the ±2π copies
+    markers.set_pair(1, True)
+    crosses = {round(s["pos"][0], 6) for s in markers.spots() if s["symbol"] == "x"}
+    assert round(math.pi, 6) in crosses and 0.0 in crosses  # (θ₁, θ₂) = (π, 0) is a saddle
+    assert "normal" not in markers.spots()[0]["data"] and "ω₁" in markers.spots()[0]["data"]
+    markers.set_pair(1, False)
+    assert markers.spots() == [] and len(markers.item.data) == 0
