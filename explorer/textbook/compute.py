@@ -260,12 +260,17 @@ class ReductionSetup:
         The initial state.
     p_cyclic : ndarray, shape (c,)
         The conserved momenta of that state.
-    rest_index : tuple[int, ...]
-        Indices of the remaining coordinates in the scene's order.
+    cyclic_index, rest_index : tuple[int, ...]
+        Indices of the cyclic and remaining coordinates in the scene's order.
     q_range, p_range : (float, float)
         Plot ranges of the first remaining coordinate and its momentum.
     expression : str
         V_eff in textbook notation.
+    quadratic : callable or None
+        ``(q (K,), p_cyclic (c,)) -> (A, B, C)``, each (K,): H_red = A p² + B p + C in the
+        first remaining momentum p (the other remaining coordinates and momenta at the
+        state's values), so level sets are solved for p exactly; None if H_red is not
+        quadratic in p.
     """
 
     reduction: object | None
@@ -277,9 +282,11 @@ class ReductionSetup:
     q_range: tuple[float, float] = (0.0, 1.0)
     p_range: tuple[float, float] = (-1.0, 1.0)
     expression: str = ""
+    quadratic: object | None = None
 
 
 def reduction_setup(compiled, cancel: Cancel = NEVER) -> ReductionSetup:
+    """Reduce the current system by its cyclic coordinates (symbolic work: off the GUI)."""
     from explorer.textbook.plots import readable
     from systems.display import for_display
     from systems.textbook import reduce
@@ -303,9 +310,111 @@ def reduction_setup(compiled, cancel: Cancel = NEVER) -> ReductionSetup:
         text = readable(for_display(reduction.effective_potential, mechanics.scene))
     except Exception:  # noqa: BLE001 - only a caption
         text = str(reduction.effective_potential)
+    quadratic = _quadratic_in_momentum(compiled, reduction, state, rest_index)
     return ReductionSetup(
-        reduction, "", state, p_cyclic, cyclic_index, rest_index, q_range, p_range, text
+        reduction,
+        "",
+        state,
+        p_cyclic,
+        cyclic_index,
+        rest_index,
+        q_range,
+        p_range,
+        text,
+        quadratic,
     )
+
+
+def _quadratic_in_momentum(compiled, reduction, state, rest_index):
+    """H_red = A p² + B p + C in the first remaining momentum, as numeric functions."""
+    mechanics = compiled.mechanics
+    n = compiled.n
+    values = {mechanics.params[k]: v for k, v in parameters_of(compiled).items()}
+    q_sym, p_sym = reduction.rest_symbols[0], reduction.rest_momenta[0]
+    held = {mechanics.t: sympy.S.Zero}
+    for j, index in enumerate(rest_index[1:], start=1):
+        held[reduction.rest_symbols[j]] = sympy.Float(state[index])
+        held[reduction.rest_momenta[j]] = sympy.Float(state[n + index])
+    H = sympy.expand(reduction.reduced_hamiltonian.xreplace(values).xreplace(held))
+    try:
+        poly = sympy.Poly(H, p_sym)
+    except sympy.PolynomialError:
+        return None
+    if poly.degree() != 2:
+        return None
+    coefficients = [poly.coeff_monomial(p_sym**k) for k in (2, 1, 0)]
+    if any(c.has(p_sym) for c in coefficients):
+        return None
+    args = [q_sym, *reduction.cyclic_momenta]
+    functions = [sympy.lambdify(args, c, modules="numpy") for c in coefficients]
+
+    def abc(q: np.ndarray, p_cyclic) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        q = np.asarray(q, dtype=float)
+        pc = np.asarray(p_cyclic, dtype=float).ravel()
+        with np.errstate(all="ignore"):
+            return tuple(
+                np.broadcast_to(np.asarray(f(q, *pc), dtype=float), q.shape) for f in functions
+            )
+
+    return abc
+
+
+def level_curve(q, A, B, C, energy: float) -> tuple[np.ndarray, np.ndarray]:
+    """The level set A p² + B p + C = E over the samples q, as closed loops or arcs.
+
+    Both roots p = (−B ± √D)/(2A), D = B² − 4A(C − E), are joined where D crosses zero
+    (the turning points, found by linear interpolation of D), so librations close up.
+    Pieces are separated by NaN.
+    """
+    with np.errstate(all="ignore"):
+        D = B * B - 4 * A * (C - energy)
+    valid = np.isfinite(D) & np.isfinite(A) & (A != 0)
+    inside = valid & (D >= 0)
+    xs: list[np.ndarray] = []
+    ys: list[np.ndarray] = []
+    k, K = 0, len(q)
+    while k < K:
+        if not inside[k]:
+            k += 1
+            continue
+        start = k
+        while k < K and inside[k]:
+            k += 1
+        stop = k  # inside[start:stop]
+        qq = q[start:stop]
+        root = np.sqrt(D[start:stop])
+        upper = (-B[start:stop] + root) / (2 * A[start:stop])
+        lower = (-B[start:stop] - root) / (2 * A[start:stop])
+        head_x, head_y, tail_x, tail_y = [], [], [], []
+        if start > 0 and valid[start - 1]:  # a turning point between start - 1 and start
+            x = _zero_between(q[start - 1], q[start], D[start - 1], D[start])
+            head_x, head_y = [x], [float(-B[start] / (2 * A[start]))]
+        if stop < K and valid[stop]:
+            x = _zero_between(q[stop - 1], q[stop], D[stop - 1], D[stop])
+            tail_x, tail_y = [x], [float(-B[stop - 1] / (2 * A[stop - 1]))]
+        if head_x and tail_x:  # a closed loop between two turning points
+            x = np.concatenate([head_x, qq, tail_x, qq[::-1], head_x])
+            y = np.concatenate([head_y, upper, tail_y, lower[::-1], head_y])
+        elif head_x:  # open to the right
+            x = np.concatenate([qq[::-1], head_x, qq])
+            y = np.concatenate([upper[::-1], head_y, lower])
+        elif tail_x:  # open to the left
+            x = np.concatenate([qq, tail_x, qq[::-1]])
+            y = np.concatenate([upper, tail_y, lower[::-1]])
+        else:
+            x = np.concatenate([qq, [np.nan], qq])
+            y = np.concatenate([upper, [np.nan], lower])
+        xs += [x, [np.nan]]
+        ys += [y, [np.nan]]
+    if not xs:
+        return np.array([]), np.array([])
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def _zero_between(x0: float, x1: float, f0: float, f1: float) -> float:
+    if f1 == f0:
+        return float(x0)
+    return float(x0 - f0 * (x1 - x0) / (f1 - f0))
 
 
 def _view_range(scene, name: str, value: float) -> tuple[float, float]:
@@ -320,7 +429,28 @@ def _view_range(scene, name: str, value: float) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class ReductionCurves:
-    """V_eff, the energy of the current state, turning points and the reduced portrait."""
+    """V_eff, the energy of the current state, turning points and the reduced portrait.
+
+    Attributes
+    ----------
+    p_cyclic : ndarray, shape (c,)
+    q, v_eff : ndarray, shape (K,)
+        V_eff along the first remaining coordinate.
+    energy : float
+        H of the state with these conserved momenta.
+    turning : ndarray
+        Where V_eff = energy.
+    minimum : float or None
+        The sample where V_eff is least (inside the range).
+    levels : ndarray
+        Energies of the portrait's other level sets.
+    lines : list of (x, y)
+        The level sets of H_red at ``levels`` in (q, p).
+    orbit : (x, y)
+        The level set through the state.
+    q0, p0 : float
+        The state.
+    """
 
     p_cyclic: np.ndarray
     q: np.ndarray
@@ -328,70 +458,57 @@ class ReductionCurves:
     energy: float
     turning: np.ndarray
     minimum: float | None
-    grid: object  # explorer.level_sets.EnergyGrid of H_red over (q_rest, p_rest)
     levels: np.ndarray
+    lines: list
+    orbit: tuple
     q0: float
     p0: float
 
 
 def reduction_curves(
-    setup: ReductionSetup, parameters: dict[str, float], p_cyclic, size: int = 161
+    setup: ReductionSetup, parameters: dict[str, float], p_cyclic, size: int = 1200
 ) -> ReductionCurves:
     """Everything the Reduction tab draws for one value of the conserved momenta (fast)."""
-    from explorer.level_sets import EnergyGrid
     from systems.textbook import turning_points
 
     reduction = setup.reduction
     n = len(setup.state) // 2
     p_cyclic = np.asarray(p_cyclic, dtype=float).ravel()
-    others = [j for j in setup.rest_index[1:]]
     q_lo, q_hi = setup.q_range
     if q_lo <= 0.0 <= q_hi and q_hi > 0:
-        q_lo_eval = max(q_lo, 1e-3 * (q_hi - q_lo))  # a radius: V_eff blows up at 0
-    else:
-        q_lo_eval = q_lo
-    q = np.linspace(q_lo_eval, q_hi, 600)
-    rest_values = np.repeat(setup.state[list(setup.rest_index)][None, :], len(q), axis=0)
+        q_lo = max(q_lo, 1e-3 * (q_hi - q_lo))  # a radius: V_eff blows up at 0
+    q = np.linspace(q_lo, q_hi, size)
+    q_state = setup.state[list(setup.rest_index)]
+    p_state = setup.state[[n + j for j in setup.rest_index]]
+    rest_values = np.repeat(q_state[None, :], len(q), axis=0)
     rest_values[:, 0] = q
     V = reduction.effective_potential_function(parameters)
     H = reduction.reduced_hamiltonian_function(parameters)
     with np.errstate(all="ignore"):
         v_eff = np.asarray(V(rest_values, p_cyclic), dtype=float)
-        q_state = setup.state[list(setup.rest_index)]
-        p_state = setup.state[[n + j for j in setup.rest_index]]
         energy = float(H(q_state[None, :], p_state[None, :], p_cyclic)[0])
     turning = np.empty(0)
-    if not others:
+    if len(setup.rest_index) == 1:
         try:
             with np.errstate(all="ignore"):
                 turning = turning_points(
-                    reduction, energy, p_cyclic, q_lo_eval, q_hi, parameters=parameters
+                    reduction, energy, p_cyclic, q_lo, q_hi, parameters=parameters, samples=801
                 )
         except (ValueError, RuntimeError):
             turning = np.empty(0)
     finite = np.isfinite(v_eff)
     minimum = None
     if finite.any():
-        k = int(np.nanargmin(np.where(finite, v_eff, np.inf)))
+        k = int(np.argmin(np.where(finite, v_eff, np.inf)))
         if 0 < k < len(q) - 1:
             minimum = float(q[k])
-    qs = np.linspace(q_lo_eval, q_hi, size)
-    ps = np.linspace(*setup.p_range, size)
-    Q, P = np.meshgrid(qs, ps, indexing="ij")
-    rows_q = np.repeat(q_state[None, :], Q.size, axis=0)
-    rows_p = np.repeat(p_state[None, :], Q.size, axis=0)
-    rows_q[:, 0] = Q.ravel()
-    rows_p[:, 0] = P.ravel()
-    with np.errstate(all="ignore"):
-        values = np.asarray(H(rows_q, rows_p, p_cyclic), dtype=float).reshape(Q.shape)
-    grid = EnergyGrid(qs, ps, values)
-    finite_values = values[np.isfinite(values)]
-    levels = np.empty(0)
-    if finite_values.size:
-        lo = float(np.nanmin(finite_values))
-        hi = float(np.quantile(finite_values, 0.6))
-        if hi > lo:
-            levels = np.linspace(lo, hi, 14)[1:-1]
+    levels = _portrait_levels(v_eff[finite], energy)
+    lines: list = []
+    orbit: tuple = (np.array([]), np.array([]))
+    if setup.quadratic is not None:
+        A, B, C = setup.quadratic(q, p_cyclic)
+        lines = [level_curve(q, A, B, C, float(level)) for level in levels]
+        orbit = level_curve(q, A, B, C, energy)
     return ReductionCurves(
         p_cyclic,
         q,
@@ -399,11 +516,23 @@ def reduction_curves(
         energy,
         np.asarray(turning),
         minimum,
-        grid,
         levels,
+        lines,
+        orbit,
         float(q_state[0]),
         float(p_state[0]),
     )
+
+
+def _portrait_levels(v_eff: np.ndarray, energy: float, count: int = 11) -> np.ndarray:
+    """Energies from just above the bottom of V_eff to well past the state's energy."""
+    if not v_eff.size:
+        return np.empty(0)
+    bottom = float(np.min(v_eff))
+    span = energy - bottom
+    if not span > 0:
+        span = max(float(np.quantile(v_eff, 0.5)) - bottom, 1e-6)
+    return bottom + span * np.linspace(0.0, 2.5, count + 1)[1:]
 
 
 # -- action-angle -----------------------------------------------------------------------------

@@ -17,7 +17,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.level_sets import contour
 from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
@@ -44,6 +43,7 @@ class ReductionView(TextbookTabView):
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
         self.setup: compute.ReductionSetup | None = None
+        self.items: dict = {}
         self.curves: compute.ReductionCurves | None = None
         self.sliders: list[QSlider] = []
         self.slider_labels: list[QLabel] = []
@@ -66,6 +66,7 @@ class ReductionView(TextbookTabView):
     def _clear(self) -> None:
         self.setup = None
         self.curves = None
+        self.items = {}
         for widget in [*self.sliders, *self.slider_labels]:
             self.slider_box.removeWidget(widget)
             widget.deleteLater()
@@ -166,6 +167,43 @@ class ReductionView(TextbookTabView):
         curves = compute.reduction_curves(self.setup, compute.parameters_of(self.compiled), p_c)
         self._show(curves)
 
+    def _build_items(self, q_name: str) -> None:
+        """Create the plot items once per system; slider moves only call ``setData``."""
+        clear_plot(self.potential_plot)
+        clear_plot(self.portrait_plot)
+        plot = self.potential_plot.getPlotItem()
+        plot.setLabel("bottom", q_name)
+        plot.setLabel("left", f"V<sub>eff</sub>({q_name})")
+        self.items = {
+            "v_eff": plot.plot(pen=pen(BLUE), name=f"V<sub>eff</sub>({q_name})", connect="finite"),
+            "energy": plot.plot(pen=pen(ORANGE, 1.6, dash=True), name="E"),
+            "turning": plot.plot(
+                pen=None, symbol="o", symbolBrush=RED, symbolSize=9, name="turning points"
+            ),
+            "minimum": pg.InfiniteLine(
+                0.0,
+                angle=90,
+                pen=pen(GREEN, 1.2, dot=True),
+                label="",
+                labelOpts={"position": 0.92, "color": GREEN, "fill": (255, 255, 255, 200)},
+            ),
+        }
+        plot.addItem(self.items["minimum"])
+        portrait = self.portrait_plot.getPlotItem()
+        portrait.setLabel("bottom", q_name)
+        portrait.setLabel("left", f"p<sub>{q_name}</sub>")
+        self.items["levels"] = portrait.plot(
+            pen=pen(GREY, 1.0), connect="finite", name="level sets of H<sub>red</sub>"
+        )
+        self.items["orbit"] = portrait.plot(pen=pen(ORANGE, 2.2), connect="finite", name="H = E")
+        self.items["state"] = portrait.plot(
+            pen=None, symbol="o", symbolBrush=BLUE, symbolSize=9, name="the state"
+        )
+        self._legend_labels = {
+            key: _legend_label(plot, self.items[key]) for key in ("energy", "turning")
+        }
+        self._legend_labels["orbit"] = _legend_label(portrait, self.items["orbit"])
+
     def _show(self, curves: compute.ReductionCurves) -> None:
         self.curves = curves
         setup = self.setup
@@ -177,88 +215,53 @@ class ReductionView(TextbookTabView):
                 f"p<sub>{pretty_name(name)}</sub> = {value:.4g}  (current orbit {current:.4g})"
             )
         q_name = pretty_name(reduction.rest[0])
-        p_label = f"p<sub>{q_name}</sub>"
+        if not getattr(self, "items", None):
+            self._build_items(q_name)
         pc = ", ".join(
             f"p<sub>{pretty_name(n)}</sub> = {v:.4g}"
             for n, v in zip(reduction.cyclic, curves.p_cyclic, strict=True)
         )
-        # the effective potential
-        clear_plot(self.potential_plot)
+        items = self.items
         plot = self.potential_plot.getPlotItem()
         plot.setTitle(f"Effective potential at {pc}", color="#222", size="10pt")
-        plot.setLabel("bottom", q_name)
-        plot.setLabel("left", f"V<sub>eff</sub>({q_name})")
         finite = np.isfinite(curves.v_eff)
-        plot.plot(
-            curves.q,
-            np.where(finite, curves.v_eff, np.nan),
-            pen=pen(BLUE),
-            name=f"V<sub>eff</sub>({q_name})",
-            connect="finite",
+        items["v_eff"].setData(curves.q, np.where(finite, curves.v_eff, np.nan))
+        items["energy"].setData([curves.q[0], curves.q[-1]], [curves.energy, curves.energy])
+        items["turning"].setData(curves.turning, np.full(len(curves.turning), curves.energy))
+        self._legend_labels["energy"].setText(f"E = {curves.energy:.4g} (the state's energy)")
+        self._legend_labels["turning"].setText(
+            "turning points " + (", ".join(f"{x:.4g}" for x in curves.turning) or "none")
         )
-        plot.plot(
-            [curves.q[0], curves.q[-1]],
-            [curves.energy, curves.energy],
-            pen=pen(ORANGE, 1.6, dash=True),
-            name=f"E = {curves.energy:.4g} (the state's energy)",
-        )
-        if len(curves.turning):
-            plot.plot(
-                curves.turning,
-                np.full(len(curves.turning), curves.energy),
-                pen=None,
-                symbol="o",
-                symbolBrush=RED,
-                symbolSize=9,
-                name="turning points " + ", ".join(f"{x:.4g}" for x in curves.turning),
-            )
         minimum = self.minimum_position()
+        items["minimum"].setVisible(minimum is not None)
         if minimum is not None:
-            plot.addItem(
-                pg.InfiniteLine(
-                    minimum,
-                    angle=90,
-                    pen=pen(GREEN, 1.2, dot=True),
-                    label=f"min at {q_name} = {minimum:.4g}",
-                    labelOpts={"position": 0.92, "color": "#2ca02c", "fill": (255, 255, 255, 200)},
-                )
-            )
+            items["minimum"].setValue(minimum)
+            items["minimum"].label.setFormat(f"min at {q_name} = {minimum:.4g}")
         if finite.any():
             vmin = float(np.min(curves.v_eff[finite]))
             top = max(curves.energy, vmin)
             span = max(top - vmin, 0.5 * abs(vmin), 1e-6)
             plot.setYRange(vmin - 0.3 * span, top + 1.6 * span, padding=0)
         plot.setXRange(float(curves.q[0]), float(curves.q[-1]), padding=0.02)
-        # the reduced phase portrait
-        clear_plot(self.portrait_plot)
-        plot = self.portrait_plot.getPlotItem()
-        plot.setTitle(f"Reduced phase portrait, level sets of H at {pc}", color="#222", size="10pt")
-        plot.setLabel("bottom", q_name)
-        plot.setLabel("left", p_label)
-        first = True
-        for level in curves.levels:
-            x, y = contour(curves.grid, float(level))
-            plot.plot(
-                x,
-                y,
-                pen=pen(GREY, 1.0),
-                connect="finite",
-                name="level sets of H<sub>red</sub>" if first else None,
-            )
-            first = False
-        x, y = contour(curves.grid, curves.energy)
-        plot.plot(x, y, pen=pen(ORANGE, 2.2), connect="finite", name=f"H = {curves.energy:.4g}")
-        plot.plot(
-            [curves.q0],
-            [curves.p0],
-            pen=None,
-            symbol="o",
-            symbolBrush=BLUE,
-            symbolSize=9,
-            name="the state",
+        portrait = self.portrait_plot.getPlotItem()
+        portrait.setTitle(
+            f"Reduced phase portrait: level sets of H at {pc}", color="#222", size="10pt"
         )
-        plot.setXRange(float(curves.grid.qs[0]), float(curves.grid.qs[-1]), padding=0.02)
-        plot.setYRange(float(curves.grid.ps[0]), float(curves.grid.ps[-1]), padding=0.02)
+        xs = [x for x, _ in curves.lines]
+        ys = [y for _, y in curves.lines]
+        if xs:
+            items["levels"].setData(np.concatenate(xs), np.concatenate(ys))
+        else:
+            items["levels"].setData([], [])
+        items["orbit"].setData(*curves.orbit)
+        items["state"].setData([curves.q0], [curves.p0])
+        self._legend_labels["orbit"].setText(f"H = {curves.energy:.4g} (the state)")
+        portrait.setXRange(float(curves.q[0]), float(curves.q[-1]), padding=0.02)
+        portrait.setYRange(*setup.p_range, padding=0.02)
+        if setup.quadratic is None:
+            self.summary.setText(
+                self.summary.text() + " (H is not quadratic in the momentum: no portrait.)"
+            )
 
     def minimum_position(self) -> float | None:
         """The minimum of V_eff in the plotted range, refined (None at an end)."""
@@ -299,3 +302,11 @@ def _slider_range(scene, name: str, value: float) -> tuple[float, float]:
 
 def _to_step(value: float, lo: float, hi: float) -> int:
     return int(round((value - lo) / (hi - lo) * SLIDER_STEPS))
+
+
+def _legend_label(plot: pg.PlotItem, item) -> pg.LabelItem:
+    """The legend's text label of ``item`` (to rename it as the values change)."""
+    for sample, label in plot.legend.items:
+        if sample.item is item:
+            return label
+    raise KeyError("item not in the legend")
