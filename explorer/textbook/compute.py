@@ -87,21 +87,27 @@ def integrate(
     samples: int = 801,
     *,
     y0: np.ndarray | None = None,
+    t0: float = 0.0,
     cancel: Cancel = NEVER,
     rtol: float = 1e-10,
 ) -> Run:
-    """Integrate Hamilton's equations (``compiled.rhs``) over [0, duration] with DOP853."""
+    """Integrate Hamilton's equations (``compiled.rhs``) with DOP853.
+
+    From ``y0`` (default: the scene's initial state) at ``t0`` over [t0, t0 + duration],
+    sampled at ``samples`` uniform times.
+    """
     start = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
 
     def rhs(t, y):
         cancel.check()
         return compiled.rhs(t, y)
 
-    t_eval = np.linspace(0.0, float(duration), int(samples))
+    t1 = float(t0) + float(duration)
+    t_eval = np.linspace(float(t0), t1, int(samples))
     with np.errstate(all="ignore"):
         result = scipy.integrate.solve_ivp(
             rhs,
-            (0.0, float(duration)),
+            (float(t0), t1),
             start,
             method="DOP853",
             t_eval=t_eval,
@@ -171,16 +177,31 @@ class PrincipleResult:
 
 
 def principle(
-    compiled, duration: float, k: int, index: int, amplitude: float, cancel: Cancel = NEVER
+    compiled,
+    duration: float,
+    k: int,
+    index: int,
+    amplitude: float,
+    start: float = 0.0,
+    cancel: Cancel = NEVER,
 ) -> PrincipleResult:
+    """S(eps) and the second variation on the stretch [start, start + duration] of the run."""
     from systems.textbook import action_curve, second_variation, sine_variation
 
     mechanics = compiled.mechanics
     if mechanics.lagrangian is None:
         raise ValueError("the scene gives only a Hamiltonian: the action needs a Lagrangian")
-    run = integrate(compiled, duration, 801, cancel=cancel)
+    y0 = None
+    if start > 0:
+        before = integrate(compiled, start, 2, cancel=cancel)
+        if not before.complete:
+            raise ValueError(f"the run to t = {start:g} did not complete: {before.message}")
+        y0 = before.y[-1]
+    run = integrate(compiled, duration, 801, y0=y0, t0=start, cancel=cancel)
     if not run.complete or len(run.t) < 5:
-        raise ValueError(f"the run over [0, {duration:g}] did not complete: {run.message}")
+        raise ValueError(
+            f"the run over [{start:g}, {start + duration:g}] did not complete: {run.message}"
+        )
     cancel.check()
     parameters = parameters_of(compiled)
     q = run.y[:, : compiled.n]
@@ -223,11 +244,14 @@ class TwoPointResult:
     shooting_error: str
 
 
-def two_point(compiled, qa, qb, duration: float, cancel: Cancel = NEVER) -> TwoPointResult:
+def two_point(
+    compiled, qa, qb, duration: float, t0: float = 0.0, cancel: Cancel = NEVER
+) -> TwoPointResult:
+    """From configuration ``qa`` at t0 to ``qb`` at t0 + duration, both ways."""
     from systems.textbook import shoot_two_point, solve_two_point
 
     parameters = parameters_of(compiled)
-    path = solve_two_point(compiled.mechanics, qa, qb, duration, parameters=parameters)
+    path = solve_two_point(compiled.mechanics, qa, qb, duration, t0=t0, parameters=parameters)
     cancel.check()
     try:
         shot = shoot_two_point(
@@ -235,6 +259,7 @@ def two_point(compiled, qa, qb, duration: float, cancel: Cancel = NEVER) -> TwoP
             qa,
             qb,
             duration,
+            t0=t0,
             parameters=parameters,
             velocity_guess=path.qdot[0],
         )

@@ -69,6 +69,7 @@ class PrincipleView(TextbookTabView):
         super().__init__(runner, parent)
         self.result: compute.PrincipleResult | None = None
         self.boundary: compute.TwoPointResult | None = None
+        self.start_time = _spin(0.0, 1000.0, 0.0, 0.5)
         self.duration = _spin(0.05, 1000.0, 1.0, 0.25)
         self.coordinate = QComboBox()
         self.mode = QSpinBox()
@@ -76,13 +77,14 @@ class PrincipleView(TextbookTabView):
         self.mode.setValue(1)
         self.mode.setKeyboardTracking(False)
         self.amplitude = _spin(0.001, 100.0, 0.5, 0.1)
-        for box in (self.duration, self.amplitude):
+        for box in (self.start_time, self.duration, self.amplitude):
             box.valueChanged.connect(self._on_setting_changed)
         self.mode.valueChanged.connect(self._on_setting_changed)
         self.coordinate.currentIndexChanged.connect(self._on_setting_changed)
         controls = QHBoxLayout()
         for text, widget in (
-            ("stretch [0, T], T =", self.duration),
+            ("stretch from t₁ =", self.start_time),
+            ("of length T =", self.duration),
             ("vary", self.coordinate),
             ("sine mode k =", self.mode),
             ("ε up to ±", self.amplitude),
@@ -170,6 +172,7 @@ class PrincipleView(TextbookTabView):
             self.mode.value(),
             index,
             self.amplitude.value(),
+            self.start_time.value(),
             on_done=lambda result: self._on_principle_done(result, generation),
             on_failed=self._on_failed,
         )
@@ -185,12 +188,12 @@ class PrincipleView(TextbookTabView):
         self.result = result
         names = self.compiled.mechanics.scene.coordinates
         name = pretty_name(names[result.index])
-        T = float(result.run.t[-1])
+        t1 = float(result.run.t[0])
+        T = float(result.run.t[-1]) - t1
+        shape = f"sin({result.k}π(t − t₁)/T), t₁ = {t1:g}" if t1 > 0 else f"sin({result.k}πt/T)"
         clear_plot(self.action_plot)
         plot = self.action_plot.getPlotItem()
-        plot.setTitle(
-            f"S(ε) along {name}(t) + ε·sin({result.k}πt/T),  T = {T:g}", color="#222", size="10pt"
-        )
+        plot.setTitle(f"S(ε) along {name}(t) + ε·{shape},  T = {T:g}", color="#222", size="10pt")
         plot.setLabel("bottom", "ε  (amplitude of the variation)")
         plot.setLabel("left", "S(ε) = ∫ L dt")
         plot.plot(result.eps, result.action, pen=pen(BLUE), name="S(ε)")
@@ -237,12 +240,24 @@ class PrincipleView(TextbookTabView):
         i = result.index
         name = pretty_name(names[i])
         plot = self.path_plot.getPlotItem()
-        plot.setTitle(f"True path and a varied path of {name}", color="#222", size="10pt")
+        plot.legend.setVisible(False)  # the title says which curve is which
+        eps = float(np.max(np.abs(result.eps))) / 2
+        keys = [(BLUE, f"true {name}(t)"), (ORANGE, f"varied, ε = {eps:.3g}")]
+        if self.boundary is not None:
+            keys.append((GREEN, "A → B, stationary action"))
+            if self.boundary.shooting_path is not None:
+                keys.append((PURPLE, "A → B, shooting"))
+        plot.setTitle(
+            "&nbsp;&nbsp;".join(
+                f"<span style='color:{colour}'>━</span> {text}" for colour, text in keys
+            ),
+            color="#222",
+            size="10pt",
+        )
         plot.setLabel("bottom", "t")
         plot.setLabel("left", name)
         t = result.run.t
         q = result.run.y[:, i]
-        eps = float(np.max(np.abs(result.eps))) / 2
         plot.plot(t, q, pen=pen(BLUE), name=f"true path {name}(t)")
         plot.plot(
             t, q + eps * result.eta[:, i], pen=pen(ORANGE, dash=True), name=f"varied, ε = {eps:.3g}"
@@ -252,12 +267,12 @@ class PrincipleView(TextbookTabView):
             self._draw_boundary(plot, i)
             shown.append(self.boundary.action_path.q[:, i])
         values = np.concatenate(shown)
-        headroom(plot, float(np.nanmin(values)), float(np.nanmax(values)), 0.9)
+        headroom(plot, float(np.nanmin(values)), float(np.nanmax(values)), 0.1)
         if not self._b_edited and len(t):  # A and B follow the true path until edited
             n = self.compiled.n
             self.point_a.setText(", ".join(f"{v:.6g}" for v in result.run.y[0, :n]))
             self.point_b.setText(", ".join(f"{v:.6g}" for v in result.run.y[-1, :n]))
-            self.boundary_time.setValue(float(t[-1]))
+            self.boundary_time.setValue(float(t[-1] - t[0]))
 
     # -- the two-point problem --------------------------------------------------------------
 
@@ -283,6 +298,7 @@ class PrincipleView(TextbookTabView):
             qa,
             qb,
             self.boundary_time.value(),
+            self.result.run.t[0] if self.result is not None else 0.0,
             on_done=lambda result: self._on_two_point_done(result, generation),
             on_failed=lambda message: self.boundary_note.setText(f"Two-point problem: {message}"),
         )
@@ -303,14 +319,13 @@ class PrincipleView(TextbookTabView):
             )
             difference = float(np.max(np.abs(on_nodes - path.q)))
             text += (
-                f" Shooting: S = {shot.action:.8g} (ends {miss:.1e} from B); "
-                f"largest difference of the paths {difference:.2g} (the discrete path is "
-                "second-order accurate, O(h²) with 201 nodes)."
+                f" Shooting: S = {shot.action:.8g} (ends {miss:.1e} from B). The paths "
+                f"differ by {difference:.2g}: O(h²) with 201 nodes."
             )
         else:
             text += f" Shooting failed: {result.shooting_error}"
         if not self._b_edited:
-            text += " (A and B are the ends of the true path, so all three paths coincide.)"
+            text += " A, B: the ends of the true path, so all three coincide."
         self.boundary_note.setText(text)
         self._draw_paths()
 
