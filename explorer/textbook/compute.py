@@ -716,7 +716,8 @@ class EnergyResult:
 def energy(compiled, duration: float, cancel: Cancel = NEVER) -> EnergyResult:
     from systems.textbook import energy_balance
 
-    run = integrate(compiled, duration, 2001, cancel=cancel)
+    samples = int(min(20001, max(2001, 100 * duration)))  # dH/dt from samples: keep them dense
+    run = integrate(compiled, duration, samples, cancel=cancel)
     if len(run.t) < 5:
         raise ValueError(f"the run stopped at once: {run.message}")
     cancel.check()

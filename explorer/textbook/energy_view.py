@@ -137,7 +137,7 @@ class EnergyTheoremView(TextbookTabView):
         plot.plot(
             b.t, b.predicted, pen=pen(ORANGE, 1.6, dash=True), name="−∂L/∂t + Σ q̇ᵢ Qᵢ (the formula)"
         )
-        self._pad(plot, np.concatenate([b.rate, b.predicted]))
+        self._pad(plot, np.concatenate([b.rate, b.predicted]), 0.8)
         clear_plot(self.energy_plot)
         plot = self.energy_plot.getPlotItem()
         plot.setTitle("H and T + V", color="#222", size="10pt")

@@ -203,3 +203,23 @@ def test_markers_follow_the_phase_pair(qtbot):
     assert "normal" not in markers.spots()[0]["data"] and "ω₁" in markers.spots()[0]["data"]
     markers.set_pair(1, False)
     assert markers.spots() == [] and len(markers.item.data) == 0
+
+
+def test_closing_mid_computation_cancels_and_waits(qtbot):
+    """A computation in flight is cancelled at close; no thread or timer is left behind."""
+    import time
+
+    from explorer.app import create_window
+
+    window = create_window("simple_pendulum")
+    window.controls.play_button.setChecked(False)
+    window.show()
+    panel = install(window)
+    panel.dock.raise_()
+    qtbot.waitUntil(lambda: window.compiled is not None, timeout=60000)
+    panel.show_tab(panel.energy)
+    panel.energy.duration.setValue(5000.0)  # a long run: still going when the window closes
+    qtbot.waitUntil(lambda: panel.runner.pool.activeThreadCount() > 0, timeout=5000)
+    start = time.perf_counter()
+    _close(qtbot, window, panel)
+    assert time.perf_counter() - start < 5.0
