@@ -197,8 +197,9 @@ def stream(
         ev_t, ev_y = np.empty(0), np.empty((0, len(y0)))
         if section is not None and len(out.events[0]):
             ev_t, ev_y = locate_crossings(
-                compiled, out.events[0], out.events[1], int(section[0]), float(section[1])
-            )
+                compiled, out.events[0], out.events[1], int(section[0]), float(section[1]),
+                dense=stepper.family == "dop853",
+            )  # fmt: skip
         yield Block(
             t=t,
             y=y,

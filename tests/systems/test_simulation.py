@@ -99,6 +99,16 @@ def test_poincare_crossings_are_interpolated_to_high_accuracy(oscillator):
     np.testing.assert_allclose(y[:, 1], 1.0, atol=1e-6)
 
 
+def test_dop853_crossings_use_its_dense_output(oscillator):
+    # a few long steps: cubic Hermite would be off by far more than the tolerance
+    blocks = list(stream(oscillator, method="dop853", tol=1e-12, t_end=40.0, section=(0, 0.0, 1)))
+    t = np.concatenate([b.events_t for b in blocks])
+    assert blocks[-1].steps < 300  # steps of about 0.18: 1/35 of a period
+    np.testing.assert_allclose(t, 1.5 * np.pi + 2 * np.pi * np.arange(6), atol=1e-10)
+    y = np.concatenate([b.events_y for b in blocks])
+    np.testing.assert_allclose(y[:, 1], 1.0, atol=1e-10)
+
+
 def test_energy_error_past_the_threshold_stops_the_run(pendulum):
     blocks = list(stream(pendulum, method="leapfrog", dt=0.3, t_end=50.0, energy_tolerance=1e-3))
     last = blocks[-1]
