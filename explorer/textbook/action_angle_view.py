@@ -43,7 +43,7 @@ class ActionAngleView(TextbookTabView):
         self.result: compute.ActionAngleResult | None = None
         self.summary = note_label("")
         self.action_plot = make_plot("Action J(E)", "E", "J = ∮ p dq", corner="top-left")
-        self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T", corner="top-left")
+        self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T")
         self.splitter = QSplitter()
         self.splitter.addWidget(self.action_plot)
         self.splitter.addWidget(self.period_plot)
@@ -119,7 +119,7 @@ class ActionAngleView(TextbookTabView):
                         pen=pen(RED, 1.5, dash=True),
                         label=f"separatrix E = {result.separatrix:.4g}",
                         labelOpts={
-                            "position": 0.9 if widget is self.period_plot else 0.55,
+                            "position": 0.1 if widget is self.period_plot else 0.55,
                             "color": RED,
                             "fill": (255, 255, 255, 210),
                         },
@@ -133,6 +133,25 @@ class ActionAngleView(TextbookTabView):
                     label="this orbit",
                     labelOpts={"position": 0.1, "color": ORANGE, "fill": (255, 255, 255, 210)},
                 )
+            )
+        own = ""
+        if result.current_action is not None:
+            for widget, value in (
+                (self.action_plot, result.current_action),
+                (self.period_plot, result.current_period),
+            ):
+                widget.getPlotItem().plot(
+                    [result.current],
+                    [value],
+                    pen=None,
+                    symbol="o",
+                    symbolSize=9,
+                    symbolBrush=ORANGE,
+                    symbolPen="w",
+                )
+            own = (
+                f" This orbit: E = {result.current:.5g}, J = {result.current_action:.5g}, "
+                f"T = {result.current_period:.5g}."
             )
         plot = self.period_plot.getPlotItem()
         plot.setTitle("Period T(E) = dJ/dE", color="#222", size="10pt")
@@ -182,9 +201,6 @@ class ActionAngleView(TextbookTabView):
         )
         self.summary.setText(
             f"Orbits through {name} = {result.q0:.4g} (U<sub>min</sub> = {result.minimum:.5g}); "
-            "J is the area enclosed by the level set H = E (for a rotation, the area under one "
-            "turn: half the area inside the separatrix); T = dJ/dE is integrated on its own."
-            + small
-            + sep
-            + check
+            "J = area inside the level set H = E (a rotation: the area under one turn); "
+            "T = dJ/dE is integrated on its own." + own + small + sep + check
         )

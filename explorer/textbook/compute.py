@@ -585,6 +585,8 @@ class ActionAngleResult:
         ``4 sqrt(M/c) K(k^2)``, ``k^2 = (E - U_min) / (2c)`` (NaN above the separatrix).
     current : float
         The energy of the initial state.
+    current_action, current_period : float or None
+        J and T of the initial state's own orbit (None if it is not periodic).
     """
 
     energies: np.ndarray
@@ -598,6 +600,8 @@ class ActionAngleResult:
     exact: np.ndarray | None
     exact_formula: str
     current: float
+    current_action: float | None = None
+    current_period: float | None = None
 
 
 def action_angle_reason(compiled) -> str:
@@ -666,8 +670,29 @@ def action_angle_data(
     if well.frequencies:
         small = 2 * math.pi / float(well.frequencies[0])
     exact, formula = _pendulum_exact(mechanics, parameters, energies, minimum)
+    own_action = own_period = None
+    for through in (q0, float(state[0])):  # the state itself may sit at a turning point
+        try:
+            with np.errstate(all="ignore"):
+                own = action_angle(mechanics, current, q0=through, parameters=parameters)
+        except (ValueError, ArithmeticError):
+            continue
+        own_action, own_period = float(own.action), float(own.period)
+        break
     return ActionAngleResult(
-        energies, J, T, motion, q0, minimum, separatrix, small, exact, formula, current
+        energies,
+        J,
+        T,
+        motion,
+        q0,
+        minimum,
+        separatrix,
+        small,
+        exact,
+        formula,
+        current,
+        own_action,
+        own_period,
     )
 
 
