@@ -17,8 +17,8 @@ from explorer.textbook.plots import (
     make_plot,
     note_label,
     pen,
+    spin_box,
 )
-from explorer.textbook.principle_view import _spin
 
 
 def explanation(result: compute.EnergyResult) -> str:
@@ -70,7 +70,7 @@ class EnergyTheoremView(TextbookTabView):
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
         self.result: compute.EnergyResult | None = None
-        self.duration = _spin(0.1, 10000.0, 20.0, 5.0, decimals=2)
+        self.duration = spin_box(0.1, 10000.0, 20.0, 5.0, decimals=2)
         self.duration.valueChanged.connect(self._on_duration_changed)
         controls = QHBoxLayout()
         controls.addWidget(QLabel("run over [0, T], T ="))

@@ -25,6 +25,8 @@ class TextbookPanel(QWidget):
         self.runner = TaskRunner(self)
         self.compiled = None
         self.markers: EquilibriumMarkers | None = None
+        self.link = None  # the WindowLink, set by install()
+        self.dock = None  # the QDockWidget holding the panel, set by install()
         self.equilibria = EquilibriaView(self.runner)
         self.principle = PrincipleView(self.runner)
         self.reduction = ReductionView(self.runner)

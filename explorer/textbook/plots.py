@@ -6,7 +6,7 @@ import re
 
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QLabel
+from PySide6.QtWidgets import QDoubleSpinBox, QLabel
 
 from explorer.panels.curves import style_plot
 
@@ -88,3 +88,14 @@ def headroom(plot: pg.PlotItem, low: float, high: float, top: float = 0.5) -> No
     """A y range over [low, high] with ``top`` of the span free above, for the legend."""
     span = max(high - low, 1e-9 * max(abs(high), abs(low), 1.0))
     plot.setYRange(low - 0.06 * span, high + top * span, padding=0)
+
+
+def spin_box(low: float, high: float, value: float, step: float, decimals: int = 3):
+    """A number field that reports only finished edits (no recomputation per keystroke)."""
+    box = QDoubleSpinBox()
+    box.setRange(low, high)
+    box.setDecimals(decimals)
+    box.setSingleStep(step)
+    box.setValue(value)
+    box.setKeyboardTracking(False)
+    return box

@@ -6,7 +6,6 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import (
     QComboBox,
-    QDoubleSpinBox,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -30,6 +29,7 @@ from explorer.textbook.plots import (
     make_plot,
     note_label,
     pen,
+    spin_box,
 )
 from systems.display import pretty_name
 
@@ -41,16 +41,6 @@ NATURE_TEXT = {
     "maximum": "<b style='color:#d62728'>maximum</b> of the action",
     "degenerate": "<b>at a conjugate point</b>: a variation leaves S unchanged to second order",
 }
-
-
-def _spin(low: float, high: float, value: float, step: float, decimals: int = 3):
-    box = QDoubleSpinBox()
-    box.setRange(low, high)
-    box.setDecimals(decimals)
-    box.setSingleStep(step)
-    box.setValue(value)
-    box.setKeyboardTracking(False)
-    return box
 
 
 def _parse(text: str, n: int) -> np.ndarray:
@@ -69,14 +59,14 @@ class PrincipleView(TextbookTabView):
         super().__init__(runner, parent)
         self.result: compute.PrincipleResult | None = None
         self.boundary: compute.TwoPointResult | None = None
-        self.start_time = _spin(0.0, 1000.0, 0.0, 0.5)
-        self.duration = _spin(0.05, 1000.0, 1.0, 0.25)
+        self.start_time = spin_box(0.0, 1000.0, 0.0, 0.5)
+        self.duration = spin_box(0.05, 1000.0, 1.0, 0.25)
         self.coordinate = QComboBox()
         self.mode = QSpinBox()
         self.mode.setRange(1, 6)
         self.mode.setValue(1)
         self.mode.setKeyboardTracking(False)
-        self.amplitude = _spin(0.001, 100.0, 0.5, 0.1)
+        self.amplitude = spin_box(0.001, 100.0, 0.5, 0.1)
         for box in (self.start_time, self.duration, self.amplitude):
             box.valueChanged.connect(self._on_setting_changed)
         self.mode.valueChanged.connect(self._on_setting_changed)
@@ -95,7 +85,7 @@ class PrincipleView(TextbookTabView):
 
         self.point_a = QLineEdit()
         self.point_b = QLineEdit()
-        self.boundary_time = _spin(0.05, 1000.0, 1.0, 0.25)
+        self.boundary_time = spin_box(0.05, 1000.0, 1.0, 0.25)
         self.solve_button = QPushButton("Solve A → B")
         self.solve_button.clicked.connect(self._on_solve_clicked)
         boundary = QHBoxLayout()
