@@ -8,8 +8,10 @@ Rules, first match wins:
    method must resolve an excited oscillation too, at far higher cost per step;
 2. not conservative (dissipation, driving forces, explicitly time-dependent potential)
    or H not conserved -> ``dop853``;
-3. separable, autonomous, with a singular attractive potential (a coordinate expression
-   in a denominator of V, e.g. -k/r, and V < 0 at the initial state) -> ``logh_yoshida6``;
+3. autonomous with a singular attractive potential (a coordinate expression in a
+   denominator of V, e.g. -k/r, and V < 0 at the initial state): separable ->
+   ``logh_yoshida6``; not separable (Kepler in polar coordinates) -> ``dop853``, whose
+   adaptive steps follow close approaches that a fixed step cannot;
 4. separable -> ``yoshida4``;
 5. otherwise (conservative, H = H(q, p) not separable) -> ``gauss_legendre4``.
 """
@@ -110,10 +112,18 @@ def singular_terms(expr) -> list[sympy.Expr]:
     return found
 
 
+def _potential(mechanics):
+    """V(q, t): the separable part, the scene's potential, or H at p = 0."""
+    if mechanics.separable_parts is not None:
+        return mechanics.separable_parts[1]
+    if mechanics.potential is not None:
+        return mechanics.potential
+    return as_expr(mechanics.hamiltonian).xreplace(dict.fromkeys(mechanics.p, sympy.S.Zero))
+
+
 def _singular_attractive(mechanics) -> bool:
-    if mechanics.separable_parts is None:
-        return False
-    V = mechanics.separable_parts[1]
+    """V has a coordinate expression in a denominator and is negative at the start."""
+    V = _potential(mechanics)
     coords = set(mechanics.q)
     if not any(b.free_symbols & coords for b in singular_terms(V)):
         return False
@@ -155,10 +165,16 @@ def choose_method(mechanics) -> tuple[str, str]:
     if not c.conservative or not c.hamiltonian_conserved:
         what = "dissipative or driven" if not c.conservative else "H depends on time"
         return "dop853", f"{what}: no energy to preserve, so adaptive 8th-order Runge-Kutta"
-    if c.separable and not c.time_dependent and _singular_attractive(mechanics):
+    singular = not c.time_dependent and _singular_attractive(mechanics)
+    if singular and c.separable:
         return "logh_yoshida6", (
             "separable with a singular attractive potential: time-transformed "
             "(logarithmic-Hamiltonian) symplectic steps shrink near the singularity"
+        )
+    if singular:
+        return "dop853", (
+            "a singular attractive potential with H not separable: adaptive 8th-order "
+            "steps shrink at close approaches, where fixed steps would fail"
         )
     if c.separable:
         return "yoshida4", "separable H = T(p) + V(q): explicit symplectic, 4th order"

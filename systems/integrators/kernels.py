@@ -419,6 +419,193 @@ def gauss_ensemble_parallel(t0, Y, P, dt, nsteps, stride, A, b, c, E, tol, maxit
                     m += 1
 
 
+def _rate(f, fscale, power):
+    """Sundman time-transformation factor g = (|f0| / |f|)^power of a state with rhs f."""
+    acc = 0.0
+    for k in range(f.shape[0]):
+        acc += f[k] * f[k]
+    norm = math.sqrt(acc)
+    if norm == 0.0:
+        return 1e3
+    return min((fscale / norm) ** power, 1e3)
+
+
+def gauss_tt_run(
+    tq,
+    y,
+    comp,
+    P,
+    ds,
+    nsteps,
+    stride,
+    A,
+    b,
+    c,
+    E,
+    Z,
+    T,
+    zvalid,
+    fscale,
+    power,
+    t_end,
+    tol,
+    maxit,
+    ev_spec,
+    out_t,
+    out_y,
+    ev_t,
+    ev_y,
+    info,
+):
+    """Gauss-Legendre collocation on the Sundman-transformed system, for any rhs.
+
+    In fictitious time s: dy/ds = g(y) f(t, y), dt/ds = g(y), with
+    g = (fscale / |f(y)|)^power (so g = 1 where |f| = fscale, and g ~ r^1.5 near a 1/r
+    singularity for power 3/4). A symmetric method on a reversible system: energy errors
+    stay bounded on Kepler-like orbits though the map is not symplectic. ``tq`` (1,)
+    holds t; ``Z`` (s, 2n) and ``T`` (s,) the stage increments of y and t, extrapolated
+    by ``E`` to the next step's guess. A step that would pass ``t_end`` is undone
+    (status 5), as in ``logh_run``.
+    """
+    n = N_DOF
+    m = 2 * n
+    s = b.shape[0]
+    F = np.empty((s, m))
+    G = np.empty(s)
+    Yst = np.empty(m)
+    Zold = np.empty((s, m))
+    Told = np.empty(s)
+    yprev = np.empty(m)
+    ev_index = int(ev_spec[0])
+    ev_value = ev_spec[1]
+    ev_dir = ev_spec[2]
+    evals = 0
+    info[0] = 0
+    info[1] = 0
+    info[2] = 0
+    info[3] = 0
+    count = 0
+    for i in range(nsteps):
+        t = tq[0]
+        if zvalid[0] == 0:
+            rhs(t, y, P, F[0])
+            evals += 1
+            g0 = _rate(F[0], fscale, power)
+            for j in range(s):
+                T[j] = c[j] * ds * g0
+                for k in range(m):
+                    Z[j, k] = c[j] * ds * g0 * F[0, k]
+        for k in range(m):
+            yprev[k] = y[k]
+        prev = np.inf
+        converged = False
+        it = 0
+        diff = 0.0
+        while it < maxit:
+            it += 1
+            for j in range(s):
+                for k in range(m):
+                    Yst[k] = y[k] + Z[j, k]
+                rhs(t + T[j], Yst, P, F[j])
+                G[j] = _rate(F[j], fscale, power)
+            diff = 0.0
+            for j in range(s):
+                tz = 0.0
+                for l in range(s):
+                    tz += A[j, l] * G[l]
+                T[j] = tz * ds
+                for k in range(m):
+                    z = 0.0
+                    for l in range(s):
+                        z += A[j, l] * G[l] * F[l, k]
+                    z *= ds
+                    d = abs(z - Z[j, k]) / (1.0 + abs(y[k]))
+                    if d > diff:
+                        diff = d
+                    Z[j, k] = z
+            if not diff == diff:
+                break
+            if diff <= tol or (diff >= prev and diff < 1e-10):
+                converged = True
+                break
+            prev = diff
+        evals += it * s
+        if not converged and diff < 1e-10:
+            converged = True
+        if not converged:
+            info[0] = i
+            info[2] = 2
+            info[4] = evals
+            zvalid[0] = 0
+            return
+        for j in range(s):
+            for k in range(m):
+                Yst[k] = y[k] + Z[j, k]
+            rhs(t + T[j], Yst, P, F[j])
+            G[j] = _rate(F[j], fscale, power)
+        evals += s
+        dt = 0.0
+        for j in range(s):
+            dt += b[j] * G[j]
+        dt *= ds
+        if t + dt > t_end:
+            zvalid[0] = 0
+            info[0] = i
+            info[2] = 5
+            info[4] = evals
+            return
+        for k in range(m):
+            d = 0.0
+            for j in range(s):
+                d += b[j] * G[j] * F[j, k]
+            d *= ds
+            dd = d - comp[k]
+            sm = y[k] + dd
+            comp[k] = (sm - y[k]) - dd
+            y[k] = sm
+        dd = dt - comp[m]
+        sm = tq[0] + dd
+        comp[m] = (sm - tq[0]) - dd
+        tq[0] = sm
+        if not _finite(y):
+            for k in range(m):
+                y[k] = yprev[k]
+            tq[0] = t
+            info[0] = i
+            info[2] = 1
+            info[4] = evals
+            zvalid[0] = 0
+            return
+        for j in range(s):
+            Told[j] = T[j]
+            for k in range(m):
+                Zold[j, k] = Z[j, k]
+        for j in range(s):
+            tz = 0.0
+            for l in range(s):
+                tz += E[j, l] * Told[l]
+            T[j] = tz
+            for k in range(m):
+                z = 0.0
+                for l in range(s):
+                    z += E[j, l] * Zold[l, k]
+                Z[j, k] = z
+        zvalid[0] = 1
+        if ev_index >= 0 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir):
+            _record_event(ev_t, ev_y, info, t, yprev, tq[0], y)
+        count += 1
+        if count == stride:
+            count = 0
+            mo = info[1]
+            if mo < out_t.shape[0]:
+                out_t[mo] = tq[0]
+                for k in range(m):
+                    out_y[mo, k] = y[k]
+                info[1] = mo + 1
+    info[0] = nsteps
+    info[4] = evals
+
+
 def logh_run(
     tq,
     y,

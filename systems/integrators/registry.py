@@ -12,7 +12,7 @@ from functools import cache
 
 import numpy as np
 
-FAMILIES = ("composition", "gauss", "logh", "dop853", "scipy")
+FAMILIES = ("composition", "gauss", "gauss_tt", "logh", "dop853", "scipy")
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def _stepper(name, order, family, description, **kw) -> Stepper:
         symplectic=symplectic,
         needs_separable=needs_separable,
         adaptive=family in ("dop853", "scipy"),
-        time_transformed=family == "logh",
+        time_transformed=family in ("logh", "gauss_tt"),
         description=description,
         family=family,
         wants=frozenset(wants),
@@ -192,6 +192,20 @@ STEPPERS: dict[str, Stepper] = {
             "logh",
             "logarithmic-Hamiltonian leapfrog, Yoshida order 8",
             weights=YOSHIDA8,
+        ),
+        _stepper(
+            "gauss_legendre4_tt",
+            4,
+            "gauss_tt",
+            "2-stage Gauss-Legendre on the Sundman-transformed system (steps follow |dy/dt|)",
+            stages=2,
+        ),
+        _stepper(
+            "gauss_legendre6_tt",
+            6,
+            "gauss_tt",
+            "3-stage Gauss-Legendre on the Sundman-transformed system (steps follow |dy/dt|)",
+            stages=3,
         ),
         _stepper("dop853", 8, "dop853", "compiled adaptive Dormand-Prince 8(5,3)"),
         _stepper("radau", 5, "scipy", "scipy Radau IIA (implicit, stiff)", stiff=True),

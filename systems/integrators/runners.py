@@ -179,6 +179,79 @@ class LogHRunner:
         return int(info[4])
 
 
+class GaussTTRunner:
+    """Gauss-Legendre on the Sundman-transformed system (``gauss_tt_run``).
+
+    ``ds`` is the fictitious step; g = (|f(y0)| / |f(y)|)^(3/4), so steps start at
+    ``ds`` in t and shrink like r^1.5 near a 1/r singularity. The last partial step to
+    ``t_end`` is made by ordinary Gauss-Legendre substeps.
+    """
+
+    POWER = 0.75
+
+    def __init__(self, compiled, stepper: Stepper, y0, t0, t_end, ds, section):
+        self.c, self.s = compiled, stepper
+        self.y = np.array(y0, dtype=float)
+        self.m = len(self.y)
+        self.comp = np.zeros(self.m + 1)
+        self.tq = np.array([float(t0)])
+        self.t_end, self.ds, self.section = t_end, ds, section
+        self.A, self.b, self.cc, self.E = gauss_tableau(stepper.stages)
+        self.Z = np.zeros((stepper.stages, self.m))
+        self.T = np.zeros(stepper.stages)
+        self.zvalid = np.zeros(1, dtype=np.int64)
+        f0 = float(np.linalg.norm(compiled.rhs(t0, self.y)))
+        self.fscale = f0 if f0 > 0.0 else 1.0
+
+    @property
+    def t(self) -> float:
+        return float(self.tq[0])
+
+    def advance(self, nsteps: int, max_points: int) -> Outcome:
+        m = self.m
+        stride = max(1, math.ceil(nsteps / max(max_points - 1, 1)))
+        cap = nsteps // stride + 1
+        out_t, out_y = np.empty(cap), np.empty((cap, m))
+        ev_t, ev_y = np.empty((MAX_EVENTS, 2)), np.empty((MAX_EVENTS, 2, m))
+        info = np.zeros(8, dtype=np.int64)
+        t_end = self.t_end if math.isfinite(self.t_end) else 1e300
+        self.c.kernels.gauss_tt_run(
+            self.tq, self.y, self.comp, self.c.parameters, self.ds, nsteps, stride, self.A,
+            self.b, self.cc, self.E, self.Z, self.T, self.zvalid, self.fscale, self.POWER,
+            t_end, 1e-15, 50, self.section, out_t, out_y, ev_t, ev_y, info,
+        )  # fmt: skip
+        code, steps, evals = int(info[2]), int(info[0]), int(info[4])
+        n_out, n_ev = int(info[1]), int(info[3])
+        t, y = out_t[:n_out], out_y[:n_out]
+        evs = [(ev_t[:n_ev], ev_y[:n_ev])]
+        if code == 5:
+            evals += self._finish(evs)
+        if code in (0, 1, 2, 5):
+            t, y = _with_last(t, y, self.t, self.y)
+        return Outcome(t, y, code, _merge_events(evs, m), steps, evals)
+
+    def _finish(self, evs) -> int:
+        """Land on ``t_end`` with ordinary Gauss-Legendre substeps of the local step."""
+        remaining = self.t_end - self.t
+        if remaining <= 0.0:
+            return 0
+        f = self.c.rhs(self.t, self.y)
+        norm = float(np.linalg.norm(f))
+        g = min((self.fscale / norm) ** self.POWER, 1e3) if norm > 0 else 1.0
+        nsub = max(1, math.ceil(2.0 * remaining / (self.ds * g)))
+        info = np.zeros(8, dtype=np.int64)
+        Z, zvalid = np.zeros_like(self.Z), np.zeros(1, dtype=np.int64)
+        ev_t, ev_y = np.empty((16, 2)), np.empty((16, 2, self.m))
+        self.c.kernels.gauss_run(
+            self.t, self.y, self.comp, self.c.parameters, remaining / nsub, nsub, nsub, self.A,
+            self.b, self.cc, self.E, Z, zvalid, 1e-15, 50, True, self.section, np.empty(1),
+            np.empty((1, self.m)), ev_t, ev_y, info,
+        )  # fmt: skip
+        evs.append((ev_t[: info[3]], ev_y[: info[3]]))
+        self.tq[0] = self.t_end
+        return int(info[4])
+
+
 class Dop853Runner:
     """Compiled adaptive DOP853; every accepted step is kept, then thinned."""
 
@@ -328,6 +401,10 @@ def make_runner(compiled, stepper, y0, t0, t_end, dt, tol, section, compensated=
     if family == "logh":
         ds = dt if dt is not None else fictitious_step(compiled, stepper, t0, y0, t_end)
         return LogHRunner(compiled, stepper, y0, t0, t_end, ds, section, compensated)
+    if family == "gauss_tt":
+        if dt is None:
+            dt = default_step(compiled, stepper, t0, y0, t_end, probe=False)
+        return GaussTTRunner(compiled, stepper, y0, t0, t_end, dt, section)
     if family == "dop853":
         tol = DEFAULT_TOL if tol is None else tol
         return Dop853Runner(compiled, stepper, y0, t0, t_end, tol, section)
