@@ -107,6 +107,7 @@ def default_methods(mechanics) -> list[str]:
         names = ["leapfrog", "yoshida4", "yoshida6", "yoshida8", "gauss_legendre4", "dop853"]
     else:
         names = ["implicit_midpoint", "gauss_legendre4", "gauss_legendre6", "dop853"]
+        names += ["gauss_legendre4_tt"]
     if chosen not in names:
         names.insert(0, chosen)
     return names
@@ -121,10 +122,9 @@ def settings_for(compiled, method: str, y0: np.ndarray, t_end: float, levels: in
         return "tol", list(np.logspace(math.log10(low), math.log10(high), levels))
     if stepper.family == "logh":
         base = fictitious_step(compiled, stepper, 0.0, y0, t_end)
-        name = "ds"
     else:
         base = default_step(compiled, stepper, 0.0, y0, t_end)
-        name = "dt"
+    name = "ds" if stepper.time_transformed else "dt"
     return name, [base * 2.0 ** (1 - j) for j in range(levels)]
 
 

@@ -66,7 +66,7 @@ def check_method(mechanics, method: str) -> None:
             f"method {method!r} needs a separable Hamiltonian H = T(p) + V(q), and this "
             "system's is not; try gauss_legendre4 or dop853"
         )
-    if stepper.time_transformed and (c.time_dependent or not c.hamiltonian_conserved):
+    if stepper.family == "logh" and (c.time_dependent or not c.hamiltonian_conserved):
         raise UserError(
             f"method {method!r} needs a conservative, time-independent system; try dop853"
         )
