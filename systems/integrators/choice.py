@@ -146,7 +146,20 @@ def choose_method(mechanics) -> tuple[str, str]:
         A key of ``STEPPERS``.
     reason : str
         One line saying why.
+
+    The choice is remembered on ``mechanics`` (a stream started without a method for
+    every frame pays for it once).
     """
+    cache = getattr(mechanics, "_cache", None)
+    if isinstance(cache, dict) and "method_choice" in cache:
+        return cache["method_choice"]
+    choice = _choose(mechanics)
+    if isinstance(cache, dict):
+        cache["method_choice"] = choice
+    return choice
+
+
+def _choose(mechanics) -> tuple[str, str]:
     c = mechanics.classification
     eigenvalues = _eigenvalues(mechanics)
     ratio = _ratio(eigenvalues)
