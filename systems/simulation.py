@@ -157,21 +157,36 @@ def stream(
     if t_end <= t0:
         raise ValueError("t_end must be after t0")
     sec = no_section() if section is None else np.array(section, dtype=float)
+    f_start = _rhs_size(compiled, t0, y0)
+    if not np.isfinite(f_start) or not np.all(np.isfinite(y0)):
+        yield Block(
+            np.array([t0]), y0[None, :], {}, "singular",
+            f"the equations of motion are singular at the initial state (|dy/dt| = "
+            f"{f_start:.3g}): a collision, r = 0 or a coordinate singularity; move it",
+            0, 1, method,
+        )  # fmt: skip
+        return
     runner = make_runner(compiled, stepper, y0, t0, t_end, dt, tol, sec, compensated)
     c = compiled.mechanics.classification
     watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
     H0 = float(compiled.hamiltonian(t0, y0[None, :])[0]) if watch_energy else 0.0
     H_scale = abs(H0) if abs(H0) > 1e-8 else 1.0
-    f0 = max(_rhs_size(compiled, t0, y0), 1e-300)
+    f0 = max(f_start, 1e-300)
 
     nsteps = 16 if stepper.family != "scipy" else 4
     steps = evals = 0
+    good = (t0, y0.copy())  # the last state handed out: a division may stop mid-step
     while True:
         start = time.perf_counter()
         try:
             out = runner.advance(nsteps, max_points)
         except ZeroDivisionError as exc:
-            yield _stopped(compiled, method, runner, steps, evals, "singular", _division(exc))
+            t_good, y_good = good
+            yield Block(
+                np.array([t_good]), y_good[None, :], {}, "singular",
+                _division(exc) + f"; the last good state is at t = {t_good:.6g}",
+                steps, evals, method,
+            )  # fmt: skip
             return
         elapsed = time.perf_counter() - start
         steps += out.steps
@@ -214,6 +229,8 @@ def stream(
         )
         if status != "running":
             return
+        if len(t):
+            good = (float(t[-1]), np.array(y[-1]))
         if out.steps > 0:
             rate = elapsed / out.steps
             target = block_seconds / max(rate, 1e-12)
@@ -262,15 +279,6 @@ def _division(exc: Exception) -> str:
         f"a division by zero in the equations of motion ({exc}): the state reached a "
         "singularity (a collision, r = 0, or a coordinate singularity)"
     )
-
-
-def _stopped(compiled, method, runner, steps, evals, status, message) -> Block:
-    y = np.array(runner.y, dtype=float)[None, :]
-    t = np.array([runner.t])
-    if not np.all(np.isfinite(y)):
-        y = np.empty((0, y.shape[1]))
-        t = np.empty(0)
-    return Block(t, y, {}, status, message, steps, evals, method)
 
 
 def _explain(code: int, stepper: Stepper, runner) -> str:

@@ -231,3 +231,11 @@ def test_10_radial_kepler_fall_stops_at_the_singularity(method):
     assert last.status == "singular"
     assert "singular near t = 1.11" in last.message
     assert last.t[-1] <= math.pi / (2 * math.sqrt(2)) + 1e-6
+
+
+def test_10_a_start_on_the_singularity_is_refused_with_a_status():
+    system = compiled("planetary_motion", ("rhs", "hamiltonian"))
+    blocks = list(stream(system, y0=[0.0, 0.0, 0.0, 0.0], t_end=1.0))
+    assert len(blocks) == 1
+    assert blocks[0].status == "singular" and "initial state" in blocks[0].message
+    assert np.all(np.isfinite(blocks[0].y))
