@@ -298,6 +298,8 @@ class Dop853Runner:
         n_out, n_ev = int(info[1]), int(info[3])
         t, y = _thin(out_t[:n_out], out_y[:n_out], max_points)
         code = int(info[2])
+        if not len(t) or t[-1] != self.t:  # a call that only found t_end still reports
+            t, y = _with_last(t, y, self.t, self.y)
         return Outcome(
             t, y, code, _merge_events([(ev_t[:n_ev], ev_y[:n_ev])], m), int(info[0]), int(info[4])
         )
@@ -362,6 +364,8 @@ class ScipyRunner:
         t = np.array(ts)
         y = np.array(ys).reshape(len(ts), self.m)
         t, y = _thin(t, y, max_points)
+        if code != 1 and (not len(t) or t[-1] != self.t):
+            t, y = _with_last(t, y, self.t, self.y)
         return Outcome(t, y, code, _merge_events(evs, self.m), steps, self.evals - evals0)
 
 
