@@ -779,8 +779,8 @@ def dop853_run(
 ):
     """Dormand-Prince 8(5,3) with Hairer's error control, accepted steps recorded.
 
-    ``state`` (shape (3,)) holds ``[t, h, fsal_valid]`` and persists between calls (the
-    first derivative is cached in ``out`` of the caller through ``K``-free restarts).
+    ``state`` (shape (3,)) holds ``[t, h, unused]`` and persists between calls, so a
+    run continues with the step size it had; each call evaluates f once at its start.
     ``A`` (12, 12), ``B`` (12,), ``C`` (12,), ``E3``/``E5`` (13,) are the coefficients of
     ``scipy.integrate._ivp.dop853_coefficients``. Stops after ``max_steps`` accepted
     steps, at ``t_end`` (status 5), or when the step size collapses (status 4).
