@@ -78,10 +78,10 @@ class FixedRunner:
         return out_t[:n_out], out_y[:n_out], info, (ev_t[:n_ev], ev_y[:n_ev])
 
     def advance(self, nsteps: int, max_points: int) -> Outcome:
-        remaining = math.inf
+        full = int(nsteps)
         if math.isfinite(self.t_end):
             remaining = (self.t_end - self.t) / self.dt
-        full = int(min(nsteps, math.floor(remaining + 1e-9)))
+            full = int(min(nsteps, math.floor(remaining + 1e-9)))
         stride = max(1, math.ceil(full / max(max_points - 1, 1)))
         ts, ys, evs = [], [], []
         steps = evals = code = 0

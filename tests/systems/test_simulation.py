@@ -208,3 +208,15 @@ def test_time_transformed_gauss_legendre_on_an_eccentric_polar_orbit():
     # steps shrink at pericentre: far fewer than a fixed step small enough there
     assert blocks[-1].steps < 3000
     np.testing.assert_allclose(blocks[-1].y[-1, [0, 2, 3]], y0[[0, 2, 3]], atol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "method", ["yoshida4", "gauss_legendre4", "logh_leapfrog", "gauss_legendre4_tt", "dop853"]
+)
+def test_endless_runs_stream_until_the_caller_stops(pendulum, method):
+    generator = stream(pendulum, method=method, block_seconds=0.005)
+    blocks = [next(generator) for _ in range(6)]
+    generator.close()
+    assert all(b.status == "running" and len(b.t) for b in blocks)
+    t = np.concatenate([b.t for b in blocks])
+    assert np.all(np.diff(t) > 0) and t[-1] > 0.1
