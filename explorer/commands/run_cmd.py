@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -72,18 +71,8 @@ def check_method(mechanics, method: str) -> None:
         )
 
 
-def warm_up(compiled, method: str, y0: np.ndarray, dt, tol) -> None:
-    """Compile (or load from the cache) the kernels a run will use, on a throwaway run."""
-    from systems.simulation import stream
-
-    for _ in stream(
-        compiled, method=method, y0=y0, t_end=1e-9, dt=dt, tol=tol, energy_tolerance=math.inf
-    ):
-        pass
-
-
 def run(args: argparse.Namespace) -> int:
-    from systems.simulation import stream
+    from systems.simulation import precompile, stream
 
     if args.dt is not None and not args.dt > 0:
         raise UserError("--dt must be positive")
@@ -97,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     if not t_end > 0:
         raise UserError("--t-end must be positive")
     y0 = compiled.initial_state()
-    warm_up(compiled, method, y0, args.dt, args.tol)
+    precompile(compiled, method, y0, dt=args.dt, tol=args.tol)
     compile_s = time.perf_counter() - start
 
     ts, ys, Hs = [np.array([0.0])], [y0[None, :]], []
