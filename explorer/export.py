@@ -74,17 +74,24 @@ def write_trajectories_csv(compiled, trajectories, path: str | Path) -> Path:
     return path
 
 
-def render_workprecision(result, path: str | Path, size=(900, 650)) -> Path:
-    """Draw a work-precision result (``systems.workprecision``) to PNG or SVG headless."""
+def render_workprecision(result, path: str | Path, size=(1100, 560)) -> Path:
+    """Draw a work-precision result (``systems.workprecision.WorkPrecision``) to PNG or
+    SVG, headless (offscreen Qt unless a platform was chosen)."""
     from explorer.app import application
+    from explorer.headless import ensure_qt_platform
+
+    ensure_qt_platform()
     from explorer.panels.workprecision_view import WorkPrecisionView
 
-    application()
+    app = application()
     view = WorkPrecisionView()
     view.resize(*size)
     view.show_result(result)
-    view.plot_area.resize(*size)
+    view.show()
+    app.processEvents()
     written = export_widget(view.export_target(), path)
     view.shutdown()
+    view.close()
     view.deleteLater()
+    app.processEvents()
     return written

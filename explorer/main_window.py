@@ -66,6 +66,7 @@ class MainWindow(QMainWindow):
         self._rate_window: deque = deque(maxlen=40)
         self._last_error = math.nan
         self.redraws = 0
+        self.panel_refreshes = 0  # redraws of the phase view (for the speed benchmark)
         self._closed = False
 
         self.builder = BuildService(self)
@@ -102,7 +103,7 @@ class MainWindow(QMainWindow):
         self._add_workprecision_dock()
         self.resizeDocks(
             [self.docks["editor"], self.docks["configuration"]],
-            [420, 420],
+            [440, 440],
             Qt.Orientation.Horizontal,
         )
         self.resizeDocks([self.docks["conserved"]], [230], Qt.Orientation.Vertical)
@@ -280,6 +281,8 @@ class MainWindow(QMainWindow):
         )
         self.setWindowTitle(f"Phase Explorer — {built.scene.title}")
         self._start_system(built.compiled, launches=None)
+        if self.workprecision_view is not None:
+            self.workprecision_view.set_system(built.compiled)
         self.system_started.emit(built)
 
     def _on_editor_parameters_changed(self, values: dict) -> None:
@@ -449,6 +452,8 @@ class MainWindow(QMainWindow):
                 continue
             if self.store.take_dirty(key):
                 panel.refresh(self.store)
+                if key == "phase":
+                    self.panel_refreshes += 1
         self.redraws += 1
         self._update_status()
 
@@ -506,7 +511,8 @@ class MainWindow(QMainWindow):
         from explorer.export import export_widget
 
         panel = self.panels[key]
-        panel.refresh(self.store) if key != "workprecision" else None
+        if key != "workprecision":
+            panel.refresh(self.store)
         written = export_widget(panel.export_target(), path)
         self.statusBar().showMessage(f"wrote {written}", 5000)
         return written

@@ -43,6 +43,7 @@ class Trajectory:
     method: str = ""
     steps: int = 0
     rhs_evaluations: int = 0
+    energy_done: int = 0  # rows before this one have H (none is NaN)
     t: GrowingArray = field(init=False)
     y: GrowingArray = field(init=False)
     energy: GrowingArray = field(init=False)

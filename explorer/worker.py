@@ -29,6 +29,8 @@ from PySide6.QtCore import QObject, QThread, Signal
 
 FRAME_SECONDS = 0.03
 MIN_STEPS_PER_FRAME = 8
+ENDLESS = 1e12
+"""Horizon of an endless full-speed run (the fixed-step runners need a finite ``t_end``)."""
 PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled")
 
 
@@ -277,7 +279,7 @@ class SimulationWorker(QObject):
                 self.compiled,
                 y0=track.y,
                 t0=track.t,
-                t_end=settings.t_end,
+                t_end=min(settings.t_end, track.t + ENDLESS),
                 dt=settings.dt,
                 block_seconds=budget,
                 **options,

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QScrollArea,
     QTableWidget,
     QTableWidgetItem,
+    QTabWidget,
     QTextBrowser,
     QVBoxLayout,
     QWidget,
@@ -209,7 +210,7 @@ class SystemEditorPanel(QWidget):
             " padding: 6px; }"
         )
         self.derived = QTextBrowser()
-        self.derived.setMinimumHeight(260)
+        self.derived.setMinimumHeight(200)
         font = QFont("DejaVu Sans Mono")
         font.setStyleHint(QFont.StyleHint.Monospace)
         font.setPointSize(9)
@@ -228,14 +229,22 @@ class SystemEditorPanel(QWidget):
         layout.addLayout(history)
         layout.addWidget(QLabel("<b>Classification</b>"))
         layout.addWidget(self.classification_card)
-        layout.addWidget(QLabel("<b>Derived</b>"))
-        layout.addWidget(self.derived)
         scroll = QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setWidget(content)
+        derivation = QWidget()
+        derivation_layout = QVBoxLayout(derivation)
+        self.derivation_card = QLabel()
+        self.derivation_card.setWordWrap(True)
+        self.derivation_card.setStyleSheet(self.classification_card.styleSheet())
+        derivation_layout.addWidget(self.derivation_card)
+        derivation_layout.addWidget(self.derived, 1)
+        self.tabs = QTabWidget()
+        self.tabs.addTab(scroll, "System")
+        self.tabs.addTab(derivation, "Derivation")
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
-        outer.addWidget(scroll)
+        outer.addWidget(self.tabs)
 
         for field in (self.coordinates, *self.fields.values(), self.dissipation):
             field.edited.connect(self._on_field_edited)
@@ -424,7 +433,9 @@ class SystemEditorPanel(QWidget):
         self.clear_errors()
         mechanics = built.compiled.mechanics
         self.state_label.setText(f"derived and compiled in {built.seconds:.2f} s")
-        self.classification_card.setText(classification_html(mechanics, built.method, built.reason))
+        card = classification_html(mechanics, built.method, built.reason)
+        self.classification_card.setText(card)
+        self.derivation_card.setText(card)
 
     def show_derivation(self, text: str) -> None:
         self.derived.setPlainText(text)

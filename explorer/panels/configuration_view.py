@@ -7,7 +7,7 @@ import pyqtgraph as pg
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.labels import coordinate_label
-from explorer.panels.curves import TrailCurve, style_plot
+from explorer.panels.curves import RangeKeeper, TrailCurve, style_plot
 from explorer.trajectories import backfill_points
 
 ROD_PEN = pg.mkPen("#333333", width=3)
@@ -68,12 +68,14 @@ class ConfigurationView(QWidget):
             self._path = None
         if compiled.n >= 2:
             q1, q2 = scene.coordinates[:2]
-            self.path_plot = self.layout_widget.addPlot(row=0, col=1)
+            self.path_plot = self.layout_widget.addPlot(row=1, col=0)
             self.path_plot.setTitle(f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
             self.path_plot.setLabel("bottom", coordinate_label(q1))
             self.path_plot.setLabel("left", coordinate_label(q2))
             style_plot(self.path_plot)
-            self._path = TrailCurve(self.path_plot, pg.mkPen("#1f77b4", width=1.2))
+            self._path = TrailCurve(
+                self.path_plot, pg.mkPen("#1f77b4", width=1.2), ranges=RangeKeeper(self.path_plot)
+            )
             self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
             self.path_plot.addItem(self._head)
         self._fit_range(compiled)
@@ -96,6 +98,18 @@ class ConfigurationView(QWidget):
             self.mechanism.setXRange(-reach, reach, padding=0)
             self.mechanism.setYRange(-reach, reach, padding=0)
 
+    def _keep_in_view(self, points: np.ndarray) -> None:
+        """Grow the (square) view when the mechanism leaves it; never shrink it."""
+        finite = points[np.isfinite(points).all(axis=-1)]
+        if not len(finite):
+            return
+        reach = float(np.abs(finite).max())
+        (x0, x1), (y0, y1) = self.mechanism.viewRange()
+        half = min(abs(x0), abs(x1), abs(y0), abs(y1))
+        if reach > 0.98 * half:
+            self.mechanism.setXRange(-1.2 * reach, 1.2 * reach, padding=0)
+            self.mechanism.setYRange(-1.2 * reach, 1.2 * reach, padding=0)
+
     def refresh(self, store) -> None:
         """Draw the main trajectory's current configuration and traces."""
         trajectory = store.main
@@ -117,6 +131,7 @@ class ConfigurationView(QWidget):
             else:
                 self._rods.setData([], [])
             self._bobs.setData(current[:, 0], current[:, 1])
+            self._keep_in_view(window if drawing.trace else current[None])
             for item, name in zip(self._traces, drawing.trace, strict=True):
                 if name == "origin":
                     continue

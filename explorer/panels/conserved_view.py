@@ -10,8 +10,9 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
+from explorer.buffers import GrowingArray
 from explorer.labels import momentum_label
-from explorer.panels.curves import TrailCurve, style_plot
+from explorer.panels.curves import RangeKeeper, TrailCurve, style_plot
 from explorer.trajectories import backfill_energy
 
 FLOOR = 1e-17
@@ -37,6 +38,9 @@ class ConservedView(QWidget):
         self._energy_curves: dict[int, TrailCurve] = {}
         self._momentum_curves: dict[int, TrailCurve] = {}
         self._reference: dict[int, float] = {}
+        self._values: dict[int, GrowingArray] = {}
+        self.energy_range = RangeKeeper(self.energy_plot)
+        self.momentum_range: RangeKeeper | None = None
         self._generation = -1
         self.conserved_momenta: list[int] = []
 
@@ -48,6 +52,7 @@ class ConservedView(QWidget):
         self.compiled = compiled
         scene = compiled.mechanics.scene
         self._reset_curves()
+        self.energy_range.log_y = self.shows_error
         if self.shows_error:
             self.energy_plot.setLogMode(y=True)
             self.energy_plot.setTitle("Relative energy error |H − H₀| / |H₀|")
@@ -62,25 +67,32 @@ class ConservedView(QWidget):
             self.layout_widget.removeItem(self.momentum_plot)
             self.momentum_plot = None
         if self.conserved_momenta:
-            self.momentum_plot = self.layout_widget.addPlot(row=1, col=0)
+            self.momentum_plot = self.layout_widget.addPlot(row=0, col=1)
             self.momentum_plot.setXLink(self.energy_plot)
             style_plot(self.momentum_plot)
             self.momentum_plot.setLabel("bottom", "t")
             labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
             self.momentum_plot.setTitle(f"Conserved momenta: {labels}")
             self.momentum_legend = self.momentum_plot.addLegend(offset=(-10, 10))
+            self.momentum_range = RangeKeeper(self.momentum_plot)
             colours = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
             for k, i in enumerate(self.conserved_momenta):
                 pen = pg.mkPen(colours[k % len(colours)], width=1.5)
                 name = momentum_label(scene.coordinates[i])
-                self._momentum_curves[i] = TrailCurve(self.momentum_plot, pen, name=name)
+                self._momentum_curves[i] = TrailCurve(
+                    self.momentum_plot, pen, name=name, ranges=self.momentum_range
+                )
 
     def _reset_curves(self) -> None:
         for curve in self._energy_curves.values():
             curve.remove()
         self._energy_curves.clear()
         self._reference.clear()
+        self._values.clear()
         self.energy_legend.clear()
+        self.energy_range.reset()
+        if self.momentum_range is not None:
+            self.momentum_range.reset()
         for curve in self._momentum_curves.values():
             curve.reset()
 
@@ -93,22 +105,27 @@ class ConservedView(QWidget):
             self.set_system(self.compiled)
         for key in [k for k in self._energy_curves if k not in store.trajectories]:
             self._energy_curves.pop(key).remove()
+            self._values.pop(key, None)
         for trajectory in store:
             key = trajectory.key
             energy = backfill_energy(trajectory, self.compiled)
             if key not in self._energy_curves:
                 name = "main orbit" if key == 0 else f"orbit {key + 1}"
                 pen = pg.mkPen(trajectory.colour, width=1.3)
-                self._energy_curves[key] = TrailCurve(self.energy_plot, pen, name=name)
+                self._energy_curves[key] = TrailCurve(
+                    self.energy_plot, pen, name=name, ranges=self.energy_range
+                )
                 self._reference[key] = float(energy[0])
-            t = trajectory.t.data
+                self._values[key] = GrowingArray(())
+            values = self._values[key]
+            new = energy[len(values) :]  # only rows not seen before are computed
             if self.shows_error:
                 h0 = self._reference[key]
                 scale = abs(h0) if abs(h0) > 1e-300 else 1.0
-                values = np.maximum(np.abs(energy - h0) / scale, FLOOR)
+                values.extend(np.maximum(np.abs(new - h0) / scale, FLOOR))
             else:
-                values = energy
-            self._energy_curves[key].update(t, values)
+                values.extend(new)
+            self._energy_curves[key].update(trajectory.t.data, values.data)
         main = store.main
         if main is not None:
             n = self.compiled.n

@@ -1,32 +1,45 @@
 """A long curve drawn as frozen chunks plus a live tail, so a redraw costs O(new points).
 
-pyqtgraph re-processes the whole array on ``setData``; for a trace of a million points
-that is too slow for every frame. ``TrailCurve`` hands completed chunks to static items
-once and only updates the tail, with ``clipToView`` and ``autoDownsample`` on every item.
+pyqtgraph re-processes the whole array on ``setData``, and an antialiased path of a million
+points takes seconds to stroke; neither may happen every frame. ``TrailCurve`` hands each
+completed chunk to a static item once (drawn without antialiasing and cached as pixels by
+Qt until the view changes) and only updates the short tail, with ``clipToView`` and
+``autoDownsample`` on every item.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
+from PySide6.QtWidgets import QGraphicsItem
 
-CHUNK = 65536
+CHUNK = 16384
 
 
 class TrailCurve:
     """A polyline in ``plot`` that follows growing ``x``/``y`` arrays."""
 
-    def __init__(self, plot: pg.PlotItem, pen, name: str | None = None, chunk: int = CHUNK):
+    def __init__(
+        self,
+        plot: pg.PlotItem,
+        pen,
+        name: str | None = None,
+        chunk: int = CHUNK,
+        ranges: RangeKeeper | None = None,
+    ):
         self.plot = plot
+        self.ranges = ranges
+        self._seen = 0
         self.pen = pen
         self.chunk = chunk
         self._frozen: list[pg.PlotDataItem] = []
         self._frozen_until = 0
         self.tail = self._item(name)
-        self.plot.addItem(self.tail)
 
     def _item(self, name=None) -> pg.PlotDataItem:
+        """A new item, already in the plot (clip-to-view needs its view box at once)."""
         item = pg.PlotDataItem(pen=self.pen, name=name, connect="finite")
+        self.plot.addItem(item)
         item.setClipToView(True)
         item.setDownsampling(auto=True, method="peak")
         return item
@@ -38,13 +51,17 @@ class TrailCurve:
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
         """Show ``x[i], y[i]`` for all i; only rows past the frozen chunks are re-sent."""
         size = len(x)
-        if size < self._frozen_until:  # the data was replaced: start over
+        if size < self._frozen_until or size < self._seen:  # the data was replaced
             self.reset()
+        if self.ranges is not None and size > self._seen:
+            self.ranges.include(x[self._seen :], y[self._seen :])
+        self._seen = size
         while size - self._frozen_until > self.chunk:
             start, stop = self._frozen_until, self._frozen_until + self.chunk
             item = self._item()
-            item.setData(x[start : stop + 1].copy(), y[start : stop + 1].copy())
-            self.plot.addItem(item)
+            item.setData(x[start : stop + 1].copy(), y[start : stop + 1].copy(), antialias=False)
+            # a finished chunk never changes: Qt keeps its pixels until the view moves
+            item.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             self._frozen.append(item)
             self._frozen_until = stop
         self.tail.setData(x[self._frozen_until :], y[self._frozen_until :])
@@ -54,6 +71,7 @@ class TrailCurve:
             self.plot.removeItem(item)
         self._frozen.clear()
         self._frozen_until = 0
+        self._seen = 0
         self.tail.setData([], [])
 
     def remove(self) -> None:
@@ -65,8 +83,56 @@ class TrailCurve:
 
 
 def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
-    """House style: a light grid, no SI-prefix rescaling of the axes (it hides the units)."""
+    """House style: a light grid, no SI-prefix rescaling of the axes (it hides the units),
+    axes cached as pixels."""
     plot.showGrid(x=True, y=True, alpha=0.15)
     for name in ("left", "bottom"):
-        plot.getAxis(name).enableAutoSIPrefix(False)
+        axis = plot.getAxis(name)
+        axis.enableAutoSIPrefix(False)
+        # an axis (with its grid) only changes with its range: keep its pixels, so a
+        # frame that moves a curve does not re-render every tick label
+        axis.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
     return plot
+
+
+class RangeKeeper:
+    """Grow-only axis ranges, updated from new data only.
+
+    pyqtgraph's auto-range scans every item's whole data each frame, which is O(N) for a
+    million-point trace and invalidates every cached chunk. Instead the range grows by a
+    margin when new data leave it and otherwise stays put.
+    """
+
+    def __init__(self, plot: pg.PlotItem, log_y: bool = False, margin: float = 0.3):
+        self.plot = plot
+        self.log_y = log_y
+        self.margin = margin
+        plot.disableAutoRange()
+        self.reset()
+
+    def reset(self) -> None:
+        self.x: list[float] | None = None
+        self.y: list[float] | None = None
+
+    def include(self, x: np.ndarray, y: np.ndarray) -> None:
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        if self.log_y:
+            with np.errstate(all="ignore"):
+                y = np.log10(y)
+        x, y = x[np.isfinite(x)], y[np.isfinite(y)]
+        if len(x):
+            self.x = self._grow(self.x, float(x.min()), float(x.max()), lower_fixed=True)
+            self.plot.setXRange(*self.x, padding=0)
+        if len(y):
+            self.y = self._grow(self.y, float(y.min()), float(y.max()))
+            self.plot.setYRange(*self.y, padding=0)
+
+    def _grow(self, current, lo: float, hi: float, lower_fixed: bool = False):
+        if current is not None and current[0] <= lo and hi <= current[1]:
+            return current
+        if current is not None:
+            lo, hi = min(lo, current[0]), max(hi, current[1])
+        span = hi - lo if hi > lo else max(abs(hi), 1.0) * 0.1
+        low = lo if lower_fixed else lo - self.margin * span * 0.5
+        return [low, hi + self.margin * span]
