@@ -15,8 +15,9 @@ the functions are never called from here. Conventions shared by all ``*_run`` lo
 - ``out_t`` (shape ``(m,)``) and ``out_y`` (shape ``(m, 2n)``) receive every
   ``stride``-th state.
 - ``ev_spec = (index, value, direction)`` asks for crossings of ``y[index] = value``
-  (``index < 0``: none); the states on both sides of each crossing are written to
-  ``ev_t`` (shape ``(e, 2)``) and ``ev_y`` (shape ``(e, 2, 2n)``), for interpolation.
+  (None: none, and numba then compiles the loop without the event code); the states
+  on both sides of each crossing are written to ``ev_t`` (shape ``(e, 2)``) and
+  ``ev_y`` (shape ``(e, 2, 2n)``), for interpolation.
 - ``info`` (int64, shape ``(8,)``) returns ``[steps, outputs, status, events,
   rhs_evaluations, iterations_max, 0, 0]``. Status 0 is fine, 1 a non-finite state,
   2 an implicit solve that did not converge, 3 an invalid time transformation, 4 a step
@@ -93,9 +94,13 @@ def compose_run(
     q = y[:n]
     p = y[n:]
     ns = drift.shape[0]
-    ev_index = int(ev_spec[0])
-    ev_value = ev_spec[1]
-    ev_dir = ev_spec[2]
+    ev_index = -1
+    ev_value = 0.0
+    ev_dir = 0.0
+    if ev_spec is not None:  # None: numba compiles the loop without event code
+        ev_index = int(ev_spec[0])
+        ev_value = ev_spec[1]
+        ev_dir = ev_spec[2]
     grad_potential(t0, q, P, F)
     evals = 1
     info[0] = 0
@@ -142,8 +147,11 @@ def compose_run(
             info[2] = 1
             info[4] = evals
             return
-        if ev_index >= 0 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir):
-            _record_event(ev_t, ev_y, info, t, yprev, t + dt, y)
+        if ev_spec is not None:
+            if ev_index >= 0 and _crossed(
+                yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir
+            ):
+                _record_event(ev_t, ev_y, info, t, yprev, t + dt, y)
         count += 1
         if count == stride:
             count = 0
@@ -286,9 +294,13 @@ def gauss_run(
     Yst = np.empty(m)
     Zold = np.empty((s, m))
     yprev = np.empty(m)
-    ev_index = int(ev_spec[0])
-    ev_value = ev_spec[1]
-    ev_dir = ev_spec[2]
+    ev_index = -1
+    ev_value = 0.0
+    ev_dir = 0.0
+    if ev_spec is not None:  # None: numba compiles the loop without event code
+        ev_index = int(ev_spec[0])
+        ev_value = ev_spec[1]
+        ev_dir = ev_spec[2]
     evals = 0
     itmax = 0
     info[0] = 0
@@ -348,8 +360,11 @@ def gauss_run(
                     z += E[j, l] * Zold[l, k]
                 Z[j, k] = z
         zvalid[0] = 1
-        if ev_index >= 0 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir):
-            _record_event(ev_t, ev_y, info, t, yprev, t + dt, y)
+        if ev_spec is not None:
+            if ev_index >= 0 and _crossed(
+                yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir
+            ):
+                _record_event(ev_t, ev_y, info, t, yprev, t + dt, y)
         count += 1
         if count == stride:
             count = 0
@@ -476,9 +491,13 @@ def gauss_tt_run(
     Zold = np.empty((s, m))
     Told = np.empty(s)
     yprev = np.empty(m)
-    ev_index = int(ev_spec[0])
-    ev_value = ev_spec[1]
-    ev_dir = ev_spec[2]
+    ev_index = -1
+    ev_value = 0.0
+    ev_dir = 0.0
+    if ev_spec is not None:  # None: numba compiles the loop without event code
+        ev_index = int(ev_spec[0])
+        ev_value = ev_spec[1]
+        ev_dir = ev_spec[2]
     evals = 0
     info[0] = 0
     info[1] = 0
@@ -591,8 +610,11 @@ def gauss_tt_run(
                     z += E[j, l] * Zold[l, k]
                 Z[j, k] = z
         zvalid[0] = 1
-        if ev_index >= 0 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir):
-            _record_event(ev_t, ev_y, info, t, yprev, tq[0], y)
+        if ev_spec is not None:
+            if ev_index >= 0 and _crossed(
+                yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir
+            ):
+                _record_event(ev_t, ev_y, info, t, yprev, tq[0], y)
         count += 1
         if count == stride:
             count = 0
@@ -645,9 +667,13 @@ def logh_run(
     q = y[:n]
     p = y[n:]
     ns = drift.shape[0]
-    ev_index = int(ev_spec[0])
-    ev_value = ev_spec[1]
-    ev_dir = ev_spec[2]
+    ev_index = -1
+    ev_value = 0.0
+    ev_dir = 0.0
+    if ev_spec is not None:  # None: numba compiles the loop without event code
+        ev_index = int(ev_spec[0])
+        ev_value = ev_spec[1]
+        ev_dir = ev_spec[2]
     info[0] = 0
     info[1] = 0
     info[2] = 0
@@ -722,8 +748,11 @@ def logh_run(
             info[2] = 5
             info[4] = evals
             return
-        if ev_index >= 0 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir):
-            _record_event(ev_t, ev_y, info, t_before, yprev, tq[0], y)
+        if ev_spec is not None:
+            if ev_index >= 0 and _crossed(
+                yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir
+            ):
+                _record_event(ev_t, ev_y, info, t_before, yprev, tq[0], y)
         count += 1
         if count == stride:
             count = 0
@@ -794,9 +823,13 @@ def dop853_run(
     h = state[1]
     rhs(t, y, P, K[0])
     evals = 1
-    ev_index = int(ev_spec[0])
-    ev_value = ev_spec[1]
-    ev_dir = ev_spec[2]
+    ev_index = -1
+    ev_value = 0.0
+    ev_dir = 0.0
+    if ev_spec is not None:  # None: numba compiles the loop without event code
+        ev_index = int(ev_spec[0])
+        ev_value = ev_spec[1]
+        ev_dir = ev_spec[2]
     info[0] = 0
     info[1] = 0
     info[2] = 0
@@ -840,10 +873,11 @@ def dop853_run(
                 factor = min(1.0, factor)
             t_old = t
             t = t + h
-            if ev_index >= 0 and _crossed(
-                y[ev_index] - ev_value, ynew[ev_index] - ev_value, ev_dir
-            ):
-                _record_event(ev_t, ev_y, info, t_old, y, t, ynew)
+            if ev_spec is not None:
+                if ev_index >= 0 and _crossed(
+                    y[ev_index] - ev_value, ynew[ev_index] - ev_value, ev_dir
+                ):
+                    _record_event(ev_t, ev_y, info, t_old, y, t, ynew)
             for k in range(m):
                 y[k] = ynew[k]
                 K[0, k] = K[S, k]

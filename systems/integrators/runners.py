@@ -26,8 +26,9 @@ class Outcome:
         self.steps, self.evals = steps, evals
 
 
-def no_section() -> np.ndarray:
-    return np.array([-1.0, 0.0, 0.0])
+def no_section() -> None:
+    """The ``ev_spec`` of a run without a section: the loops compile without event code."""
+    return None
 
 
 class FixedRunner:
@@ -340,7 +341,9 @@ class ScipyRunner:
     def advance(self, nsteps: int, max_points: int) -> Outcome:
         ts, ys, evs = [], [], []
         steps, code = 0, 0
-        index, value, direction = int(self.section[0]), self.section[1], self.section[2]
+        index, value, direction = -1, 0.0, 0.0
+        if self.section is not None:
+            index, value, direction = int(self.section[0]), self.section[1], self.section[2]
         evals0 = self.evals
         for _ in range(nsteps):
             t_old, y_old = self.solver.t, self.solver.y.copy()

@@ -76,7 +76,7 @@ def _probe(compiled, stepper, t0, y0, dt, nsteps, samples=24):
     stride = max(1, nsteps // samples)
     cap = nsteps // stride + 1
     out_t, out_y = np.empty(cap), np.empty((cap, m))
-    ev = (np.array([-1.0, 0.0, 0.0]), out_t, out_y, np.empty((1, 2)), np.empty((1, 2, m)))
+    ev = (None, out_t, out_y, np.empty((1, 2)), np.empty((1, 2, m)))
     info = np.zeros(8, dtype=np.int64)
     K, P = compiled.kernels, compiled.parameters
     try:
