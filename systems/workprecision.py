@@ -194,7 +194,7 @@ def _timed_run(compiled, method, y0, t_end, setting, value, watch_energy, cancel
     kwargs = {"dt": value} if setting in ("dt", "ds") else {"tol": value}
     diagnostics = ("H",) if watch_energy else ()
     best = math.inf
-    for _ in range(3):  # repeat short runs: the minimum is the least disturbed timing
+    for _ in range(10):  # repeat short runs: the minimum is the least disturbed timing
         start = time.perf_counter()
         last, worst = None, 0.0
         for block in stream(
@@ -207,7 +207,7 @@ def _timed_run(compiled, method, y0, t_end, setting, value, watch_energy, cancel
             if cancelled is not None and cancelled():
                 raise Cancelled
         best = min(best, time.perf_counter() - start)
-        if best > 0.05:
+        if best > 0.02:
             break
     energy = worst / watch_energy[1] if watch_energy else None
     return last, best, energy
