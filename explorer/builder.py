@@ -66,11 +66,27 @@ def build(source, request: int = 0) -> Built:
         scene = parse_scene(source, source="<editor>")
     mechanics = derive(scene)
     compiled = compile_system(mechanics, wants_for(mechanics))
-    try:
-        method, reason = choose_method(mechanics)
-    except NotImplementedError:
-        method, reason = "", "automatic choice not available"
+    method, reason = choose_method(mechanics)
+    warm_up(compiled, method)
     return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
+
+
+def warm_up(compiled, method: str) -> None:
+    """Compile (or load from numba's cache) every kernel the GUI will call, here in the
+    build thread, so neither the GUI thread (level sets, status bar) nor the worker's
+    first frame waits for numba."""
+    import numpy as np
+
+    from systems.simulation import precompile
+
+    y0 = compiled.initial_state()
+    with np.errstate(all="ignore"):
+        compiled.hamiltonian(0.0, y0[None])
+        compiled.velocities(0.0, y0[None])
+        compiled.rhs(0.0, y0)
+        if "drawing" in compiled.wanted:
+            compiled.drawing(0.0, y0[None])
+    precompile(compiled, method, y0)
 
 
 def failure_from(exc: Exception, request: int) -> BuildFailure:

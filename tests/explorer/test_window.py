@@ -139,3 +139,35 @@ def test_close_stops_every_thread(qtbot, qt_activity):
     assert qt_activity.dangling()  # the worker, the builder and the redraw timer
     win.close()
     assert qt_activity.dangling() == []
+
+
+def test_save_scene_writes_the_edited_system(qtbot, window, tmp_path):
+    from systems.scene import load_scene
+
+    wait_for_points(qtbot, window, 3)
+    window.editor.parameter_table.set_value("l", 1.5)
+    qtbot.waitUntil(lambda: window.compiled.parameters[2] == 1.5, timeout=5000)
+    path = tmp_path / "long_pendulum.toml"
+    window.save_scene(path)
+    saved = load_scene(path)
+    assert saved.parameter_values["l"] == 1.5
+    assert saved.coordinates == ("theta",) and saved.potential == "-m*g*l*cos(theta)"
+
+
+def test_switching_an_effect_off_rebuilds_a_conservative_system(qtbot, window):
+    request = window.open_scene("damped_pendulum")
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=90000
+    )
+    assert not window.compiled.mechanics.classification.conservative
+    assert "not conserved" in window.conserved_view.energy_plot.titleLabel.text
+    window.editor.dissipation_switch.setChecked(False)
+    qtbot.waitUntil(
+        lambda: (
+            window.built.request > request and window.compiled.mechanics.classification.conservative
+        ),
+        timeout=90000,
+    )
+    assert window.compiled.mechanics.scene.enabled_effects() == []
+    assert "energy error" in window.conserved_view.energy_plot.titleLabel.text
+    wait_for_points(qtbot, window, 5)
