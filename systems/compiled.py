@@ -308,7 +308,8 @@ class _KernelWriter:
     def header(self, signature: str, unpack: list[str]) -> list[str]:
         params = [f"v_{name} = P[{i}]" for i, (name, _) in enumerate(self.scene.parameters)]
         lines = [f"def {signature}:"]
-        if "t" in signature.split("(", 1)[1]:
+        arguments = [a.strip() for a in signature.split("(", 1)[1].rstrip(")").split(",")]
+        if "t" in arguments:
             lines.append("v_t = t")
         return lines + unpack + params
 

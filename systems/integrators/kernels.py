@@ -32,11 +32,6 @@ from numba import prange
 
 # --- kernels ---
 
-# systems.compiled prints ``v_t = t`` into every system function whose argument list
-# contains the letter t (even ``grad_kinetic(p, P, out)``, through "out"). Those
-# functions never use v_t, but numba must resolve the name: this global does that.
-t = 0.0
-
 
 def _finite(y):
     acc = 0.0

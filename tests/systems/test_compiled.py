@@ -72,3 +72,17 @@ def test_drawing_points_and_parameters_without_recompiling():
     longer = compiled.with_parameters({"l": 2.0})
     assert longer.kernels is compiled.kernels
     np.testing.assert_allclose(longer.drawing(0.0, Y)[1, 0], [2.0, 0.0], atol=1e-15)
+
+
+def test_separable_parts_compile_and_match():
+    compiled = compile_system(derive(scene(PENDULUM)), ("separable",))
+    k = compiled.kernels
+    P = compiled.parameters
+    m, g, l = P
+    out = np.empty(1)
+    k.grad_kinetic(np.array([0.3]), P, out)
+    assert out[0] == pytest.approx(0.3 / (m * l**2), rel=1e-14)
+    k.grad_potential(0.0, np.array([0.4]), P, out)
+    assert out[0] == pytest.approx(m * g * l * np.sin(0.4), rel=1e-14)
+    assert k.kinetic(np.array([0.3]), P) == pytest.approx(0.09 / (2 * m * l**2), rel=1e-14)
+    assert k.potential(0.0, np.array([0.4]), P) == pytest.approx(-m * g * l * np.cos(0.4))
