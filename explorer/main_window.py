@@ -35,7 +35,7 @@ from explorer.panels.phase_view import PhaseView
 from explorer.trajectories import TrajectoryStore
 from explorer.worker import RunSettings, SimulationWorker, WorkerThread
 
-REDRAW_MS = 30
+REDRAW_MS = 25
 POINCARE_T_END = 5000.0
 
 
