@@ -14,6 +14,21 @@ ROD_PEN = pg.mkPen("#333333", width=3)
 TRACE_POINTS = 4000
 
 
+def moving_points(scene) -> np.ndarray:
+    """Which drawing points move (depend on a coordinate or on t): drawn as bobs; the
+    fixed ones (walls, pulley rims, ceilings) as small dots."""
+    names = set(scene.coordinates) | {"t"}
+    flags = []
+    for name, _, _ in scene.drawing.points:
+        symbols = set()
+        for axis in ("x", "y"):
+            symbols |= {
+                s.name for s in scene.expression(f"drawing.points.{name}.{axis}").free_symbols
+            }
+        flags.append(bool(symbols & names))
+    return np.array(flags, dtype=bool)
+
+
 class ConfigurationView(QWidget):
     """The main trajectory's mechanism (rods, bobs, traces) and, for n >= 2, its (q1, q2) path."""
 
@@ -33,6 +48,8 @@ class ConfigurationView(QWidget):
         self.path_plot: pg.PlotItem | None = None
         self._rods = pg.PlotDataItem(pen=ROD_PEN, connect="pairs")
         self._bobs = pg.ScatterPlotItem(size=16, pen=pg.mkPen("#222"), brush=pg.mkBrush("#1f77b4"))
+        self._fixed = pg.ScatterPlotItem(size=6, pen=None, brush=pg.mkBrush("#555"))
+        self._moving = np.zeros(0, dtype=bool)
         self._pivot = pg.ScatterPlotItem(
             [0], [0], size=9, symbol="s", pen=pg.mkPen("#222"), brush="#777"
         )
@@ -55,8 +72,11 @@ class ConfigurationView(QWidget):
             self.mechanism.addItem(self._message)
         else:
             self.mechanism.addItem(self._rods)
-            self.mechanism.addItem(self._pivot)
+            if any("origin" in link for link in drawing.links):
+                self.mechanism.addItem(self._pivot)
+            self.mechanism.addItem(self._fixed)
             self.mechanism.addItem(self._bobs)
+            self._moving = moving_points(scene)
             for name in drawing.trace:
                 item = pg.PlotDataItem(pen=pg.mkPen("#d62728", width=1), name=f"trace of {name}")
                 item.setZValue(-5)
@@ -130,7 +150,9 @@ class ConfigurationView(QWidget):
                 self._rods.setData(segments[:, 0], segments[:, 1])
             else:
                 self._rods.setData([], [])
-            self._bobs.setData(current[:, 0], current[:, 1])
+            moving = self._moving
+            self._bobs.setData(current[moving, 0], current[moving, 1])
+            self._fixed.setData(current[~moving, 0], current[~moving, 1])
             self._keep_in_view(window if drawing.trace else current[None])
             for item, name in zip(self._traces, drawing.trace, strict=True):
                 if name == "origin":

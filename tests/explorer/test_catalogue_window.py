@@ -34,7 +34,9 @@ def test_scene_opens_with_data_in_every_panel(qtbot, window, name):
     configuration = window.configuration_view
     if window.compiled.mechanics.scene.drawing is not None:
         x, y = configuration._bobs.getData()
-        assert len(x) == len(window.compiled.point_names) and np.isfinite(x).all()
+        fixed_x, _ = configuration._fixed.getData()
+        assert len(x) >= 1 and np.isfinite(x).all() and np.isfinite(y).all()
+        assert len(x) + len(fixed_x) == len(window.compiled.point_names)
     if window.compiled.n >= 2:
         assert configuration._path.point_count() >= 8
     # the editor shows the scene and its classification card
