@@ -152,3 +152,8 @@ def test_no_display_prints_a_clear_message():
     assert "needs a display" in result.stderr
     assert "QT_QPA_PLATFORM=offscreen" in result.stderr and "export" in result.stderr
     assert "Aborted" not in result.stderr and "qt.qpa" not in result.stderr
+
+
+def test_open_command_rejects_an_unknown_scene_before_any_window(capsys):
+    assert main(["open", "no_such_scene"]) == 2
+    assert "no catalogue scene or file named 'no_such_scene'" in capsys.readouterr().err
