@@ -36,6 +36,7 @@ from explorer.trajectories import TrajectoryStore
 from explorer.worker import RunSettings, SimulationWorker, WorkerThread
 
 REDRAW_MS = 25
+PARAMETER_DEBOUNCE_MS = 80
 POINCARE_T_END = 5000.0
 
 
@@ -127,6 +128,12 @@ class MainWindow(QMainWindow):
         self.controls.single_step_requested.connect(self._on_controls_single_step_requested)
         self.controls.reset_requested.connect(self._on_controls_reset_requested)
         self.controls.clear_requested.connect(self._on_controls_clear_requested)
+
+        self._pending_parameters: dict | None = None
+        self.parameter_timer = QTimer(self)
+        self.parameter_timer.setSingleShot(True)
+        self.parameter_timer.setInterval(PARAMETER_DEBOUNCE_MS)
+        self.parameter_timer.timeout.connect(self._on_parameter_timer_timeout)
 
         self.redraw_timer = QTimer(self)
         self.redraw_timer.setInterval(REDRAW_MS)
@@ -286,9 +293,16 @@ class MainWindow(QMainWindow):
         self.system_started.emit(built)
 
     def _on_editor_parameters_changed(self, values: dict) -> None:
-        if self.compiled is None:
+        # a dragged slider sends many values: restart once it rests for a moment
+        self._pending_parameters = values
+        self.parameter_timer.start()
+
+    def _on_parameter_timer_timeout(self) -> None:
+        values, self._pending_parameters = self._pending_parameters, None
+        if self.compiled is None or not values:
             return
-        compiled = self.compiled.with_parameters(values)
+        known = {k: v for k, v in values.items() if k in self.compiled.parameter_names}
+        compiled = self.compiled.with_parameters(known)
         self._start_system(compiled, launches=self._launch_states())
 
     def _launch_states(self) -> list[np.ndarray]:
@@ -543,6 +557,7 @@ class MainWindow(QMainWindow):
         a build finishing meanwhile cannot start a new worker)."""
         self._closed = True
         self.redraw_timer.stop()
+        self.parameter_timer.stop()
         self.editor.shutdown()
         self.builder.stop()
         self._stop_worker()

@@ -171,3 +171,16 @@ def test_switching_an_effect_off_rebuilds_a_conservative_system(qtbot, window):
     assert window.compiled.mechanics.scene.enabled_effects() == []
     assert "energy error" in window.conserved_view.energy_plot.titleLabel.text
     wait_for_points(qtbot, window, 5)
+
+
+def test_dragging_a_slider_restarts_once_it_rests(qtbot, window):
+    wait_for_points(qtbot, window, 3)
+    start = window.worker.generation
+    slider = window.editor.parameter_table.slider("g")
+    for position in range(400, 700, 10):  # thirty values in quick succession
+        slider.setValue(position)
+    qtbot.waitUntil(lambda: window.worker.generation > start, timeout=5000)
+    qtbot.wait(300)
+    assert window.worker.generation == start + 1
+    g = dict(zip(window.compiled.parameter_names, window.compiled.parameters, strict=True))["g"]
+    assert g == pytest.approx(19.62 * 690 / 1000, rel=1e-3)
