@@ -12,7 +12,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
 from explorer.labels import momentum_label
-from explorer.panels.curves import RangeKeeper, TrailCurve, style_plot
+from explorer.panels.curves import LEGEND_BRUSH, RangeKeeper, TrailCurve, style_plot
 from explorer.trajectories import backfill_energy
 
 FLOOR = 1e-17
@@ -32,7 +32,9 @@ class ConservedView(QWidget):
         self.energy_plot = self.layout_widget.addPlot(row=0, col=0)
         style_plot(self.energy_plot)
         self.energy_plot.setLabel("bottom", "t")
-        self.energy_legend = self.energy_plot.addLegend(offset=(-10, 10))
+        self.energy_legend = self.energy_plot.addLegend(
+            offset=(-10, 10), brush=LEGEND_BRUSH, colCount=2
+        )
         self.momentum_plot: pg.PlotItem | None = None
         self.momentum_legend = None
         self._energy_curves: dict[int, TrailCurve] = {}
@@ -73,14 +75,16 @@ class ConservedView(QWidget):
             self.momentum_plot.setLabel("bottom", "t")
             labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
             self.momentum_plot.setTitle(f"Conserved momenta: {labels}")
-            self.momentum_legend = self.momentum_plot.addLegend(offset=(-10, 10))
+            self.momentum_legend = self.momentum_plot.addLegend(
+                offset=(-10, 10), brush=LEGEND_BRUSH
+            )
             self.momentum_range = RangeKeeper(self.momentum_plot)
             colours = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
             for k, i in enumerate(self.conserved_momenta):
                 pen = pg.mkPen(colours[k % len(colours)], width=1.5)
                 name = momentum_label(scene.coordinates[i])
                 self._momentum_curves[i] = TrailCurve(
-                    self.momentum_plot, pen, name=name, ranges=self.momentum_range
+                    self.momentum_plot, pen, name=name, ranges=self.momentum_range, monotonic_x=True
                 )
 
     def _reset_curves(self) -> None:
@@ -113,7 +117,7 @@ class ConservedView(QWidget):
                 name = "main orbit" if key == 0 else f"orbit {key + 1}"
                 pen = pg.mkPen(trajectory.colour, width=1.3)
                 self._energy_curves[key] = TrailCurve(
-                    self.energy_plot, pen, name=name, ranges=self.energy_range
+                    self.energy_plot, pen, name=name, ranges=self.energy_range, monotonic_x=True
                 )
                 self._reference[key] = float(energy[0])
                 self._values[key] = GrowingArray(())

@@ -3,8 +3,9 @@
 pyqtgraph re-processes the whole array on ``setData``, and an antialiased path of a million
 points takes seconds to stroke; neither may happen every frame. ``TrailCurve`` hands each
 completed chunk to a static item once (drawn without antialiasing and cached as pixels by
-Qt until the view changes) and only updates the short tail, with ``clipToView`` and
-``autoDownsample`` on every item.
+Qt until the view changes) and only updates the short tail. Curves against time also get
+``clipToView`` and ``autoDownsample``; phase-space curves cannot (pyqtgraph's clipping
+and downsampling assume sorted x and would drop or distort parts of a closed orbit).
 """
 
 from __future__ import annotations
@@ -26,8 +27,10 @@ class TrailCurve:
         name: str | None = None,
         chunk: int = CHUNK,
         ranges: RangeKeeper | None = None,
+        monotonic_x: bool = False,
     ):
         self.plot = plot
+        self.monotonic_x = monotonic_x
         self.ranges = ranges
         self._seen = 0
         self.pen = pen
@@ -40,8 +43,9 @@ class TrailCurve:
         """A new item, already in the plot (clip-to-view needs its view box at once)."""
         item = pg.PlotDataItem(pen=self.pen, name=name, connect="finite")
         self.plot.addItem(item)
-        item.setClipToView(True)
-        item.setDownsampling(auto=True, method="peak")
+        if self.monotonic_x:  # pyqtgraph clips and downsamples assuming sorted x
+            item.setClipToView(True)
+            item.setDownsampling(auto=True, method="peak")
         return item
 
     @property
@@ -136,3 +140,7 @@ class RangeKeeper:
         span = hi - lo if hi > lo else max(abs(hi), 1.0) * 0.1
         low = lo if lower_fixed else lo - self.margin * span * 0.5
         return [low, hi + self.margin * span]
+
+
+LEGEND_BRUSH = pg.mkBrush(255, 255, 255, 215)
+"""Legends on a nearly opaque white ground, so curves behind them do not cross the text."""

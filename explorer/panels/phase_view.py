@@ -10,7 +10,7 @@ from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLa
 
 from explorer import level_sets, poincare
 from explorer.labels import coordinate_label, momentum_label
-from explorer.panels.curves import TrailCurve, style_plot
+from explorer.panels.curves import LEGEND_BRUSH, TrailCurve, style_plot
 from explorer.panels.ranges import axis_range, phase_ranges
 
 LEVEL_PEN = pg.mkPen("#9aa3ad", width=1)
@@ -70,7 +70,9 @@ class PhaseView(QWidget):
         self.plot_widget = pg.PlotWidget(background="w")
         self.plot = self.plot_widget.getPlotItem()
         style_plot(self.plot)
-        self.legend = self.plot.addLegend(offset=(-10, 10), labelTextColor="#222")
+        self.legend = self.plot.addLegend(
+            offset=(-10, 10), labelTextColor="#222", brush=LEGEND_BRUSH
+        )
         self.plot.scene().sigMouseClicked.connect(self._on_scene_clicked)
 
         self.pair_combo = QComboBox()

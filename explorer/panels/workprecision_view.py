@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.panels.curves import style_plot
+from explorer.panels.curves import LEGEND_BRUSH, style_plot
 
 SYMBOLS = ("o", "s", "t", "d", "+", "x", "star", "p", "h")
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#8c564b")
@@ -111,7 +111,7 @@ class WorkPrecisionView(QWidget):
             plot.setLabel("left", what)
         self.error_plot.setTitle("Final-state error against time")
         self.energy_plot.setTitle("Energy error against time")
-        self.legend = self.error_plot.addLegend(offset=(-10, 10))
+        self.legend = self.error_plot.addLegend(offset=(-10, 10), brush=LEGEND_BRUSH)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addLayout(header)

@@ -25,6 +25,10 @@ def test_pendulum_window_is_alive(qtbot, window):
     assert energies == {round(m * g * l, 6)}
     assert sorted(round(abs(s.q), 4) for s in phase.saddles) == [round(np.pi, 4)] * 2
     assert _curve_points(phase._curves[0]) >= 30
+    # every point is drawn: nothing clipped or downsampled away from a closed orbit
+    shown_x, shown_y = phase._curves[0].tail.getData()
+    main = window.store.main
+    assert len(shown_x) == len(main.t) and np.allclose(shown_y, main.y.data[:, 1])
     # the mechanism: one rod from the pivot to the bob, of length l
     rod_x, rod_y = window.configuration_view._rods.getData()
     assert np.hypot(rod_x[1] - rod_x[0], rod_y[1] - rod_y[0]) == pytest.approx(l)
