@@ -33,7 +33,7 @@ SYMBOLS = {name: sympy.Symbol(name, real=True) for name in NAMES}
 UNARY = ("sin", "cos", "tan", "exp", "log", "sqrt", "sinh", "cosh", "tanh")
 UNARY += ("asin", "acos", "atan", "Abs")
 PYTHON = {name: getattr(math, name) for name in UNARY if name != "Abs"}
-PYTHON |= {"Abs": abs, "atan2": math.atan2, "pi": math.pi}
+PYTHON |= {"Abs": abs, "abs": abs, "atan2": math.atan2, "pi": math.pi}
 TIME_LIMIT = 1.0  # seconds a single parse may take
 GUARD = 5.0  # wall seconds after which a hanging parse is killed, failing the test
 _FORK = multiprocessing.get_context("fork")
@@ -161,19 +161,29 @@ LEAVES = st.one_of(
 )
 
 
-def _tree(children):
-    unary = st.tuples(st.sampled_from(UNARY), children)
-    return st.one_of(
-        st.tuples(st.sampled_from(["+", "-", "*", "/"]), children, children),
-        st.tuples(st.just("**"), children, children),
-        st.tuples(st.just("neg"), children),
-        st.tuples(st.just("pos"), children),
-        unary.map(lambda u: ("call", u[0], u[1])),
-        st.tuples(st.just("call2"), children, children),
-    )
+BINARY = ("+", "-", "*", "/", "**")
 
 
-TREES = st.recursive(LEAVES, _tree, max_leaves=12)
+@st.composite
+def trees(draw, size: int | None = None):
+    """An expression tree of ``size`` nodes (1 to 12 when not given). Choosing the size first
+    and then each node uniformly gives far more varied trees than ``st.recursive``, which
+    mostly produces tiny ones."""
+    if size is None:
+        size = draw(st.integers(1, 12))
+    if size == 1:
+        return draw(LEAVES)
+    kinds = ["neg", "pos", "call"] + (list(BINARY) + ["call2"] if size >= 3 else [])
+    kind = draw(st.sampled_from(kinds))
+    if kind in ("neg", "pos"):
+        return (kind, draw(trees(size - 1)))
+    if kind == "call":
+        return ("call", draw(st.sampled_from(UNARY)), draw(trees(size - 1)))
+    left = draw(st.integers(1, size - 2))
+    return (kind, draw(trees(left)), draw(trees(size - 1 - left)))
+
+
+TREES = trees()
 
 
 def power_depth(tree) -> int:
@@ -265,7 +275,7 @@ def magnitude(text: str, point: dict[str, float]) -> float | None:
 ACCEPTABLE_REFUSALS = ("division by zero", "undefined", "exponent", "too large", "power")
 
 
-@FUZZ
+@settings(FUZZ, max_examples=max(_EXPLORE, 300))
 @given(
     tree=TREES.filter(lambda tree: power_depth(tree) <= 2),
     spaces=st.booleans(),
@@ -291,6 +301,24 @@ def test_valid_arithmetic_round_trips(tree, spaces, caret, point):
     assert abs(got - expected) <= tolerance, (
         f"{parsed_text!r} at {point}: parser gives {got}, Python gives {expected}"
     )
+
+
+@pytest.mark.parametrize(
+    "text",
+    [f"{name}(x)" for name in UNARY]
+    + ["atan2(x, y)", "atan2(-x, y)", "abs(-x)", "pi*x", "-x", "+x", "x + y", "x - y", "x - 2"]
+    + ["2 - x", "x*y", "x/y", "1/x", "x/2", "x**y", "x**2", "x**-2", "x**0.5", "(-x)**3"],
+)
+def test_every_function_and_operator_matches_python(text):
+    for value in (0.15, 0.5, 0.85):
+        point = {"x": value, "y": 1.3 - value}
+        expected = python_value(text, point)
+        parsed = parse_expression(text, SYMBOLS)
+        values = {SYMBOLS[name]: sympy.Float(v, 30) for name, v in point.items()}
+        got = complex(parsed.xreplace(values).evalf(30))
+        assert got == pytest.approx(expected, rel=1e-12, abs=1e-14), (text, point)
+    if "**" in text:
+        assert parse_expression(text.replace("**", "^"), SYMBOLS) == parse_expression(text, SYMBOLS)
 
 
 def test_precedence_matches_python():
