@@ -285,3 +285,4 @@ class EquilibriumMarkers:
 
     def remove(self) -> None:
         self.plot.removeItem(self.item)
+        self.item.deleteLater()

@@ -1,12 +1,14 @@
 """Everything the Textbook dock knows about the main window, in one place.
 
-It uses: ``window.system_started(Built)`` (``Built.compiled``), ``window.compiled`` (after
-a parameter change), ``window.editor.parameters_changed`` (optional), ``window.docks``
+It uses: ``window.system_started(Built)`` (``Built.compiled``), ``window.compiled`` (at
+install), ``window.editor.parameters_changed(dict)`` (optional), ``window.docks``
 and ``window._add_dock`` (optional), ``window.phase_view.plot`` / ``.index`` / ``.mode``
 / ``.pair_combo`` / ``.mode_changed``, and the window's close event.
 """
 
 from __future__ import annotations
+
+import weakref
 
 from PySide6.QtCore import QEvent, QObject, Qt
 from PySide6.QtWidgets import QDockWidget, QMainWindow
@@ -22,7 +24,7 @@ class WindowLink(QObject):
 
     def __init__(self, window: QMainWindow, panel: TextbookPanel):
         super().__init__(panel)
-        self.window = window
+        self._window = weakref.ref(window)  # the window holds the panel: no reference cycle
         self.panel = panel
         self.phase_view = getattr(window, "phase_view", None)
         self.markers: EquilibriumMarkers | None = None
@@ -41,10 +43,21 @@ class WindowLink(QObject):
         self._sync_pair()
         self.panel.set_system(built.compiled)
 
-    def _on_parameters_changed(self, _values) -> None:
-        compiled = getattr(self.window, "compiled", None)  # the window rebuilt it already
-        if compiled is not None and compiled is not self.panel.compiled:
-            self.panel.set_system(compiled)
+    @property
+    def window(self) -> QMainWindow | None:
+        return self._window()
+
+    def _on_parameters_changed(self, values) -> None:
+        # The same kernels with the new values (no recompilation); independent of when the
+        # window itself restarts its worker (it may debounce the sliders).
+        base = self.panel.compiled
+        if base is None or not isinstance(values, dict):
+            return
+        known = {k: float(v) for k, v in values.items() if k in base.parameter_names}
+        current = dict(zip(base.parameter_names, base.parameters, strict=True))
+        if all(current[k] == v for k, v in known.items()):
+            return
+        self.panel.set_system(base.with_parameters(known))
 
     def _on_pair_changed(self, _index: int) -> None:
         self._sync_pair()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QDoubleSpinBox, QLabel
 
 from explorer.panels.curves import style_plot
@@ -51,11 +51,23 @@ def make_plot(title: str, bottom: str, left: str, corner: str = "top-right") -> 
 
 
 def clear_plot(widget: pg.PlotWidget) -> None:
-    """Remove every item and legend entry."""
+    """Remove every item and legend entry, and delete them on the GUI thread.
+
+    A removed pyqtgraph item is left owned by Python only; if it sits in a reference
+    cycle, the cyclic garbage collector may free it later on whatever thread happens to
+    run it (the scene builder's), and a QObject destroyed there deadlocks against the GUI
+    thread. ``deleteLater`` destroys the C++ objects here, deterministically.
+    """
     plot = widget.getPlotItem()
+    doomed = list(plot.items)
     plot.clear()
     if plot.legend is not None:
+        for sample, label in list(plot.legend.items):
+            doomed += [sample, label]
         plot.legend.clear()
+    for item in doomed:
+        if isinstance(item, QObject):
+            item.deleteLater()
 
 
 def note_label(text: str = "") -> QLabel:
