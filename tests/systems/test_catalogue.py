@@ -277,8 +277,10 @@ def test_view_is_well_formed(name, derived):
     assert isinstance(view.get("t_end"), int | float) and view["t_end"] > 0
     phase = view.get("phase")
     assert isinstance(phase, list) and len(phase) == 2 and set(phase) <= phase_names
+    assert phase[1] == f"p_{phase[0]}", "the phase view shows a coordinate and its momentum"
+    drawing_area = {"x", "y"} - set(scene.coordinates)  # the mechanism view's x and y
     for key, bounds in view.get("ranges", {}).items():
-        assert key in phase_names, f"{name}: range for unknown variable {key!r}"
+        assert key in phase_names | drawing_area, f"{name}: range for unknown variable {key!r}"
         assert len(bounds) == 2 and bounds[0] < bounds[1]
     section = view.get("section")
     if section is not None:
