@@ -70,6 +70,19 @@ def clear_plot(widget: pg.PlotWidget) -> None:
             item.deleteLater()
 
 
+def release_plot(widget: pg.PlotWidget) -> None:
+    """Empty a plot and delete the menus pyqtgraph made for it without a Qt parent."""
+    import shiboken6
+
+    clear_plot(widget)
+    plot = widget.getPlotItem()
+    for menu in (getattr(plot, "ctrlMenu", None), getattr(plot.getViewBox(), "menu", None)):
+        if menu is not None and shiboken6.isValid(menu):
+            shiboken6.delete(menu)
+    plot.ctrlMenu = None
+    plot.getViewBox().menu = None
+
+
 def note_label(text: str = "") -> QLabel:
     """A wrapped explanatory line of rich text."""
     label = QLabel(text)
