@@ -41,7 +41,7 @@ class ConservedView(QWidget):
         self._momentum_curves: dict[int, TrailCurve] = {}
         self._reference: dict[int, float] = {}
         self._values: dict[int, GrowingArray] = {}
-        self.energy_range = RangeKeeper(self.energy_plot)
+        self.energy_range = RangeKeeper(self.energy_plot, time_axis=True)
         self.momentum_range: RangeKeeper | None = None
         self._generation = -1
         self.conserved_momenta: list[int] = []
@@ -78,7 +78,7 @@ class ConservedView(QWidget):
             self.momentum_legend = self.momentum_plot.addLegend(
                 offset=(-10, 10), brush=LEGEND_BRUSH
             )
-            self.momentum_range = RangeKeeper(self.momentum_plot)
+            self.momentum_range = RangeKeeper(self.momentum_plot, time_axis=True)
             colours = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
             for k, i in enumerate(self.conserved_momenta):
                 pen = pg.mkPen(colours[k % len(colours)], width=1.5)

@@ -107,9 +107,12 @@ class RangeKeeper:
     margin when new data leave it and otherwise stays put.
     """
 
-    def __init__(self, plot: pg.PlotItem, log_y: bool = False, margin: float = 0.3):
+    def __init__(
+        self, plot: pg.PlotItem, log_y: bool = False, margin: float = 0.3, time_axis: bool = False
+    ):
         self.plot = plot
         self.log_y = log_y
+        self.time_axis = time_axis
         self.margin = margin
         plot.disableAutoRange()
         self.reset()
@@ -126,7 +129,7 @@ class RangeKeeper:
                 y = np.log10(y)
         x, y = x[np.isfinite(x)], y[np.isfinite(y)]
         if len(x):
-            self.x = self._grow(self.x, float(x.min()), float(x.max()), lower_fixed=True)
+            self.x = self._grow(self.x, float(x.min()), float(x.max()), self.time_axis)
             self.plot.setXRange(*self.x, padding=0)
         if len(y):
             self.y = self._grow(self.y, float(y.min()), float(y.max()))
@@ -138,8 +141,9 @@ class RangeKeeper:
         if current is not None:
             lo, hi = min(lo, current[0]), max(hi, current[1])
         span = hi - lo if hi > lo else max(abs(hi), 1.0) * 0.1
-        low = lo if lower_fixed else lo - self.margin * span * 0.5
-        return [low, hi + self.margin * span]
+        if lower_fixed:  # a time axis: double it, so redrawing everything is rare
+            return [lo, hi + span]
+        return [lo - self.margin * span * 0.5, hi + self.margin * span]
 
 
 LEGEND_BRUSH = pg.mkBrush(255, 255, 255, 215)
