@@ -40,6 +40,24 @@ FUNCTIONS: dict[str, Callable[..., sympy.Expr]] = {
     "abs": sympy.Abs,
 }
 ARITY = {name: 1 for name in FUNCTIONS} | {"atan2": 2}
+MAX_CONSTANT = 1e100
+FLOAT_FUNCTIONS: dict[str, Callable[..., float]] = {
+    "sin": math.sin,
+    "cos": math.cos,
+    "tan": math.tan,
+    "exp": math.exp,
+    "log": math.log,
+    "sqrt": math.sqrt,
+    "sinh": math.sinh,
+    "cosh": math.cosh,
+    "tanh": math.tanh,
+    "asin": math.asin,
+    "acos": math.acos,
+    "atan": math.atan,
+    "atan2": math.atan2,
+    "Abs": abs,
+    "abs": abs,
+}
 CONSTANTS: dict[str, sympy.Expr] = {"pi": sympy.pi}
 RESERVED = frozenset(FUNCTIONS) | frozenset(CONSTANTS) | {"t"}
 
@@ -73,9 +91,16 @@ class ExpressionError(ValueError):
         at = f" (at position {self.position})" if self.position else ""
         return f"{where}{self.reason}{at}"
 
+    def __reduce__(self):
+        return (_rebuild_error, (self.reason, self.text, self.field, self.position))
+
     def with_field(self, field: str) -> ExpressionError:
         """A copy of this error attributed to ``field``."""
         return ExpressionError(self.reason, text=self.text, field=field, position=self.position)
+
+
+def _rebuild_error(reason, text, field, position) -> ExpressionError:
+    return ExpressionError(reason, text=text, field=field, position=position)
 
 
 def check_name(name: object, *, field: str | None = None) -> str:
@@ -149,17 +174,42 @@ def parse_expression(
     try:
         tree = ast.parse(source.strip(), mode="eval")
     except SyntaxError as exc:
+        position = _original_position(text, exc.offset) if exc.offset else len(text)
         raise ExpressionError(
-            f"syntax error: {_syntax_reason(exc)}",
-            text=text,
-            field=field,
-            position=exc.offset or len(text),
+            f"syntax error: {_syntax_reason(exc)}", text=text, field=field, position=position
         ) from None
-    except (ValueError, RecursionError, MemoryError):
+    except (RecursionError, MemoryError):
+        raise ExpressionError(
+            f"the expression is nested too deeply (limit {MAX_DEPTH})", text=text, field=field
+        ) from None
+    except ValueError:
         raise ExpressionError("the expression cannot be read", text=text, field=field) from None
     offset = len(source) - len(source.lstrip())
     builder = _Builder(text, symbols, field, offset)
-    return builder.build(tree.body, 0)
+    builder.value(tree.body, 0)
+    try:
+        return builder.build(tree.body, 0)
+    except ExpressionError:
+        raise
+    except Exception as exc:  # sympy's own evaluation failed: report it, never crash
+        raise ExpressionError(
+            f"the expression cannot be evaluated ({type(exc).__name__})", text=text, field=field
+        ) from None
+
+
+def _original_position(text: str, position: int) -> int:
+    """Map a 1-based column of the text with ``^`` written as ``**`` back to ``text``."""
+    seen = 0
+    for index, char in enumerate(text):
+        seen += 2 if char == "^" else 1
+        if seen >= position:
+            return index + 1
+    return len(text)
+
+
+def _short(expr: object, limit: int = 24) -> str:
+    text = str(expr)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _bracket_depth(source: str) -> int:
@@ -185,6 +235,13 @@ _BINARY = {
     ast.Sub: lambda a, b: a - b,
     ast.Mult: lambda a, b: a * b,
     ast.Div: lambda a, b: a / b,
+}
+_FLOAT_BINARY = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
 }
 _OPERATOR_NAMES = {
     ast.FloorDiv: "//",
@@ -229,8 +286,68 @@ class _Builder:
     def fail(self, reason: str, node: ast.AST | None = None) -> ExpressionError:
         position = None
         if node is not None and hasattr(node, "col_offset"):
-            position = node.col_offset + 1 + self.offset
+            position = _original_position(self.text, node.col_offset + 1 + self.offset)
         return ExpressionError(reason, text=self.text, field=self.field, position=position)
+
+    def value(self, node: ast.AST, depth: int) -> float | None:
+        """The float value of a constant subtree (None if it uses a symbol), bounded.
+
+        Computed with plain floats before sympy sees the expression, so that constants
+        which overflow, are complex or undefined are refused instead of handed to sympy's
+        unbounded exact evaluation (``exp(exp(exp(100)))`` would never return).
+        """
+        if depth > MAX_DEPTH:
+            raise self.fail(f"the expression is nested too deeply (limit {MAX_DEPTH})", node)
+        try:
+            result = self._value(node, depth)
+        except ExpressionError:
+            raise
+        except OverflowError:
+            raise self.fail("a number in the expression is too large", node) from None
+        except ZeroDivisionError:
+            raise self.fail("division by zero", node) from None
+        except ValueError:
+            reason = "a constant in the expression is undefined for real numbers"
+            raise self.fail(reason, node) from None
+        if result is None:
+            return None
+        if isinstance(result, complex):
+            raise self.fail("a constant in the expression is not a real number", node)
+        if not math.isfinite(result) or abs(result) > MAX_CONSTANT:
+            raise self.fail(
+                f"a number in the expression is too large (limit {MAX_CONSTANT:g})", node
+            )
+        return float(result)
+
+    def _value(self, node: ast.AST, depth: int):
+        match node:
+            case ast.Constant(value=value) if isinstance(value, int | float) and not isinstance(
+                value, bool
+            ):
+                if isinstance(value, int) and value.bit_length() > MAX_LITERAL_DIGITS * 3.33:
+                    raise self.fail(
+                        f"the number is too long (limit {MAX_LITERAL_DIGITS} digits)", node
+                    )
+                return float(value)
+            case ast.Name(id=name) if name in CONSTANTS and name not in self.symbols:
+                return math.pi
+            case ast.UnaryOp(op=ast.USub() | ast.UAdd() as op, operand=operand):
+                inner = self.value(operand, depth + 1)
+                return None if inner is None else (-inner if isinstance(op, ast.USub) else inner)
+            case ast.BinOp(op=ast.Pow() | ast.Add() | ast.Sub() | ast.Mult() | ast.Div() as op):
+                a = self.value(node.left, depth + 1)
+                b = self.value(node.right, depth + 1)
+                if a is None or b is None:
+                    return None
+                return _FLOAT_BINARY[type(op)](a, b)
+            case ast.Call(func=ast.Name(id=name), args=args) if name in FLOAT_FUNCTIONS:
+                values = [self.value(arg, depth + 1) for arg in args]
+                if any(v is None for v in values) or len(values) != ARITY[name]:
+                    return None
+                return FLOAT_FUNCTIONS[name](*values)
+        for child in ast.iter_child_nodes(node):
+            self.value(child, depth + 1)
+        return None
 
     def build(self, node: ast.AST, depth: int) -> sympy.Expr:
         if depth > MAX_DEPTH:
@@ -313,16 +430,17 @@ class _Builder:
         if exponent.is_Number:
             if abs(float(exponent)) > MAX_INTEGER_EXPONENT:
                 raise self.fail(
-                    f"the exponent {exponent} is too large (limit {MAX_INTEGER_EXPONENT})", node
+                    f"the exponent {_short(exponent)} is too large (limit {MAX_INTEGER_EXPONENT})",
+                    node,
                 )
             if base.is_Number and base != 0:
                 digits = abs(float(exponent)) * math.log10(abs(float(base)) or 1.0)
                 if digits > MAX_RESULT_DIGITS:
                     raise self.fail("the power is too large to compute", node)
-        elif not exponent.is_number:
-            pass
-        elif _magnitude(exponent) > MAX_INTEGER_EXPONENT:
-            raise self.fail("the exponent is too large", node)
+        elif exponent.is_number:
+            magnitude = self.value(node.right, 0)
+            if magnitude is not None and abs(magnitude) > MAX_INTEGER_EXPONENT:
+                raise self.fail("the exponent is too large", node)
         if base == 0 and exponent.is_Number and exponent < 0:
             raise self.fail("division by zero (0 to a negative power)", node)
         result = sympy.Pow(base, exponent)
@@ -330,22 +448,17 @@ class _Builder:
         return result
 
     def check_size(self, result: sympy.Expr, node: ast.AST) -> None:
-        if result.is_Pow and result.exp.is_Integer and abs(result.exp) > MAX_INTEGER_EXPONENT:
-            raise self.fail(
-                f"the combined exponent {result.exp} is too large (limit {MAX_INTEGER_EXPONENT})",
-                node,
-            )
+        for power in result.atoms(sympy.Pow):
+            if power.exp.is_Integer and abs(power.exp) > MAX_INTEGER_EXPONENT:
+                raise self.fail(
+                    f"the combined exponent {_short(power.exp)} is too large "
+                    f"(limit {MAX_INTEGER_EXPONENT})",
+                    node,
+                )
         if result.is_Integer and abs(result.p).bit_length() > MAX_RESULT_DIGITS * 3.33:
             raise self.fail("the number is too large to compute", node)
         if result is sympy.zoo or result is sympy.nan or result.has(sympy.zoo, sympy.nan):
             raise self.fail("the expression is undefined (division by zero)", node)
-
-
-def _magnitude(value: sympy.Expr) -> float:
-    try:
-        return abs(complex(value.evalf(15)))
-    except (TypeError, ValueError):
-        return math.inf
 
 
 def as_expr(value: sympy.Basic | int | float) -> sympy.Basic:

@@ -125,30 +125,6 @@ def assert_clear(error: ExpressionError) -> None:
     assert len(message) <= limit, f"message too long to read: {message[:120]}..."
 
 
-# Known parser bugs (reported to the lead). Strict where the outcome is deterministic, so
-# that a fix shows up as XPASS and the mark can be removed.
-HANGS_IN_EVALF = pytest.mark.xfail(
-    strict=True,
-    reason="parser bug: _magnitude() evalf()s a non-literal numeric exponent such as "
-    "exp(exp(exp(100))) at full precision; mpmath then computes e to ~10**43 bits and hangs",
-)
-LEAKS_OVERFLOW = pytest.mark.xfail(
-    strict=False,  # the outcome depends on what sympy's cache already holds
-    reason="parser bug: sympy's automatic evaluation of nested sinh/cosh/exp of numbers "
-    "raises OverflowError (or AttributeError, or runs for seconds); not caught or bounded",
-)
-HUGE_MESSAGE = pytest.mark.xfail(
-    strict=True,
-    reason="parser: the 'exponent is too large' message prints the exponent in full "
-    "(here 198 digits)",
-)
-CARET_POSITION = pytest.mark.xfail(
-    strict=True,
-    reason="parser bug: positions are counted in the text after '^' -> '**', one column "
-    "too far for every '^' before the error",
-)
-
-
 # -- 1. valid arithmetic: the parser agrees with Python ----------------------------------------
 
 # Integer literals stay small so that Python's own evaluation of a tower of powers
@@ -272,7 +248,14 @@ def magnitude(text: str, point: dict[str, float]) -> float | None:
 
 # A valid expression may still be refused for these reasons: the symbolic result is
 # undefined (it simplifies to a division by zero) or exceeds the documented size limits.
-ACCEPTABLE_REFUSALS = ("division by zero", "undefined", "exponent", "too large", "power")
+ACCEPTABLE_REFUSALS = (
+    "division by zero",
+    "undefined",
+    "exponent",
+    "too large",
+    "power",
+    "not a real number",
+)
 
 
 @settings(FUZZ, max_examples=max(_EXPLORE, 300))
@@ -332,10 +315,10 @@ def test_precedence_matches_python():
 @pytest.mark.parametrize(
     "text",
     [
-        pytest.param("x^2 + zz", marks=CARET_POSITION),
-        pytest.param("x^2^2^2 + zz", marks=CARET_POSITION),
+        "x^2 + zz",
+        "x^2^2^2 + zz",
         "x**2 + zz",
-        pytest.param("  x^2+zz", marks=CARET_POSITION),
+        "  x^2+zz",
         "  x**2+zz",
     ],
 )
@@ -388,11 +371,6 @@ FUNCTION_TOWERS = st.tuples(
 )
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="parser bug: e.g. 'sin(tan(asin(log(sqrt(-(acos(2)))))))' takes 3 s of CPU, "
-    "'sinh(sinh(sinh(sinh(100))))' raises OverflowError, 'x**sin(exp(exp(100)))' hangs",
-)
 @settings(FUZZ, phases=[Phase.explicit, Phase.generate], report_multiple_bugs=False)
 @given(tower=FUNCTION_TOWERS)
 def test_towers_of_functions_are_bounded(tower):
@@ -441,14 +419,14 @@ HOSTILE = [
     ("10**10**10", ("too large",)),
     ("9**9**9", ("too large",)),
     ("2**2**2**2**2", ("too large",)),
-    pytest.param("(99**99)**(99**99)", ("too large",), marks=HUGE_MESSAGE),
+    ("(99**99)**(99**99)", ("too large",)),
     ("1" * 5000, ("too long", "too large")),
     ("x + " + "7" * 5000, ("too long", "too large")),
     ("(" * 10000 + "x" + ")" * 10000, ("too long", "too deep")),
     ("(" * 5000 + "x" + ")" * 5000, ("too deep",)),
     ("sin(" * 3000 + "x" + ")" * 3000, ("too deep",)),
-    pytest.param("x**exp(exp(exp(100)))", ("too large",), marks=HANGS_IN_EVALF),
-    pytest.param("x**(-exp(exp(exp(100))))", ("too large",), marks=HANGS_IN_EVALF),
+    ("x**exp(exp(exp(100)))", ("too large",)),
+    ("x**(-exp(exp(exp(100))))", ("too large",)),
 ]
 
 
@@ -468,13 +446,13 @@ def test_hostile_input_is_refused_clearly(text, reasons):
         "x" + "**x" * 3000,
         "x" + "+x" * 6000,
         "sin(x)" + "*sin(x)" * 3000,
-        pytest.param("cosh(sinh(sinh(100)))+1", marks=LEAKS_OVERFLOW),
-        pytest.param("atan(sinh(sinh(sinh(100))))", marks=LEAKS_OVERFLOW),
-        pytest.param("x**sinh(sinh(sinh(100)))", marks=LEAKS_OVERFLOW),
-        pytest.param("sinh(sinh(sinh(sinh(100))))", marks=LEAKS_OVERFLOW),
-        pytest.param("sinh(acos(Abs(sin(99**99))))", marks=LEAKS_OVERFLOW),
-        pytest.param("sin(tan(asin(log(sqrt(-(acos(2)))))))", marks=LEAKS_OVERFLOW),
-        pytest.param("x**sin(exp(exp(100)))", marks=HANGS_IN_EVALF),
+        "cosh(sinh(sinh(100)))+1",
+        "atan(sinh(sinh(sinh(100))))",
+        "x**sinh(sinh(sinh(100)))",
+        "sinh(sinh(sinh(sinh(100))))",
+        "sinh(acos(Abs(sin(99**99))))",
+        "sin(tan(asin(log(sqrt(-(acos(2)))))))",
+        "x**sin(exp(exp(100)))",
         "exp(exp(exp(exp(exp(x)))))",
         "1e308*1e308",
         "(1e-300)**100",
