@@ -126,16 +126,40 @@ class CompiledSystem:
         scene = self.mechanics.scene
         values = scene.initial_values
         q = np.array([values.get(name, 0.0) for name in scene.coordinates])
-        given_p = {name: values[name] for name in scene.momentum_names if name in values}
+        given_p = {i: values[name] for i, name in enumerate(scene.momentum_names) if name in values}
         qdot = np.array([values.get(name, 0.0) for name in scene.velocity_names])
         if len(given_p) == self.n:
-            p = np.array([given_p[name] for name in scene.momentum_names])
-        else:
+            p = np.array([given_p[i] for i in range(self.n)])
+        elif not given_p:
             p = self.momenta_from_velocities(t0, q, qdot)
-            for i, name in enumerate(scene.momentum_names):
-                if name in given_p:
-                    p[i] = given_p[name]
+        else:
+            p = self._mixed_momenta(t0, q, qdot, given_p)
         return np.concatenate([q, p])
+
+    def _mixed_momenta(self, t0, q, qdot, given_p: dict[int, float]) -> np.ndarray:
+        """Momenta when some p_i and the other velocities are given: solve for the rest.
+
+        The velocities of the coordinates whose momentum is given are unknown; they are
+        found so that p(q, qdot) matches, which matters where M(q) couples coordinates.
+        """
+        from scipy.optimize import fsolve
+
+        unknown = sorted(given_p)
+        target = np.array([given_p[i] for i in unknown])
+
+        def residual(v: np.ndarray) -> np.ndarray:
+            trial = qdot.copy()
+            trial[unknown] = v
+            return self.momenta_from_velocities(t0, q, trial)[unknown] - target
+
+        solution, _, ok, message = fsolve(residual, target, full_output=True)
+        if ok != 1:
+            raise DerivationError(f"could not match the given initial momenta: {message}")
+        full = qdot.copy()
+        full[unknown] = solution
+        p = self.momenta_from_velocities(t0, q, full)
+        p[unknown] = target
+        return p
 
     def momenta_from_velocities(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
         """p(q, qdot, t) for one state, shape (n,), evaluated with numpy (no compilation)."""

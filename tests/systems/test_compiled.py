@@ -86,3 +86,21 @@ def test_separable_parts_compile_and_match():
     assert out[0] == pytest.approx(m * g * l * np.sin(0.4), rel=1e-14)
     assert k.kinetic(np.array([0.3]), P) == pytest.approx(0.09 / (2 * m * l**2), rel=1e-14)
     assert k.potential(0.0, np.array([0.4]), P) == pytest.approx(-m * g * l * np.cos(0.4))
+
+
+def test_initial_state_mixing_momenta_and_velocities_in_a_coupled_system():
+    text = """
+title = "Coupled"
+[system]
+coordinates = ["a", "b"]
+parameters = { m = 1.0 }
+kinetic = "m*(a_dot**2 + a_dot*b_dot + b_dot**2)"
+potential = "a**2 + b**2"
+[initial]
+a_dot = 0.5
+p_b = 2.0
+"""
+    compiled = compile_system(derive(scene(text)), ("momenta",))
+    y0 = compiled.initial_state()
+    # p_a = 2 a_dot + b_dot, p_b = a_dot + 2 b_dot = 2  ->  b_dot = 0.75, p_a = 1.75
+    np.testing.assert_allclose(y0, [0.0, 0.0, 1.75, 2.0], rtol=1e-10)
