@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.curves import LEGEND_BRUSH, style_plot
+from explorer.panels.log_axis import SparseLogAxis
 
 SYMBOLS = ("o", "s", "t", "d", "+", "x", "star", "p", "h")
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#8c564b")
@@ -100,8 +101,12 @@ class WorkPrecisionView(QWidget):
         header.addWidget(self.status, 2)
         self.plot_area = pg.GraphicsLayoutWidget()
         self.plot_area.setBackground("w")
-        self.error_plot = style_plot(self.plot_area.addPlot(row=0, col=0))
-        self.energy_plot = style_plot(self.plot_area.addPlot(row=0, col=1))
+        self.error_plot = style_plot(
+            self.plot_area.addPlot(row=0, col=0, axisItems={"bottom": SparseLogAxis("bottom")})
+        )
+        self.energy_plot = style_plot(
+            self.plot_area.addPlot(row=0, col=1, axisItems={"bottom": SparseLogAxis("bottom")})
+        )
         for plot, what in (
             (self.error_plot, "final-state error"),
             (self.energy_plot, "max |ΔH/H₀|"),
