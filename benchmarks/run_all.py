@@ -12,7 +12,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-SCRIPTS = ("throughput", "kepler_polar_vs_scipy", "kepler_cartesian_vs_rebound", "compile_latency")
+SCRIPTS = (
+    "throughput",
+    "kepler_polar_vs_scipy",
+    "kepler_cartesian_vs_rebound",
+    "compile_latency",
+    "gui_latency",
+)
 
 
 def main() -> int:
