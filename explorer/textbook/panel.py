@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import pyqtgraph as pg
 from PySide6.QtWidgets import QTabWidget, QVBoxLayout, QWidget
 
 from explorer.textbook.action_angle_view import ActionAngleView
 from explorer.textbook.energy_view import EnergyTheoremView
 from explorer.textbook.equilibria_view import EquilibriaView, EquilibriumMarkers
-from explorer.textbook.plots import release_plot
 from explorer.textbook.principle_view import PrincipleView
 from explorer.textbook.reduction_view import ReductionView
 from explorer.textbook.tasks import TaskRunner
@@ -66,15 +64,8 @@ class TextbookPanel(QWidget):
             self.markers.show_result(result)
 
     def shutdown(self) -> None:
-        """Cancel the computations, wait for their threads, and free the plots' menus.
-
-        pyqtgraph gives every plot context menus that no Qt parent owns; left to the cyclic
-        garbage collector they may be destroyed on another thread (the scene builder's),
-        which deadlocks against the GUI thread. They are deleted here, on the GUI thread.
-        """
+        """Cancel the computations, wait for their threads, take the markers away."""
         self.runner.shutdown()
         if self.markers is not None:
             self.markers.remove()
             self.markers = None
-        for widget in self.findChildren(pg.PlotWidget):
-            release_plot(widget)

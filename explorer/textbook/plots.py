@@ -47,7 +47,22 @@ def make_plot(title: str, bottom: str, left: str, corner: str = "top-right") -> 
         pen=pg.mkPen("#c8c8c8"),
     )
     widget.setMinimumSize(220, 160)
+    adopt_menus(widget)
     return widget
+
+
+def adopt_menus(widget: pg.PlotWidget) -> None:
+    """Give the context menus pyqtgraph makes without a Qt parent one: the plot widget.
+
+    Parentless, they are owned by Python alone and die when the garbage collector frees
+    them, on whatever thread runs it (the scene builder's, say), where destroying a
+    QObject deadlocks against the GUI thread. Owned by the widget, they are destroyed
+    with it, on the GUI thread. The window flags are kept, so they still pop up.
+    """
+    plot = widget.getPlotItem()
+    for menu in (getattr(plot, "ctrlMenu", None), getattr(plot.getViewBox(), "menu", None)):
+        if menu is not None and menu.parent() is None:
+            menu.setParent(widget, menu.windowFlags())
 
 
 def clear_plot(widget: pg.PlotWidget) -> None:
@@ -68,19 +83,6 @@ def clear_plot(widget: pg.PlotWidget) -> None:
     for item in doomed:
         if isinstance(item, QObject):
             item.deleteLater()
-
-
-def release_plot(widget: pg.PlotWidget) -> None:
-    """Empty a plot and delete the menus pyqtgraph made for it without a Qt parent."""
-    import shiboken6
-
-    clear_plot(widget)
-    plot = widget.getPlotItem()
-    for menu in (getattr(plot, "ctrlMenu", None), getattr(plot.getViewBox(), "menu", None)):
-        if menu is not None and shiboken6.isValid(menu):
-            shiboken6.delete(menu)
-    plot.ctrlMenu = None
-    plot.getViewBox().menu = None
 
 
 def note_label(text: str = "") -> QLabel:
