@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 from explorer.builder import BuildService, Built
 from explorer.controls import ControlsPanel
 from explorer.editor.editor_panel import SystemEditorPanel
+from explorer.gui_gc import GuiThreadCollector
 from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
 from explorer.panels.phase_view import PhaseView
@@ -139,6 +140,11 @@ class MainWindow(QMainWindow):
         self.redraw_timer.setInterval(REDRAW_MS)
         self.redraw_timer.timeout.connect(self._on_redraw_timer_timeout)
         self.redraw_timer.start()
+        self.collector = GuiThreadCollector(self)
+        self.collector.start()
+        from explorer.textbook import install as install_textbook
+
+        self.textbook = install_textbook(self)
 
     # -- construction helpers ---------------------------------------------------------------
 
@@ -556,6 +562,7 @@ class MainWindow(QMainWindow):
         """Stop the redraw timer, the builder and the worker threads (in that order, so
         a build finishing meanwhile cannot start a new worker)."""
         self._closed = True
+        self.textbook.shutdown()
         self.redraw_timer.stop()
         self.parameter_timer.stop()
         self.editor.shutdown()
@@ -563,3 +570,4 @@ class MainWindow(QMainWindow):
         self._stop_worker()
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()
+        self.collector.stop()

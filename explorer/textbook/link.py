@@ -80,8 +80,12 @@ def install(window: QMainWindow) -> TextbookPanel:
     """Add the Textbook dock to ``window`` and follow its systems; returns the panel.
 
     The dock is tabified with the bottom dock ("Conserved quantities") when there is one,
-    else put on the right. If a system is already running it is shown at once.
+    else put on the right. If a system is already running it is shown at once. A window
+    that has its panel already (``MainWindow`` installs one) gets that panel back.
     """
+    existing = getattr(window, "textbook", None)
+    if isinstance(existing, TextbookPanel):
+        return existing
     panel = TextbookPanel()
     docks = getattr(window, "docks", None)
     add_dock = getattr(window, "_add_dock", None)

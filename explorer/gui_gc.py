@@ -1,0 +1,58 @@
+"""Python's cyclic garbage collection, run only on the GUI thread while a window lives.
+
+The cyclic collector runs in whichever thread happens to allocate when a threshold is
+crossed: with worker threads that is often not the GUI thread. Freeing a Qt object there
+(pyqtgraph creates its context menus without a Qt parent, so only Python owns them) can
+deadlock against the GUI thread or crash. So while a window is open, automatic collection
+is off and a timer on the GUI thread collects instead, generation by generation, when the
+allocation counts pass the usual thresholds (what ``pyqtgraph.util.GarbageCollector``
+does, but stoppable, so closing the window restores the interpreter's own collection).
+"""
+
+from __future__ import annotations
+
+import gc
+
+from PySide6.QtCore import QObject, QTimer
+
+_active = 0
+
+
+class GuiThreadCollector(QObject):
+    """Collects cyclic garbage from a GUI-thread timer; ``stop`` restores automatic gc."""
+
+    def __init__(self, parent: QObject | None = None, interval_ms: int = 500):
+        super().__init__(parent)
+        self.threshold = gc.get_threshold()
+        self.timer = QTimer(self)
+        self.timer.setInterval(interval_ms)
+        self.timer.timeout.connect(self._on_timer_timeout)
+        self.running = False
+
+    def start(self) -> None:
+        global _active
+        if self.running:
+            return
+        self.running = True
+        _active += 1
+        gc.disable()
+        self.timer.start()
+
+    def stop(self) -> None:
+        global _active
+        if not self.running:
+            return
+        self.running = False
+        self.timer.stop()
+        _active -= 1
+        if _active == 0:
+            gc.enable()
+
+    def _on_timer_timeout(self) -> None:
+        first, second, third = gc.get_count()
+        if first > self.threshold[0]:
+            gc.collect(0)
+            if second > self.threshold[1]:
+                gc.collect(1)
+                if third > self.threshold[2]:
+                    gc.collect(2)
