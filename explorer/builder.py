@@ -106,10 +106,31 @@ def describe(mechanics) -> str:
     return readable(mechanics)
 
 
+def equilibria_lines(mechanics) -> list[str]:
+    """One sentence per equilibrium (virtual work), or why there are none."""
+    from systems.display import display_names
+    from systems.textbook import search_equilibria
+
+    search = search_equilibria(mechanics)
+    shown = display_names(mechanics.scene)
+    if not search.equilibria:
+        return [f"no equilibrium: {search.reason}" if search.reason else "no equilibrium found"]
+    lines = []
+    for eq in search.equilibria:
+        where = ", ".join(f"{shown.get(k, k)} = {v:.4g}" for k, v in eq.q.items())
+        if eq.stable:
+            omegas = ", ".join(f"{w:.4g}" for w in eq.frequencies)
+            lines.append(f"{where}: stable, \u03c9 = {omegas}")
+        else:
+            lines.append(f"{where}: unstable ({eq.kind})")
+    return lines
+
+
 class _BuildWorker(QObject):
     built = Signal(object)
     build_failed = Signal(object)
     described = Signal(int, str)
+    equilibria_found = Signal(int, list)
 
     def __init__(self):
         super().__init__()
@@ -141,6 +162,13 @@ class _BuildWorker(QObject):
         except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
             text = f"(the derivation could not be laid out: {exc})"
         self.described.emit(request, text)
+        if request < self.latest:
+            return
+        try:
+            lines = equilibria_lines(result.compiled.mechanics)
+        except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
+            lines = [f"equilibria not found: {exc}"]
+        self.equilibria_found.emit(request, lines)
 
 
 class BuildService(QObject):
@@ -151,12 +179,14 @@ class BuildService(QObject):
     built(Built)
     build_failed(BuildFailure)
     described(int, str)   the readable derivation of a built request (arrives later)
+    equilibria_found(int, list)   its equilibria, one sentence each (arrives last)
     busy_changed(bool)
     """
 
     built = Signal(object)
     build_failed = Signal(object)
     described = Signal(int, str)
+    equilibria_found = Signal(int, list)
     busy_changed = Signal(bool)
     _requested = Signal(object)
 
@@ -171,6 +201,7 @@ class BuildService(QObject):
         self._worker.built.connect(self._on_worker_built)
         self._worker.build_failed.connect(self._on_worker_build_failed)
         self._worker.described.connect(self._on_worker_described)
+        self._worker.equilibria_found.connect(self._on_worker_equilibria_found)
         self._thread.start()
 
     def request(self, source) -> int:
@@ -198,6 +229,10 @@ class BuildService(QObject):
     def _on_worker_described(self, request: int, text: str) -> None:
         if request == self._counter:
             self.described.emit(request, text)
+
+    def _on_worker_equilibria_found(self, request: int, lines: list) -> None:
+        if request == self._counter:
+            self.equilibria_found.emit(request, lines)
 
     def stop(self) -> None:
         """End the thread (after the build in progress, if any); no results after this."""

@@ -76,6 +76,7 @@ class MainWindow(QMainWindow):
         self.builder.build_failed.connect(self._on_builder_build_failed)
         self.builder.busy_changed.connect(self._on_builder_busy_changed)
         self.builder.described.connect(self._on_builder_described)
+        self.builder.equilibria_found.connect(self._on_builder_equilibria_found)
 
         self.phase_view = PhaseView()
         self.configuration_view = ConfigurationView()
@@ -273,6 +274,9 @@ class MainWindow(QMainWindow):
 
     def _on_builder_busy_changed(self, busy: bool) -> None:
         self.busy_bar.setVisible(busy)
+
+    def _on_builder_equilibria_found(self, _request: int, lines: list) -> None:
+        self.editor.show_equilibria(lines)
 
     def _on_builder_described(self, _request: int, text: str) -> None:
         self.editor.show_derivation(text)

@@ -434,6 +434,18 @@ class SystemEditorPanel(QWidget):
         mechanics = built.compiled.mechanics
         self.state_label.setText(f"derived and compiled in {built.seconds:.2f} s")
         card = classification_html(mechanics, built.method, built.reason)
+        self._card = card
+        self.classification_card.setText(card)
+        self.derivation_card.setText(card)
+
+    def show_equilibria(self, lines: list[str]) -> None:
+        """Add the equilibria (virtual work, small oscillations) to the classification card."""
+        items = "".join(f"<li>{html.escape(line)}</li>" for line in lines)
+        card = (
+            getattr(self, "_card", "")
+            + "<p style='margin-top:4px'><b>Equilibria</b> (dV/dq = 0)</p>"
+            + f"<ul style='margin:0'>{items}</ul>"
+        )
         self.classification_card.setText(card)
         self.derivation_card.setText(card)
 

@@ -188,3 +188,11 @@ def test_dragging_a_slider_restarts_once_it_rests(qtbot, window):
     assert window.worker.generation == start + 1
     g = dict(zip(window.compiled.parameter_names, window.compiled.parameters, strict=True))["g"]
     assert g == pytest.approx(19.62 * 690 / 1000, rel=1e-3)
+
+
+def test_classification_card_lists_the_equilibria(qtbot, window):
+    window.open_scene("simple_pendulum")
+    qtbot.waitUntil(lambda: "Equilibria" in window.editor.classification_card.text(), timeout=60000)
+    text = window.editor.classification_card.text()
+    assert "θ = 0: stable, ω = 3.132" in text
+    assert "θ = 3.142: unstable" in text
