@@ -159,11 +159,25 @@ class Mechanics:
 def derive(scene: Scene) -> Mechanics:
     """Derive the equations of motion, momenta, Hamiltonian and classification.
 
+    A scene derived before (same text, same derivation code) is read from the on-disk
+    cache of ``systems.derivation_cache`` instead.
+
     Raises
     ------
     DerivationError
         For a singular Legendre transform or one that cannot be inverted.
     """
+    from systems import derivation_cache
+
+    cached = derivation_cache.load(scene)
+    if cached is not None:
+        return cached
+    mechanics = _derive(scene)
+    derivation_cache.store(mechanics)
+    return mechanics
+
+
+def _derive(scene: Scene) -> Mechanics:
     symbols = scene.symbols
     t = symbols["t"]
     q = tuple(symbols[name] for name in scene.coordinates)

@@ -1,0 +1,33 @@
+import sympy
+
+from systems import derivation_cache
+from systems.mechanics import derive
+from tests.systems.scenes import PLANETARY, scene
+
+
+def test_a_second_derivation_comes_from_the_cache_and_is_equal(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    first = derive(scene(PLANETARY))
+    assert derivation_cache.load(scene(PLANETARY)) is not None
+    again = scene(PLANETARY)
+    second = derive(again)
+    assert second.scene is again
+    assert sympy.simplify(second.hamiltonian - first.hamiltonian) == 0
+    assert second.hamilton_equations == first.hamilton_equations
+    assert second.classification == first.classification
+    assert second.cyclic == first.cyclic
+
+
+def test_another_scene_text_misses(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    derive(scene(PLANETARY))
+    changed = scene(PLANETARY.replace("k = 0.8", "k = 0.9"))
+    assert derivation_cache.load(changed) is None
+
+
+def test_unreadable_file_is_ignored(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    s = scene(PLANETARY)
+    derivation_cache._path(s).write_bytes(b"not a pickle")
+    assert derivation_cache.load(s) is None
+    assert derive(s).cyclic == ("theta",)
