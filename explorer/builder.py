@@ -108,21 +108,11 @@ def describe(mechanics) -> str:
 
 def equilibria_lines(mechanics) -> list[str]:
     """One sentence per equilibrium (virtual work), or why there are none."""
-    from systems.display import display_names
-    from systems.textbook import search_equilibria
+    from explorer.commands.derive_cmd import equilibria_sentences
 
-    search = search_equilibria(mechanics)
-    shown = display_names(mechanics.scene)
-    if not search.equilibria:
-        return [f"no equilibrium: {search.reason}" if search.reason else "no equilibrium found"]
-    lines = []
-    for eq in search.equilibria:
-        where = ", ".join(f"{shown.get(k, k)} = {v:.4g}" for k, v in eq.q.items())
-        if eq.stable:
-            omegas = ", ".join(f"{w:.4g}" for w in eq.frequencies)
-            lines.append(f"{where}: stable, \u03c9 = {omegas}")
-        else:
-            lines.append(f"{where}: unstable ({eq.kind})")
+    lines, note = equilibria_sentences(mechanics, digits=4)
+    if not lines:
+        return [f"no equilibrium: {note}" if note else "no equilibrium found"]
     return lines
 
 

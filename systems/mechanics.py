@@ -261,15 +261,7 @@ class _Context:
         momenta = tuple(sympy.diff(L, v) for v in qd)
         M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
         self.check_regular(M, "system.kinetic" if kinetic is not None else "system.lagrangian")
-        F = sympy.Matrix(
-            [
-                sympy.diff(L, q[i])
-                + forces[i]
-                - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
-                - sympy.diff(momenta[i], t)
-                for i in range(self.n)
-            ]
-        )
+        F = self.forcing(L, momenta, forces)
         zero_velocity = dict.fromkeys(qd, sympy.S.Zero)
         L0 = L.xreplace(zero_velocity)
         quadratic = _degree_at_most(L, qd, 2)
@@ -314,6 +306,19 @@ class _Context:
             natural=natural,
             is_energy=is_energy,
             time_dependent=time_dependent,
+        )
+
+    def forcing(self, L, momenta, forces) -> sympy.Matrix:
+        """F in ``M qddot = F``: dL/dq + Q - (dp/dq) qdot - dp/dt, shape (n, 1)."""
+        q, qd, t = self.q, self.qd, self.t
+        return sympy.Matrix(
+            [
+                sympy.diff(L, q[i])
+                + forces[i]
+                - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
+                - sympy.diff(momenta[i], t)
+                for i in range(self.n)
+            ]
         )
 
     def check_regular(self, M: sympy.Matrix, field: str) -> None:
@@ -397,15 +402,7 @@ class _Context:
             to_momenta = dict(zip(p, momenta, strict=True))
             L = _tidy(sum(m * v for m, v in zip(momenta, qd, strict=True)) - H.xreplace(to_momenta))
             M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
-            F = sympy.Matrix(
-                [
-                    sympy.diff(L, q[i])
-                    + forces[i]
-                    - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
-                    - sympy.diff(momenta[i], t)
-                    for i in range(self.n)
-                ]
-            )
+            F = self.forcing(L, momenta, forces)
         to_velocities = dict(zip(qd, velocities, strict=True))
         pdot = tuple(
             _tidy(-sympy.diff(H, q[i]) + forces[i].xreplace(to_velocities)) for i in range(self.n)

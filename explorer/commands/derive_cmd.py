@@ -129,20 +129,28 @@ def readable(mechanics) -> str:
     return "\n".join(lines)
 
 
-def _equilibria_lines(mechanics, shown: dict[str, str]) -> list[str]:
+def equilibria_sentences(mechanics, digits: int = 6) -> tuple[list[str], str]:
+    """One sentence per equilibrium (virtual work, small oscillations), and the search's
+    note (why there are none, or what was assumed)."""
+    from systems.display import display_names
     from systems.textbook import search_equilibria
 
     search = search_equilibria(mechanics)
-    lines = ["", "Equilibria (virtual work: dV/dq = 0)", "------------------------------------"]
-    if not search.equilibria:
-        return lines + [f"none: {search.reason}" if search.reason else "none found"]
+    shown = display_names(mechanics.scene)
+    lines = []
     for eq in search.equilibria:
-        where = ", ".join(f"{shown.get(k, k)} = {v:.6g}" for k, v in eq.q.items())
+        where = ", ".join(f"{shown.get(k, k)} = {v:.{digits}g}" for k, v in eq.q.items())
         if eq.stable:
-            freqs = ", ".join(f"{w:.6g}" for w in eq.frequencies)
-            lines.append(f"- {where}: stable, small-oscillation frequencies \u03c9 = {freqs}")
+            omegas = ", ".join(f"{w:.{digits}g}" for w in eq.frequencies)
+            lines.append(f"{where}: stable, \u03c9 = {omegas}")
         else:
-            lines.append(f"- {where}: unstable ({eq.kind})")
-    if search.reason:
-        lines.append(f"({search.reason})")
-    return lines
+            lines.append(f"{where}: unstable ({eq.kind})")
+    return lines, search.reason or ""
+
+
+def _equilibria_lines(mechanics, shown: dict[str, str]) -> list[str]:
+    lines, note = equilibria_sentences(mechanics)
+    title = ["", "Equilibria (virtual work: dV/dq = 0)", "------------------------------------"]
+    if not lines:
+        return title + [f"none: {note}" if note else "none found"]
+    return title + [f"- {line}" for line in lines] + ([f"({note})"] if note else [])
