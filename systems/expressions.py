@@ -462,8 +462,8 @@ class _Builder:
 
 
 def as_expr(value: sympy.Basic | int | float) -> sympy.Basic:
-    """A sympy object for a sympy object or a plain number; never parses text."""
-    if isinstance(value, sympy.Basic):
+    """A sympy object for a sympy object (or matrix) or a plain number; never parses text."""
+    if isinstance(value, sympy.Basic | sympy.MatrixBase):
         return value
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise TypeError(f"expected a sympy expression or a number, got {type(value).__name__}")

@@ -192,28 +192,33 @@ class EquilibriaView(TextbookTabView):
         header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
         header.setStretchLastSection(True)
 
-    @staticmethod
-    def _symbolic(equilibrium) -> bool:
+    def _parse(self, text: str):
+        """A closed form read back through the whitelist parser (scene names only)."""
+        from systems.expressions import parse_expression
+
+        scene = self.compiled.mechanics.scene
+        return parse_expression(text, scene.allowed("q", "params"))
+
+    def _symbolic(self, equilibrium) -> bool:
         """Whether sympy's closed form involves the parameters (worth a column)."""
-        import sympy
+        from systems.expressions import ExpressionError
 
         for text in equilibrium.exact.values():
             try:
-                if sympy.sympify(text).free_symbols:
+                if self._parse(text).free_symbols:
                     return True
-            except (sympy.SympifyError, TypeError, ValueError):
+            except ExpressionError:
                 continue
         return False
 
     def _closed_form(self, text: str) -> str:
-        import sympy
-
         from explorer.textbook.plots import readable
         from systems.display import for_display
+        from systems.expressions import ExpressionError
 
         try:
-            return readable(for_display(sympy.sympify(text), self.compiled.mechanics.scene))
-        except (sympy.SympifyError, TypeError, ValueError, AttributeError):
+            return readable(for_display(self._parse(text), self.compiled.mechanics.scene))
+        except (ExpressionError, TypeError, ValueError, AttributeError):
             return text
 
     def row_texts(self) -> list[list[str]]:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import sympy
 
+from systems.expressions import as_expr
 from systems.mechanics import Mechanics
 
 TWO_PI = 2.0 * math.pi
@@ -45,7 +46,7 @@ def parameter_values(
 def with_parameters(expr, mechanics: Mechanics, parameters: Mapping[str, float] | None = None):
     """``expr`` with every parameter replaced by its numeric value (sympy Float)."""
     values = {s: sympy.Float(v) for s, v in parameter_values(mechanics, parameters).items()}
-    return sympy.sympify(expr).xreplace(values)
+    return as_expr(expr).xreplace(values)
 
 
 def vectorize(
@@ -55,7 +56,7 @@ def vectorize(
 
     The arrays are broadcast together; constant expressions are broadcast to their shape.
     """
-    exprs = [sympy.sympify(e) for e in exprs]
+    exprs = [as_expr(e) for e in exprs]
     raw = sympy.lambdify(list(args), exprs, modules="numpy", cse=True)
 
     def function(*arrays) -> np.ndarray:

@@ -223,3 +223,21 @@ def test_closing_mid_computation_cancels_and_waits(qtbot):
     start = time.perf_counter()
     _close(qtbot, window, panel)
     assert time.perf_counter() - start < 5.0
+
+
+def test_closed_forms_are_read_back_through_the_whitelist_parser(qtbot, textbook):
+    window, panel = textbook
+    window.open_scene("bead_on_rotating_hoop")
+    qtbot.waitUntil(
+        lambda: (
+            window.compiled is not None
+            and window.compiled.mechanics.scene.name == "bead_on_rotating_hoop"
+        ),
+        timeout=60000,
+    )
+    qtbot.waitUntil(
+        lambda: any("acos" in cell for row in panel.equilibria.row_texts() for cell in row),
+        timeout=60000,
+    )
+    cells = [cell for row in panel.equilibria.row_texts() for cell in row if "acos" in cell]
+    assert any("ω" in cell and "g" in cell for cell in cells), cells
