@@ -22,6 +22,7 @@ import numpy as np
 import sympy
 
 from systems.expressions import as_expr
+from systems.integrators.stepsize import jacobian
 
 STIFF_RATIO = 100.0
 """Stiff when the fastest rate of the linearisation exceeds the slowest by this factor."""
@@ -60,20 +61,8 @@ def _eigenvalues(mechanics) -> np.ndarray:
     variables = (*mechanics.q, *mechanics.p)
     exprs = [as_expr(e).xreplace(params) for e in mechanics.hamilton_equations]
     f = sympy.lambdify((mechanics.t, variables), exprs, modules="math", cse=True)
-    n2 = len(y0)
-    J = np.empty((n2, n2))
-    for j in range(n2):
-        h = 1e-6 * max(1.0, abs(y0[j]))
-        up, down = y0.copy(), y0.copy()
-        up[j] += h
-        down[j] -= h
-        try:
-            J[:, j] = (np.array(f(0.0, up), dtype=float) - np.array(f(0.0, down), dtype=float)) / (
-                2 * h
-            )
-        except (ZeroDivisionError, ValueError, OverflowError):
-            return np.array([])
-    if not np.all(np.isfinite(J)):
+    J = jacobian(lambda y: f(0.0, y), y0)
+    if J is None:
         return np.array([])
     return np.linalg.eigvals(J)
 

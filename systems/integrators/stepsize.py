@@ -15,10 +15,10 @@ DEFAULT_TOL = 1e-10
 STIFF_TOL = 1e-6
 
 
-def fastest_rate(compiled, t0: float, y0: np.ndarray) -> float:
-    """Largest |eigenvalue| of the Jacobian of the compiled rhs at ``y0`` (shape (2n,)).
+def jacobian(f, y0: np.ndarray) -> np.ndarray | None:
+    """Central-difference Jacobian of ``f(y) -> (m,)`` at ``y0`` (shape (m,)), shape (m, m).
 
-    Central differences on ``compiled.rhs``; 0.0 when it is not finite there.
+    None where ``f`` fails (a division by zero, a domain error) or is not finite there.
     """
     m = len(y0)
     J = np.empty((m, m))
@@ -28,12 +28,19 @@ def fastest_rate(compiled, t0: float, y0: np.ndarray) -> float:
         up[j] += h
         down[j] -= h
         try:
-            J[:, j] = (compiled.rhs(t0, up) - compiled.rhs(t0, down)) / (2 * h)
-        except ZeroDivisionError:
-            return 0.0
-    if not np.all(np.isfinite(J)):
-        return 0.0
-    return float(np.abs(np.linalg.eigvals(J)).max())
+            J[:, j] = (np.asarray(f(up), dtype=float) - np.asarray(f(down), dtype=float)) / (2 * h)
+        except (ZeroDivisionError, ValueError, OverflowError):
+            return None
+    return J if np.all(np.isfinite(J)) else None
+
+
+def fastest_rate(compiled, t0: float, y0: np.ndarray) -> float:
+    """Largest |eigenvalue| of the Jacobian of the compiled rhs at ``y0`` (shape (2n,)).
+
+    Central differences on ``compiled.rhs``; 0.0 when it is not finite there.
+    """
+    J = jacobian(lambda y: compiled.rhs(t0, y), y0)
+    return 0.0 if J is None else float(np.abs(np.linalg.eigvals(J)).max())
 
 
 def default_step(
