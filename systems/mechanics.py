@@ -434,6 +434,18 @@ class _Context:
             time_dependent=H.has(t) or self.drawing_depends_on_time(),
         )
 
+    def splits(self, H: sympy.Expr) -> bool:
+        """True if H = T(p) + V(q, t), tested without differentiating H.
+
+        With x = (q, t), H splits so exactly when H(x, p) + H(x', p') - H(x, p') - H(x', p)
+        vanishes for all x, x', p, p'; the second derivatives d2H/dq dp of a large H
+        cost more than the whole rest of the derivation.
+        """
+        x_other = {s: sympy.Dummy(s.name) for s in (*self.q, self.t)}
+        p_other = {s: sympy.Dummy(s.name) for s in self.p}
+        H_x = H.xreplace(x_other)
+        return self.vanishes(H + H_x.xreplace(p_other) - H.xreplace(p_other) - H_x)
+
     def _regular(self, W: sympy.Matrix) -> bool:
         try:
             self.check_regular(W, "system.hamiltonian")
@@ -478,9 +490,7 @@ class _Context:
         potential_t = potential is not None and as_expr(potential).has(t)
         conservative = not has_effects and not potential_t
         H_conserved = not has_effects and not H_explicit_t
-        mixed = [sympy.diff(H, qi, pj) for qi in q for pj in p]
-        kinetic_t = [sympy.diff(H, pj, t) for pj in p]
-        separable = all(self.vanishes(e) for e in mixed + kinetic_t)
+        separable = self.splits(H)
         separable_parts = None
         if separable:
             zero_p = dict.fromkeys(p, sympy.S.Zero)
@@ -530,13 +540,15 @@ class _Context:
 
 
 def _tidy(expr: sympy.Expr) -> sympy.Expr:
-    """A cheap, predictable simplification: cancel fractions, tidy trigonometry if small."""
+    """A cheap, predictable simplification: cancel fractions, pull out common factors.
+
+    No ``trigsimp``: across the catalogue it changed one expression out of ~100 (for the
+    worse) and cost half of the double pendulum's derivation time.
+    """
     expr = as_expr(expr)
     if expr.count_ops() > 400:
         return expr
     tidy = sympy.cancel(sympy.together(expr))
-    if tidy.has(sympy.sin, sympy.cos) and tidy.count_ops() < 40:
-        tidy = sympy.trigsimp(tidy)
     candidates = [expr, tidy, sympy.factor_terms(tidy)]
     return min(candidates, key=lambda e: (e.count_ops(), len(str(e))))
 
