@@ -377,10 +377,14 @@ def _crosses(before: float, after: float, direction: float) -> bool:
 
 
 def _with_last(t: np.ndarray, y: np.ndarray, t_last: float, y_last: np.ndarray):
-    """Make sure the latest state ends the block (a stride may have skipped it)."""
-    if len(t) and t[-1] == t_last:
-        y = y.copy()
-        y[-1] = y_last
+    """Make sure the latest state ends the block (a stride may have skipped it).
+
+    The loop's time (t0 + i dt + dt) and the runner's (t0 + k dt) may differ in the last
+    bits: the same instant, which must not appear twice.
+    """
+    if len(t) and math.isclose(t[-1], t_last, rel_tol=1e-12, abs_tol=1e-300):
+        t, y = t.copy(), y.copy()
+        t[-1], y[-1] = t_last, y_last
         return t, y
     return np.append(t, t_last), np.vstack([y, y_last[None, :]])
 

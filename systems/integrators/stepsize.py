@@ -49,9 +49,9 @@ def default_step(
     """A fixed step for ``stepper``: ``STEPS_PER_PERIOD`` steps per fastest period.
 
     The fastest rate is the largest |eigenvalue| of the Jacobian at ``y0`` and, with
-    ``probe``, at states sampled along a short run of the method itself (about 20 periods
+    ``probe``, at states sampled along a short Runge-Kutta run (about 20 periods
     of the initial motion): a pendulum released at rest moves much faster later. A probe
-    that fails (an implicit solve that does not converge) is repeated with half the step.
+    that fails (the state stops being finite) is repeated with half the step.
     Falls back to 0.01 when the linearisation has no rate (free motion); never more than
     a tenth of a finite run. For time-transformed steppers see ``fictitious_step``.
     """
@@ -63,7 +63,7 @@ def default_step(
     if not probe or rate <= 0.0 or stepper.family not in ("composition", "gauss"):
         return dt
     for _ in range(6):
-        states = _probe(compiled, stepper, t0, y0, dt, 20 * per_period)
+        states = _probe(compiled, t0, y0, dt, 20 * per_period)
         if states is not None:
             break
         dt /= 2.0
@@ -74,33 +74,35 @@ def default_step(
     return min(dt, 2.0 * math.pi / rate / per_period)
 
 
-def _probe(compiled, stepper, t0, y0, dt, nsteps, samples=24):
-    """States ``(t, y)`` along ``nsteps`` steps of ``stepper``, or None if it failed."""
-    from systems.integrators.registry import gauss_tableau
+def _probe(compiled, t0, y0, dt, nsteps, samples=24):
+    """States ``(t, y)`` along ``nsteps`` classical Runge-Kutta steps of ``dt``, or None.
 
+    RK4 on ``compiled.rhs`` rather than the method itself: the states only show where the
+    motion gets fast, and this loop costs the same (a few ms) whether the kernels are
+    compiled yet or still interpreted (``systems.interpreted``), so the step chosen never
+    depends on how far numba has got. None when the state stops being finite.
+    """
+    f = compiled.rhs
     y = np.array(y0, dtype=float)
-    m = len(y)
     stride = max(1, nsteps // samples)
-    cap = nsteps // stride + 1
-    out_t, out_y = np.empty(cap), np.empty((cap, m))
-    ev = (None, out_t, out_y, np.empty((1, 2)), np.empty((1, 2, m)))
-    info = np.zeros(8, dtype=np.int64)
-    K, P = compiled.kernels, compiled.parameters
+    states = []
+    half = 0.5 * dt
     try:
-        if stepper.family == "composition":
-            kick, drift = stepper.kick_drift()
-            K.compose_run(t0, y, np.zeros(m + 1), P, dt, nsteps, stride, kick, drift, False,
-                          *ev, info)  # fmt: skip
-        else:
-            A, b, c, E = gauss_tableau(stepper.stages)
-            Z, zvalid = np.zeros((stepper.stages, m)), np.zeros(1, dtype=np.int64)
-            K.gauss_run(t0, y, np.zeros(m + 1), P, dt, nsteps, stride, A, b, c, E, Z, zvalid,
-                        1e-12, 50, False, *ev, info)  # fmt: skip
-    except ZeroDivisionError:
+        with np.errstate(all="ignore"):
+            for k in range(1, nsteps + 1):
+                t = t0 + (k - 1) * dt
+                k1 = f(t, y)
+                k2 = f(t + half, y + half * k1)
+                k3 = f(t + half, y + half * k2)
+                k4 = f(t + dt, y + dt * k3)
+                y = y + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                if k % stride == 0:
+                    if not np.all(np.isfinite(y)):
+                        return None
+                    states.append((t0 + k * dt, y))
+    except ArithmeticError:
         return None
-    if info[2] != 0:
-        return None
-    return list(zip(out_t[: info[1]], out_y[: info[1]], strict=True))
+    return states
 
 
 def fictitious_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float) -> float:
