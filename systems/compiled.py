@@ -21,6 +21,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from systems.codegen import build_module
 from systems.expressions import as_expr
+from systems.interpreted import KernelHandover
 from systems.mechanics import DerivationError, Mechanics
 
 WANTS = frozenset(
@@ -35,8 +36,9 @@ class CompiledSystem:
     Attributes
     ----------
     mechanics : Mechanics
-    kernels : module
-        The generated module: scalar system functions and the stepper templates.
+    kernels : module or KernelHandover
+        The generated module: scalar system functions and the stepper templates (or,
+        with ``interpreted_start``, its plain-Python twin until the hand-over).
     parameters : ndarray, shape (k,)
         Parameter values in ``parameter_names`` order (the array ``P`` of the kernels).
     wanted : frozenset of str
@@ -45,7 +47,7 @@ class CompiledSystem:
     """
 
     mechanics: Mechanics
-    kernels: ModuleType
+    kernels: ModuleType | KernelHandover
     parameter_names: tuple[str, ...]
     parameters: np.ndarray
     wanted: frozenset[str]
@@ -68,7 +70,21 @@ class CompiledSystem:
             array = np.array([current[name] for name in self.parameter_names], dtype=float)
         else:
             array = np.asarray(values, dtype=float).copy()
-        return dataclasses.replace(self, parameters=array, _numeric={})
+        return dataclasses.replace(self, parameters=array)
+
+    def native(self) -> CompiledSystem:
+        """This system with numba's kernels, handed over or not (compiled on first call).
+
+        For timings and for loops too long for the interpreter (ensembles, sweeps).
+        """
+        if isinstance(self.kernels, KernelHandover):
+            return dataclasses.replace(self, kernels=self.kernels.native)
+        return self
+
+    @property
+    def handed_over(self) -> bool:
+        """False while the kernels still run as plain Python (see ``interpreted_start``)."""
+        return not isinstance(self.kernels, KernelHandover) or self.kernels.handed_over
 
     def require(self, want: str) -> None:
         if want not in self.wanted:
@@ -178,12 +194,18 @@ class CompiledSystem:
         return solution
 
     def _lambdified(self, key, args, exprs):
+        """``exprs`` as a numpy function of ``args`` at this system's parameter values.
+
+        The parameters are an argument of the lambdified function rather than values
+        substituted into ``exprs``: substitution made sympy re-derive assumptions, about
+        80 ms for the double pendulum's momenta, on the way to a scene's first block.
+        """
         if key not in self._numeric:
             params = tuple(self.mechanics.params[name] for name in self.parameter_names)
-            values = dict(zip(params, self.parameters, strict=True))
-            exprs = [as_expr(e).xreplace(values) for e in exprs]
-            self._numeric[key] = sympy.lambdify(args, exprs, modules="numpy", cse=True)
-        return self._numeric[key]
+            exprs = [as_expr(e) for e in exprs]
+            self._numeric[key] = sympy.lambdify((*args, params), exprs, modules="numpy", cse=True)
+        function = self._numeric[key]
+        return lambda *values: function(*values, self.parameters)
 
 
 def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -195,7 +217,10 @@ def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def compile_system(
-    mechanics: Mechanics, wanted: Iterable[str] = ("rhs", "hamiltonian")
+    mechanics: Mechanics,
+    wanted: Iterable[str] = ("rhs", "hamiltonian"),
+    *,
+    interpreted_start: bool = False,
 ) -> CompiledSystem:
     """Print and load kernels for the wanted functions of ``mechanics``.
 
@@ -206,6 +231,10 @@ def compile_system(
     wanted
         Names from ``WANTS``. ``"separable"`` adds T(p), V(q, t) and their gradients and is
         only possible when the classification says separable.
+    interpreted_start
+        Run the kernels as plain Python (``systems.interpreted.KernelHandover``) until
+        ``systems.simulation.compile_natively`` has compiled them, so a newly opened
+        scene streams at once instead of waiting a second or two for numba.
 
     Returns
     -------
@@ -216,9 +245,10 @@ def compile_system(
     unknown = wanted - WANTS
     if unknown:
         raise ValueError(f"unknown wants {sorted(unknown)}; choose from {sorted(WANTS)}")
-    writer = _KernelWriter(mechanics)
-    source = writer.source(wanted)
+    source = _printed_source(mechanics, wanted)
     module = build_module(source)
+    if interpreted_start:
+        module = KernelHandover(module, source)
     scene = mechanics.scene
     return CompiledSystem(
         mechanics=mechanics,
@@ -228,6 +258,18 @@ def compile_system(
         wanted=wanted,
         point_names=scene.drawing.point_names if scene.drawing else (),
         build_seconds=time.perf_counter() - start,
+    )
+
+
+def _printed_source(mechanics: Mechanics, wanted: frozenset[str]) -> str:
+    """The system functions for ``wanted``, printed once per scene (remembered on disk)."""
+    import sys
+
+    from systems import derivation_cache
+
+    tag = f"kernel source {derivation_cache.code_hash(sys.modules[__name__])} {sorted(wanted)}"
+    return derivation_cache.remembered(
+        mechanics.scene, tag, lambda: _KernelWriter(mechanics).source(wanted)
     )
 
 

@@ -28,6 +28,7 @@ from systems.integrators.runners import Dop853Runner, make_runner, no_section
 
 PROBLEMS = ("non_finite", "singular", "energy_error", "stalled")
 STATUS_CODES = {1: "non_finite", 2: "stalled", 3: "singular", 4: "stalled"}
+FIXED_STEP_FAMILIES = ("composition", "gauss", "gauss_tt", "logh")
 SINGULAR_GROWTH = 1e6
 """|dy/dt| this many times its initial size at a stop: the problem is a singularity."""
 
@@ -322,9 +323,38 @@ def precompile(compiled, method: str, y0: np.ndarray | None = None, **kwargs) ->
     """
     start = time.perf_counter()
     y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    if get_stepper(method).family in FIXED_STEP_FAMILIES:
+        kwargs.setdefault("dt", 1e-10)  # any step compiles the loop; skip choosing one
     for _ in stream(compiled, method=method, y0=y0, t_end=1e-9, energy_tolerance=math.inf,
                     **kwargs):  # fmt: skip
         pass
+    return time.perf_counter() - start
+
+
+def compile_natively(
+    compiled, method: str, diagnostics: Sequence[str] = (), y0: np.ndarray | None = None, **kwargs
+) -> float:
+    """Compile (or load from the cache) what a stream of ``method`` calls, then hand over.
+
+    For a system compiled with ``interpreted_start``: numba compiles the stepper's loop,
+    the right-hand side and the ``diagnostics`` by a throwaway run of its native kernels;
+    afterwards every call of ``compiled`` (and of running streams, from their next block
+    on) goes to the machine code. For any other system this is ``precompile``. Returns the
+    seconds it took. ``kwargs`` go to ``stream`` (``dt``, ``tol``).
+    """
+    start = time.perf_counter()
+    native = compiled.native()
+    y0 = native.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    with np.errstate(all="ignore"):
+        try:
+            native.rhs(0.0, y0)
+            _diagnostics(native, diagnostics, np.zeros(1), y0[None, :])
+        except ArithmeticError:
+            pass  # a singular initial state: stream reports it; the kernels are compiled
+    precompile(native, method, y0, **kwargs)
+    handover = compiled.kernels
+    if not compiled.handed_over:
+        handover.hand_over()
     return time.perf_counter() - start
 
 
@@ -373,7 +403,7 @@ def ensemble(
     count = nsteps // stride
     out = np.full((N, count, m), np.nan)
     status = np.zeros(N, dtype=np.int64)
-    K, P = compiled.kernels, compiled.parameters
+    K, P = compiled.native().kernels, compiled.parameters  # never the interpreter's loops
     if stepper.family == "composition":
         kick, drift = stepper.kick_drift()
         K.compose_ensemble_parallel(t0, Y, P, dt, nsteps, stride, kick, drift, out, status)
