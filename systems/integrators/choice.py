@@ -142,10 +142,23 @@ def choose_method(mechanics) -> tuple[str, str]:
     cache = getattr(mechanics, "_cache", None)
     if isinstance(cache, dict) and "method_choice" in cache:
         return cache["method_choice"]
-    choice = _choose(mechanics)
+    choice = _remembered_choice(mechanics)
     if isinstance(cache, dict):
         cache["method_choice"] = choice
     return choice
+
+
+def _remembered_choice(mechanics) -> tuple[str, str]:
+    """``_choose``, through the on-disk cache of ``systems.derivation_cache``."""
+    import sys
+
+    from systems import derivation_cache
+    from systems.integrators import stepsize
+
+    tag = "method choice " + derivation_cache.code_hash(sys.modules[__name__], stepsize)
+    text = derivation_cache.remembered(mechanics.scene, tag, lambda: "\n".join(_choose(mechanics)))
+    method, reason = text.split("\n", 1)
+    return method, reason
 
 
 def _choose(mechanics) -> tuple[str, str]:
