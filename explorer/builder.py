@@ -50,12 +50,19 @@ def wants_for(mechanics) -> tuple[str, ...]:
     return tuple(wants)
 
 
-def build(source, request: int = 0) -> Built:
-    """Read (TOML text or the tables of one), derive and compile; raises the core's errors."""
+def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built:
+    """Read (TOML text or the tables of one), derive and compile; raises the core's errors.
+
+    With ``interpreted_start`` (the window), the kernels run as plain Python at once and
+    numba compiles them in a child process (``systems.native_build``); otherwise (exports,
+    sweeps, tests) numba compiles or loads every kernel the GUI calls before returning.
+    """
     from systems.compiled import compile_system
     from systems.integrators import choose_method
     from systems.mechanics import derive
+    from systems.native_build import compile_in_background
     from systems.scene import Scene, parse_scene, scene_from_dict
+    from systems.simulation import compile_natively
 
     start = time.perf_counter()
     if isinstance(source, Scene):
@@ -65,28 +72,22 @@ def build(source, request: int = 0) -> Built:
     else:
         scene = parse_scene(source, source="<editor>")
     mechanics = derive(scene)
-    compiled = compile_system(mechanics, wants_for(mechanics))
     method, reason = choose_method(mechanics)
-    warm_up(compiled, method)
+    wants = wants_for(mechanics)
+    compiled = compile_system(mechanics, wants, interpreted_start=interpreted_start)
+    diagnostics = [d for d, want in GUI_DIAGNOSTICS.items() if want in wants]
+    if interpreted_start:
+        compile_in_background(compiled, method, diagnostics)
+    else:
+        compile_natively(compiled, method, diagnostics)
     return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
 
 
-def warm_up(compiled, method: str) -> None:
-    """Compile (or load from numba's cache) every kernel the GUI will call, here in the
-    build thread, so neither the GUI thread (level sets, status bar) nor the worker's
-    first frame waits for numba."""
-    import numpy as np
+FIRST_FRAME_WAIT = 1.0
+"""Seconds the builder waits for the window's first frame before describing a system."""
 
-    from systems.simulation import precompile
-
-    y0 = compiled.initial_state()
-    with np.errstate(all="ignore"):
-        compiled.hamiltonian(0.0, y0[None])
-        compiled.velocities(0.0, y0[None])
-        compiled.rhs(0.0, y0)
-        if "drawing" in compiled.wanted:
-            compiled.drawing(0.0, y0[None])
-    precompile(compiled, method, y0)
+GUI_DIAGNOSTICS = {"H": "hamiltonian", "qdot": "velocities", "points": "drawing"}
+"""The diagnostics the panels compute, by the compiled function each needs."""
 
 
 def failure_from(exc: Exception, request: int) -> BuildFailure:
@@ -103,7 +104,7 @@ def describe(mechanics) -> str:
     """The derivation laid out for a person (as ``derive`` prints it)."""
     from explorer.commands.derive_cmd import readable
 
-    return readable(mechanics)
+    return readable(mechanics, equilibria=False)  # they arrive apart (equilibria_found)
 
 
 def equilibria_lines(mechanics) -> list[str]:
@@ -126,6 +127,7 @@ class _BuildWorker(QObject):
         super().__init__()
         self.latest = 0
         self._lock = threading.Lock()
+        self.first_frame = threading.Event()
 
     @Slot(object)
     def build(self, job) -> None:
@@ -137,14 +139,18 @@ class _BuildWorker(QObject):
         from systems.scene import SceneError
 
         try:
-            result = build(source, request)
+            result = build(source, request, interpreted_start=True)
         except (SceneError, ExpressionError, DerivationError, ValueError) as exc:
             self.build_failed.emit(failure_from(exc, request))
             return
         except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
             self.build_failed.emit(failure_from(exc, request))
             return
+        self.first_frame.clear()
         self.built.emit(result)
+        # The derivation's pretty-printing holds the GIL for a second or so: let the
+        # window draw the first frame of the new system before it (the motion first).
+        self.first_frame.wait(FIRST_FRAME_WAIT)
         if request < self.latest:
             return
         try:
@@ -193,6 +199,18 @@ class BuildService(QObject):
         self._worker.described.connect(self._on_worker_described)
         self._worker.equilibria_found.connect(self._on_worker_equilibria_found)
         self._thread.start()
+
+    def frame_shown(self) -> None:
+        """The window drew a frame: the builder may go on to lay out the derivation.
+
+        Numba's own half-second start-up begins then too (once per process), so that a
+        scene opened later loads its cached machine code at once; started earlier, it
+        held the GIL while the first scene was getting ready to draw.
+        """
+        from systems.integrators.warmup import warm_in_background
+
+        self._worker.first_frame.set()
+        warm_in_background()
 
     def request(self, source) -> int:
         """Build ``source`` (TOML text or a ``Scene``); returns the request number."""

@@ -406,6 +406,8 @@ class MainWindow(QMainWindow):
             self.store.append(key, block)
             steps += int(block.steps)
         self._rate_window.append((time.perf_counter(), steps))
+        if steps:
+            self.builder.frame_shown()  # the builder may go on to the slower layout work
         self.frame_received.emit()
 
     def _on_worker_failed(self, message: str) -> None:
@@ -490,7 +492,16 @@ class MainWindow(QMainWindow):
             (t0, _), (t1, _) = self._rate_window[0], self._rate_window[-1]
             steps = sum(s for _, s in list(self._rate_window)[1:])
             if t1 > t0:
-                self.rate_label.setText(f"{steps / (t1 - t0):.3g} steps/s")
+                rate = f"{steps / (t1 - t0):.3g} steps/s"
+                tip = "steps of the main orbit per second of wall time"
+                if not self.compiled.handed_over:
+                    rate += " (interpreted)"
+                    tip = (
+                        "numba is compiling this scene's kernels; until it is done they "
+                        "run as plain Python, the same steps about 100 times slower"
+                    )
+                self.rate_label.setText(rate)
+                self.rate_label.setToolTip(tip)
         cls = self.compiled.mechanics.classification
         with np.errstate(all="ignore"):
             H = self.compiled.hamiltonian(

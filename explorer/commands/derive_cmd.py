@@ -84,8 +84,12 @@ def _block(title: str, rows: list[tuple[str, object]], scene) -> list[str]:
     return lines
 
 
-def readable(mechanics) -> str:
-    """The derivation laid out for a person, with sympy's pretty printer."""
+def readable(mechanics, equilibria: bool = True) -> str:
+    """The derivation laid out for a person, with sympy's pretty printer.
+
+    ``equilibria=False`` leaves out the equilibrium search (a second or more), for the
+    window, which shows its result apart when it arrives.
+    """
     from systems.display import display_names
 
     scene = mechanics.scene
@@ -125,7 +129,8 @@ def readable(mechanics) -> str:
     if mechanics.conserved:
         rows = [(shown.get(name, name), expr) for name, expr in mechanics.conserved.items()]
         lines += _block("Conserved quantities", rows, scene)
-    lines += _equilibria_lines(mechanics, shown)
+    if equilibria:
+        lines += _equilibria_lines(mechanics, shown)
     return "\n".join(lines)
 
 
