@@ -62,7 +62,7 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     from systems.mechanics import derive
     from systems.native_build import compile_in_background
     from systems.scene import Scene, parse_scene, scene_from_dict
-    from systems.simulation import compile_natively
+    from systems.simulation import DIAGNOSTICS, compile_natively
 
     start = time.perf_counter()
     if isinstance(source, Scene):
@@ -75,7 +75,7 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     method, reason = choose_method(mechanics)
     wants = wants_for(mechanics)
     compiled = compile_system(mechanics, wants, interpreted_start=interpreted_start)
-    diagnostics = [d for d, want in GUI_DIAGNOSTICS.items() if want in wants]
+    diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
     if interpreted_start:
         compile_in_background(compiled, method, diagnostics)
     else:
@@ -85,9 +85,6 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
 
 FIRST_FRAME_WAIT = 1.0
 """Seconds the builder waits for the window's first frame before describing a system."""
-
-GUI_DIAGNOSTICS = {"H": "hamiltonian", "qdot": "velocities", "points": "drawing"}
-"""The diagnostics the panels compute, by the compiled function each needs."""
 
 
 def failure_from(exc: Exception, request: int) -> BuildFailure:

@@ -6,7 +6,7 @@ as plain Python meanwhile, and switches to numba's machine code once ``hand_over
 called (by ``systems.simulation.compile_natively``, usually from a background thread):
 
 - a *scalar twin*: the generated module executed with ``njit`` as the identity, so every
-  stepper template runs unchanged, about 1000 times slower than compiled;
+  stepper template runs unchanged, about 100 times slower than compiled;
 - a *vector twin*: the system functions executed with numpy in place of ``math``, so the
   ``*_batch`` functions (energy on a level-set grid, drawing points of a block) evaluate
   whole arrays at once.
