@@ -39,12 +39,12 @@ def application():
     return app
 
 
-def create_window(scene="simple_pendulum", stream=None):
+def create_window(scene="simple_pendulum", runs=None):
     """A ``MainWindow`` opened on ``scene`` (a catalogue name, path or ``Scene``)."""
     application()
     from explorer.main_window import MainWindow
 
-    window = MainWindow(stream=stream)
+    window = MainWindow(runs=runs)
     window.open_scene(scene)
     return window
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QDoubleValidator
 from PySide6.QtWidgets import (
     QComboBox,
@@ -63,7 +63,7 @@ class ControlsPanel(QWidget):
         self.reason_label.setStyleSheet("color: #555")
         self.step_edit = QLineEdit()
         self.step_edit.setPlaceholderText("auto")
-        self.step_edit.setMaximumWidth(80)
+        self.step_edit.setMaximumWidth(110)
         validator = QDoubleValidator(1e-15, 1e3, 15)
         validator.setNotation(QDoubleValidator.Notation.ScientificNotation)
         self.step_edit.setValidator(validator)
@@ -112,26 +112,50 @@ class ControlsPanel(QWidget):
 
     # -- configuration from the window -------------------------------------------------------
 
-    def set_methods(self, steppers: dict, separable: bool, automatic: str, reason: str) -> None:
-        """Offer ``automatic`` plus every stepper the system's structure allows."""
+    def set_methods(self, steppers: dict, mechanics, automatic: str, reason: str) -> None:
+        """Offer ``automatic`` plus every method of the registry ``steppers``.
+
+        A method that does not apply to ``mechanics`` (it would drop an effect, needs a
+        separable H, ...) is listed disabled, with the reason as its tooltip.
+        """
         self._steppers = steppers
         self.method_combo.blockSignals(True)
         self.method_combo.clear()
         label = f"{AUTOMATIC} ({automatic})" if automatic else AUTOMATIC
         self.method_combo.addItem(label, None)
-        self.method_combo.setItemData(0, reason, role=3)  # Qt.ToolTipRole
+        self.method_combo.setItemData(0, reason, Qt.ItemDataRole.ToolTipRole)
+        model = self.method_combo.model()
         for name, stepper in steppers.items():
-            if stepper.needs_separable and not separable:
-                continue
-            self.method_combo.addItem(name, name)
+            refusal = stepper.applies_to(mechanics)
+            label = name if refusal is None else f"{name} (not for this system)"
+            self.method_combo.addItem(label, name)
             index = self.method_combo.count() - 1
-            self.method_combo.setItemData(index, stepper.description, role=3)
+            tip = f"{stepper.description}; order {stepper.order}; takes {stepper.setting}"
+            self.method_combo.setItemData(index, refusal or tip, Qt.ItemDataRole.ToolTipRole)
+            if refusal is not None:
+                model.item(index).setEnabled(False)
         self.method_combo.setCurrentIndex(0)
         self.method_combo.blockSignals(False)
         self.automatic = automatic
-        self.reason_label.setText(reason)
+        self.reason_label.setText(_first_clause(reason))
         self.reason_label.setToolTip(reason)
         self._update_step_label(automatic)
+
+    def refusal(self, name: str) -> str | None:
+        """The tooltip of a disabled method (why it does not apply), else None."""
+        for index in range(self.method_combo.count()):
+            if self.method_combo.itemData(index) == name:
+                if self.method_combo.model().item(index).isEnabled():
+                    return None
+                return self.method_combo.itemData(index, Qt.ItemDataRole.ToolTipRole)
+        return None
+
+    def show_setting_in_use(self, setting: str, value: float) -> None:
+        """Show the step or tolerance the run uses when the field is left on automatic."""
+        if setting and math.isfinite(value):
+            self.step_edit.setPlaceholderText(f"auto: {value:.3g}")
+        else:
+            self.step_edit.setPlaceholderText("auto")
 
     @property
     def method(self) -> str | None:
@@ -156,10 +180,16 @@ class ControlsPanel(QWidget):
 
     def _update_step_label(self, name: str | None) -> None:
         stepper = self._steppers.get(name or getattr(self, "automatic", ""))
-        adaptive = bool(stepper and stepper.adaptive)
-        self.step_label.setText("tol:" if adaptive else "dt:")
+        setting = stepper.setting if stepper else "dt"
+        if setting != getattr(self, "_setting", setting):
+            self.step_edit.clear()  # a step typed for one method is no tolerance for another
+        self._setting = setting
+        self.step_label.setText(f"{setting}:")
         self.step_edit.setToolTip(
-            "relative tolerance (empty: default)" if adaptive else "time step (empty: default)"
+            {
+                "tol": "relative tolerance of the adaptive method (empty: its default)",
+                "ds": "step in the method's fictitious time (empty: its default)",
+            }.get(setting, "time step (empty: the default, shown greyed)")
         )
 
     def is_adaptive(self) -> bool:
@@ -189,3 +219,9 @@ class ControlsPanel(QWidget):
     def _on_play_button_toggled(self, checked: bool) -> None:
         self._update_play_button(checked)
         self.play_toggled.emit(checked)
+
+
+def _first_clause(reason: str) -> str:
+    """The automatic choice's reason up to its first colon, for the toolbar (tooltip: all)."""
+    head = reason.split(":", 1)[0]
+    return head if len(head) <= 60 else head[:57] + "…"

@@ -53,11 +53,12 @@ class MainWindow(QMainWindow):
     system_started = Signal(object)
     frame_received = Signal()
 
-    def __init__(self, parent: QWidget | None = None, stream=None):
+    def __init__(self, parent: QWidget | None = None, runs=None):
         super().__init__(parent)
         self.setWindowTitle("Phase Explorer")
         self.resize(1400, 880)
-        self._stream = stream
+        self._runs = runs
+        self.energy_tolerance: float | None = RunSettings().energy_tolerance
         self.built: Built | None = None
         self.compiled = None
         self.store = TrajectoryStore()
@@ -237,6 +238,8 @@ class MainWindow(QMainWindow):
         self._action(run_menu, "Single step", self._on_controls_single_step_requested, "Ctrl+.")
         self._action(run_menu, "Reset", self._on_controls_reset_requested, "Ctrl+R")
         self._action(run_menu, "Clear launched orbits", self._on_controls_clear_requested)
+        run_menu.addSeparator()
+        self._action(run_menu, "Energy guard…", self._on_energy_guard_triggered)
         view_menu = menu.addMenu("&View")
         for dock in self.docks.values():
             view_menu.addAction(dock.toggleViewAction())
@@ -292,10 +295,7 @@ class MainWindow(QMainWindow):
         self.editor.show_built(built)
         from systems.integrators import STEPPERS
 
-        mechanics = built.compiled.mechanics
-        self.controls.set_methods(
-            STEPPERS, mechanics.classification.separable, built.method, built.reason
-        )
+        self.controls.set_methods(STEPPERS, built.compiled.mechanics, built.method, built.reason)
         self.setWindowTitle(f"Phase Explorer — {built.scene.title}")
         self._start_system(built.compiled, launches=None)
         if self.workprecision_view is not None:
@@ -337,6 +337,7 @@ class MainWindow(QMainWindow):
             t_end=max(POINCARE_T_END, 25 * scene_t_end) if poincare else math.inf,
             diagnostics=self._wanted_diagnostics(),
             section=section,
+            energy_tolerance=self.energy_tolerance,
         )
 
     def _wanted_diagnostics(self) -> tuple[str, ...]:
@@ -370,7 +371,7 @@ class MainWindow(QMainWindow):
         self.configuration_view.set_system(compiled)
         self.conserved_view.set_system(compiled)
         self.settings = self._current_settings()
-        worker = SimulationWorker(compiled, self.settings, self._generation, stream=self._stream)
+        worker = SimulationWorker(compiled, self.settings, self._generation, runs=self._runs)
         worker.blocks_ready.connect(self._on_worker_blocks_ready)
         worker.failed.connect(self._on_worker_failed)
         for state in [y0, *(launches or [])]:
@@ -437,6 +438,30 @@ class MainWindow(QMainWindow):
         self._apply_settings()
 
     def _on_controls_speed_changed(self, _speed: float) -> None:
+        self._apply_settings()
+
+    def _on_energy_guard_triggered(self) -> None:
+        from PySide6.QtWidgets import QInputDialog
+
+        from systems.simulation import parse_energy_tolerance
+
+        current = "off" if self.energy_tolerance is None else f"{self.energy_tolerance:g}"
+        text, ok = QInputDialog.getText(
+            self,
+            "Energy guard",
+            "Stop a run whose relative energy error |H - H0|/|H0| exceeds\n"
+            "(a number such as 0.01, or off to watch the error grow):",
+            text=current,
+        )
+        if ok:
+            try:
+                self.set_energy_tolerance(parse_energy_tolerance(text))
+            except ValueError as exc:
+                self.statusBar().showMessage(str(exc), 8000)
+
+    def set_energy_tolerance(self, value: float | None) -> None:
+        """The energy guard for runs from now on (None: off); applies at once."""
+        self.energy_tolerance = value
         self._apply_settings()
 
     def _on_controls_play_toggled(self, playing: bool) -> None:
@@ -514,6 +539,7 @@ class MainWindow(QMainWindow):
             self.error_label.setText(f"H = {H[1]:.5g}")
         method = main.method or (self.built.method if self.built else "")
         self.method_label.setText(f"method: {method}")
+        self.controls.show_setting_in_use(main.setting, main.setting_value)
         if main.status not in ("running", "ok"):
             self.statusBar().showMessage(f"stopped: {main.status}: {main.message}")
 

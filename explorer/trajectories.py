@@ -41,6 +41,8 @@ class Trajectory:
     status: str = "running"
     message: str = ""
     method: str = ""
+    setting: str = ""
+    setting_value: float = float("nan")
     steps: int = 0
     rhs_evaluations: int = 0
     energy_done: int = 0  # rows before this one have H (none is NaN)
@@ -83,6 +85,8 @@ class Trajectory:
         self.status = block.status
         self.message = block.message
         self.method = block.method
+        self.setting = getattr(block, "setting", "")
+        self.setting_value = getattr(block, "setting_value", float("nan"))
         self.steps += int(block.steps)
         self.rhs_evaluations += int(block.rhs_evaluations)
         events = getattr(block, "events_y", None)

@@ -5,15 +5,14 @@ pause, then produces the next blocks and emits them, one signal per frame (about
 30 ms) carrying every trajectory's new block, never one signal per point. The numba
 kernels release the GIL, so the GUI thread keeps running while a block is computed.
 
-Two pacing modes:
-
-- *paced* (``speed`` finite): each frame advances every trajectory by ``speed`` times the
-  frame's wall time (a ``stream`` to that time, from the last state), so the mechanism
-  moves at a watchable rate. The step of a fixed-step method is chosen once per
-  trajectory and each frame covers a whole number of steps, so pacing never changes the
-  numerical method's step;
-- *full speed* (``speed = inf``): each trajectory keeps one open ``stream`` generator and
-  every frame takes its next block (a Poincaré section filling up, an export).
+Each trajectory is one ``systems.simulation.Run`` for its whole life, whatever the
+speed: every frame takes its next block. At a finite ``speed`` the block ends after the
+first step that reaches ``speed`` times the frame's wall time past the last state, so the
+mechanism moves at a watchable rate; at ``speed = inf`` it ends when the frame's time is
+spent. Pacing only decides where blocks end: the states, and the step of a fixed-step
+method (chosen once per trajectory, never from the speed), are those of a full-speed run.
+A change of method, step, tolerance, section or diagnostics starts new runs from the
+trajectories' current states; a change of speed does not.
 """
 
 from __future__ import annotations
@@ -21,17 +20,14 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
 
 FRAME_SECONDS = 0.03
-MIN_STEPS_PER_FRAME = 8
-ENDLESS = 1e12
-"""Horizon of an endless full-speed run (the fixed-step runners need a finite ``t_end``)."""
-PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled")
+PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled", "budget")
 
 
 @dataclass(frozen=True)
@@ -47,9 +43,23 @@ class RunSettings:
     frame_seconds: float = FRAME_SECONDS
     max_points: int = 4096
     section: tuple[int, float, int] | None = None
+    energy_tolerance: float | None = 1e-2
 
     def with_(self, **changes) -> RunSettings:
         return replace(self, **changes)
+
+    def run_options(self) -> dict:
+        """What a ``Run`` is made with: everything but the pacing."""
+        return dict(
+            method=self.method,
+            dt=self.dt,
+            tol=self.tol,
+            t_end=self.t_end,
+            diagnostics=self.diagnostics,
+            max_points=self.max_points,
+            section=self.section,
+            energy_tolerance=self.energy_tolerance,
+        )
 
 
 @dataclass(frozen=True)
@@ -66,38 +76,15 @@ class _Track:
     key: int
     t: float
     y: np.ndarray
-    generator: Iterator | None = None
+    run: object | None = None
     done: bool = False
-    step: float | None = None
-    whole_steps: bool = False
 
 
-def default_stream() -> Callable:
-    """``systems.simulation.stream`` (imported on first use)."""
-    from systems.simulation import stream
+def default_runs() -> Callable:
+    """``systems.simulation.Run`` (imported on first use)."""
+    from systems.simulation import Run
 
-    return stream
-
-
-def fixed_step(compiled, method: str | None, track: _Track) -> tuple[float | None, bool]:
-    """The engine's default step for the method at the track's state, and whether it is
-    a step in physical time (so a frame can cover a whole number of them).
-
-    Computed once per trajectory with an unbounded horizon, so that paced frames (short
-    ``stream`` calls) keep the step a long run would use. ``(None, False)`` for adaptive
-    methods, which choose their own steps from the tolerance.
-    """
-    if method is None:
-        return None, False
-    from systems.integrators import get_stepper
-    from systems.integrators.stepsize import default_step, fictitious_step
-
-    stepper = get_stepper(method)
-    if stepper.family in ("composition", "gauss"):
-        return default_step(compiled, stepper, track.t, track.y, math.inf), True
-    if stepper.family == "logh":  # a fictitious-time step
-        return fictitious_step(compiled, stepper, track.t, track.y, math.inf), False
-    return None, False
+    return Run
 
 
 class SimulationWorker(QObject):
@@ -110,20 +97,21 @@ class SimulationWorker(QObject):
     settings : RunSettings
     generation : int
         Stamped on every emitted ``Frame`` so late frames of a replaced worker are ignored.
-    stream : callable, optional
-        ``systems.simulation.stream`` or a function with its signature.
+    runs : callable, optional
+        ``systems.simulation.Run`` or a factory with its signature, whose objects have
+        ``advance(seconds, until) -> Block`` and ``finished``.
     """
 
     blocks_ready = Signal(object)
     failed = Signal(str)
     finished = Signal()
 
-    def __init__(self, compiled, settings: RunSettings, generation: int = 0, stream=None):
+    def __init__(self, compiled, settings: RunSettings, generation: int = 0, runs=None):
         super().__init__()
         self.compiled = compiled
         self.generation = generation
         self._settings = settings
-        self._stream = stream
+        self._runs = runs
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._abort = False
@@ -147,11 +135,15 @@ class SimulationWorker(QObject):
         self._wake.set()
 
     def set_settings(self, settings: RunSettings) -> None:
+        """New settings; runs restart from their current states unless only the pacing
+        (speed, frame time) changed."""
         with self._lock:
+            restart = settings.run_options() != self._settings.run_options()
             self._settings = settings
-            for track in self._tracks.values():
-                track.generator = None
-                track.step = None
+            if restart:
+                for track in self._tracks.values():
+                    track.run = None
+                    track.done = False
         self._wake.set()
 
     @property
@@ -184,8 +176,8 @@ class SimulationWorker(QObject):
     def work(self) -> None:
         """Run until aborted; emits ``blocks_ready`` once per frame with new blocks."""
         try:
-            if self._stream is None:
-                self._stream = default_stream()
+            if self._runs is None:
+                self._runs = default_runs()
             while not self._abort:
                 self._take_changes()
                 if self._paused:
@@ -232,66 +224,19 @@ class SimulationWorker(QObject):
             self._removed.clear()
 
     def _advance(self, track: _Track, settings: RunSettings, count: int) -> list:
-        budget = settings.frame_seconds / count
-        options = dict(
-            method=settings.method,
-            tol=settings.tol,
-            diagnostics=settings.diagnostics,
-            max_points=settings.max_points,
-            section=settings.section,
-        )
-        blocks = []
-        if math.isfinite(settings.speed):
-            if track.step is None:
-                track.step, track.whole_steps = fixed_step(self.compiled, settings.method, track)
-                if settings.dt is not None:
-                    track.step = settings.dt
-                elif track.step and track.whole_steps:  # smooth curves: several steps a frame
-                    frame = settings.speed * settings.frame_seconds
-                    track.step = min(track.step, frame / MIN_STEPS_PER_FRAME)
-            target = track.t + settings.speed * settings.frame_seconds
-            if track.step and track.whole_steps:  # the method's step stays the same
-                steps = max(1, round(settings.speed * settings.frame_seconds / track.step))
-                target = track.t + steps * track.step
-            target = min(target, settings.t_end)
-            if target <= track.t:
-                track.done = True
-                return blocks
-            generator = self._stream(
-                self.compiled,
-                y0=track.y,
-                t0=track.t,
-                t_end=target,
-                dt=track.step,
-                block_seconds=budget,
-                **options,
-            )
-            for block in generator:
-                blocks.append((track.key, block))
-                self._follow(track, block)
-                if track.done or self._abort:
-                    break
+        if track.run is None:
             if track.t >= settings.t_end:
                 track.done = True
-            return blocks
-        if track.generator is None:
-            track.generator = self._stream(
-                self.compiled,
-                y0=track.y,
-                t0=track.t,
-                t_end=min(settings.t_end, track.t + ENDLESS),
-                dt=settings.dt,
-                block_seconds=budget,
-                **options,
-            )
-        try:
-            block = next(track.generator)
-        except StopIteration:
-            track.done = True
-            return blocks
-        blocks.append((track.key, block))
+                return []
+            track.run = self._runs(self.compiled, y0=track.y, t0=track.t, **settings.run_options())
+        until = math.inf
+        if math.isfinite(settings.speed):
+            until = track.t + settings.speed * settings.frame_seconds
+        block = track.run.advance(settings.frame_seconds / count, until)
         self._follow(track, block)
-        return blocks
+        if track.run.finished:
+            track.done = True
+        return [(track.key, block)]
 
     @staticmethod
     def _follow(track: _Track, block) -> None:

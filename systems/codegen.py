@@ -31,6 +31,7 @@ from numba import njit, prange
 
 TEMPLATE_MARKER = "# --- kernels ---"
 TOP_LEVEL_DEF = re.compile(r"^def (\w+)\(", re.MULTILINE)
+STEP_DEF = re.compile(r"^def (\w+)_step\(", re.MULTILINE)
 
 _loaded: dict[str, ModuleType] = {}
 
@@ -48,14 +49,35 @@ def cache_dir() -> Path:
 
 
 def template_source() -> str:
-    """Source of the stepper templates: everything after the marker line in the module."""
+    """The kernel templates as they go into a generated module.
+
+    Everything after the marker line of ``systems.integrators.kernels``, preceded by the
+    named codes of ``systems.integrators.codes``, with the driver templates (functions
+    named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
+    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step`` and ``WORK`` ``X_work``.
+    """
     from systems.integrators import kernels
+    from systems.integrators.codes import constants_source
 
     source = inspect.getsource(kernels)
     _, found, body = source.partition(TEMPLATE_MARKER)
     if not found:
         raise RuntimeError(f"{kernels.__file__} lacks the line {TEMPLATE_MARKER!r}")
-    return body
+    shared, drivers = _split_drivers(body)
+    parts = [constants_source(), shared]
+    for family in STEP_DEF.findall(shared):
+        instance = drivers.replace("DRIVER_", f"{family}_")
+        instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
+        parts.append(re.sub(r"\bWORK\(", f"{family}_work(", instance))
+    return "\n\n".join(part.strip() + "\n" for part in parts)
+
+
+def _split_drivers(body: str) -> tuple[str, str]:
+    """(the templates without the ``DRIVER_*`` functions, those functions)."""
+    shared, drivers = [], []
+    for chunk in re.split(r"(?m)^(?=def )", body):
+        (drivers if chunk.startswith("def DRIVER_") else shared).append(chunk)
+    return "".join(shared), "".join(drivers)
 
 
 def jit_wrappers(source: str) -> str:

@@ -131,7 +131,7 @@ def cached(compiled, method: str) -> bool:
     """
     from systems.integrators import get_stepper
 
-    loop = RUN_FUNCTIONS.get(get_stepper(method).family)
+    loop = get_stepper(method).family.run_kernel
     if loop is None:
         return True  # scipy's solvers: only the right-hand side is numba's, and it is small
     native = compiled.native().kernels
@@ -139,15 +139,6 @@ def cached(compiled, method: str) -> bool:
         return bool(getattr(native, loop)._cache._cache_file._load_index())
     except Exception:  # noqa: BLE001 - private numba API; fall back to compiling in a child
         return False
-
-
-RUN_FUNCTIONS = {
-    "composition": "compose_run",
-    "gauss": "gauss_run",
-    "gauss_tt": "gauss_tt_run",
-    "logh": "logh_run",
-    "dop853": "dop853_run",
-}
 
 
 def compile_in_background(

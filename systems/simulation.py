@@ -1,7 +1,8 @@
 """Streaming integration: blocks of (t, state, diagnostics) for a wall-time budget each.
 
-``stream`` runs one trajectory with any stepper of ``systems.integrators.STEPPERS`` and
-yields a ``Block`` about every ``block_seconds``: the compiled loop runs as many steps as
+A ``Run`` is one trajectory with any method of ``systems.integrators.STEPPERS``;
+``stream`` is the generator over its blocks. Each ``Block`` comes after about
+``block_seconds``: the compiled loop runs as many steps as
 fit the budget (calibrated from the previous block), keeps at most ``max_points`` states
 (evenly spaced in steps), computes only the diagnostics asked for, and watches for
 trouble: a non-finite state, an energy error past ``energy_tolerance``, an implicit solve
@@ -21,16 +22,35 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from systems.integrators import STEPPERS, choose_method, gauss_tableau, get_stepper
+from systems.integrators import STEPPERS, choose_method, get_stepper
+from systems.integrators.codes import CLOCK_SIZE, Clock, Status
 from systems.integrators.events import locate_crossings
-from systems.integrators.registry import Stepper
-from systems.integrators.runners import Dop853Runner, make_runner, no_section
+from systems.integrators.registry import Stepper, make_runner
+from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
-PROBLEMS = ("non_finite", "singular", "energy_error", "stalled")
-STATUS_CODES = {1: "non_finite", 2: "stalled", 3: "singular", 4: "stalled"}
-FIXED_STEP_FAMILIES = ("composition", "gauss", "gauss_tt", "logh")
+PROBLEMS = ("non_finite", "singular", "energy_error", "stalled", "budget")
+STATUS_WORDS = {
+    Status.NON_FINITE: "non_finite",
+    Status.NOT_CONVERGED: "stalled",
+    Status.BAD_TRANSFORM: "singular",
+    Status.STEP_COLLAPSED: "stalled",
+}
 SINGULAR_GROWTH = 1e6
 """|dy/dt| this many times its initial size at a stop: the problem is a singularity."""
+
+
+def parse_energy_tolerance(text: str) -> float | None:
+    """``"off"`` -> None (no guard), a positive number -> that number; else ValueError."""
+    text = str(text).strip().lower()
+    if text in ("off", "none", "inf"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"the energy tolerance must be a positive number or 'off', not {text!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -50,13 +70,17 @@ class Block:
     message : str
         Empty while running; otherwise a sentence for the user.
     steps, rhs_evaluations : int
-        Totals since the start of the stream (for time-transformed methods, steps in
+        Totals since the start of the run (for time-transformed methods, steps in
         fictitious time; for composition methods, gradient evaluations count as rhs).
     method : str
     events_t : ndarray, shape (e,)
         Times of the section crossings found in this block.
     events_y : ndarray, shape (e, 2n)
         States at those crossings.
+    setting : str
+        ``"dt"``, ``"ds"`` or ``"tol"``: what ``setting_value`` is.
+    setting_value : float
+        The step or tolerance in use (the default rule's when none was given).
     """
 
     t: np.ndarray
@@ -69,6 +93,8 @@ class Block:
     method: str
     events_t: np.ndarray = field(default_factory=lambda: np.empty(0))
     events_y: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
+    setting: str = ""
+    setting_value: float = math.nan
 
     @property
     def finished(self) -> bool:
@@ -85,7 +111,7 @@ def required_wants(method: str, diagnostics: Sequence[str] = ()) -> frozenset[st
     return frozenset(wants)
 
 
-# -- the stream -------------------------------------------------------------------------
+# -- one trajectory ------------------------------------------------------------------------
 
 
 def _rhs_size(compiled, t: float, y: np.ndarray) -> float:
@@ -94,6 +120,184 @@ def _rhs_size(compiled, t: float, y: np.ndarray) -> float:
             return float(np.max(np.abs(compiled.rhs(t, y))))
     except ZeroDivisionError:
         return math.inf
+
+
+class Run:
+    """One trajectory, advanced block by block for as long as the caller likes.
+
+    Everything that makes the solution what it is lives here for the whole run: the
+    runner (state, Kahan compensation, stage guesses, adaptive step), the step or
+    tolerance, and the energy baseline. How fast the caller asks for blocks, and up to
+    which time (``advance(until=...)``), changes only where blocks begin and end, never
+    the states: a paced window and a full-speed export pass through the same states.
+
+    Parameters are those of ``stream``; ``block_seconds`` goes to ``advance``.
+    """
+
+    def __init__(
+        self,
+        compiled,
+        *,
+        method: str | None = None,
+        y0: np.ndarray | None = None,
+        t0: float = 0.0,
+        t_end: float = math.inf,
+        dt: float | None = None,
+        tol: float | None = None,
+        diagnostics: Sequence[str] = (),
+        max_points: int = 4096,
+        section: tuple[int, float, int] | None = None,
+        energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
+        compensated: bool = True,
+        max_steps: int | None = None,
+    ):
+        if method is None:
+            method, _ = choose_method(compiled.mechanics)
+        stepper = get_stepper(method)
+        for d in diagnostics:
+            if d not in DIAGNOSTICS:
+                raise ValueError(f"unknown diagnostic {d!r}; choose from {sorted(DIAGNOSTICS)}")
+        missing = required_wants(method, diagnostics) - compiled.wanted
+        if missing:
+            raise ValueError(
+                f"method {method!r} with diagnostics {list(diagnostics)} needs the compiled "
+                f"functions {sorted(missing)}; pass them to compile_system"
+            )
+        problem = stepper.setting_error(dt, tol)
+        if problem:
+            raise ValueError(problem)
+        if not t_end > t0:
+            raise ValueError("t_end must be after t0")
+        self.compiled, self.stepper, self.method = compiled, stepper, method
+        self.diagnostics, self.max_points = tuple(diagnostics), max_points
+        self.section = section
+        self.t_end = t_end
+        self.max_steps = max_steps
+        self.y0 = compiled.initial_state(t0) if y0 is None else np.array(y0, dtype=float)
+        self.t0 = t0
+        self.steps = self.evals = 0
+        self.finished = False
+        self.good = (t0, self.y0.copy())  # the last state handed out
+        self.nsteps = 16 if stepper.family.kernel else 4
+        self.setting = stepper.setting
+        self.energy_tolerance = math.inf if energy_tolerance is None else energy_tolerance
+        self.f0 = _rhs_size(compiled, t0, self.y0)
+        self.runner = None
+        if not np.isfinite(self.f0) or not np.all(np.isfinite(self.y0)):
+            self.setting_value = math.nan
+            return
+        value = dt if dt is not None else tol
+        if value is None:
+            value = stepper.default_setting(compiled, t0, self.y0, t_end)
+        self.setting_value = float(value)
+        sec = None if section is None else np.array(section, dtype=float)
+        self.runner = make_runner(
+            compiled, stepper, self.y0, t0, t_end, self.setting_value, sec, compensated
+        )
+        c = compiled.mechanics.classification
+        self.watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
+        self.H0 = float(compiled.hamiltonian(t0, self.y0[None, :])[0]) if self.watch_energy else 0.0
+        self.H_scale = abs(self.H0) if abs(self.H0) > 1e-8 else 1.0
+        self.f0 = max(self.f0, 1e-300)
+
+    @property
+    def t(self) -> float:
+        return self.good[0] if self.runner is None else self.runner.t
+
+    def _block(self, t, y, status, message, diag=None, events=None) -> Block:
+        if status != "running":
+            self.finished = True
+        ev_t, ev_y = events if events is not None else (np.empty(0), np.empty((0, len(self.y0))))
+        return Block(
+            t=t, y=y, diagnostics=diag or {}, status=status, message=message, steps=self.steps,
+            rhs_evaluations=self.evals, method=self.method, events_t=ev_t, events_y=ev_y,
+            setting=self.setting, setting_value=self.setting_value,
+        )  # fmt: skip
+
+    def _stop(self, status: str, message: str) -> Block:
+        t_good, y_good = self.good
+        return self._block(np.array([t_good]), y_good[None, :], status, message)
+
+    def _over_budget(self) -> str:
+        return (
+            f"the step budget of {self.max_steps:,} steps ran out at t = {self.t:.6g} "
+            f"({self.method}, {self.setting} = {self.setting_value:.3g}); raise it "
+            "(--max-steps), shorten the run or use a larger step or tolerance"
+        )
+
+    def advance(self, seconds: float = 0.03, until: float = math.inf) -> Block:
+        """The next block: about ``seconds`` of computing, ending early after the first
+        step that reaches ``until``."""
+        if self.finished:
+            raise RuntimeError("this run has finished")
+        if self.runner is None:
+            self.finished = True
+            return self._block(
+                np.array([self.t0]), self.y0[None, :], "singular",
+                f"the equations of motion are singular at the initial state (|dy/dt| = "
+                f"{self.f0:.3g}): a collision, r = 0 or a coordinate singularity; move it",
+            )  # fmt: skip
+        if self.max_steps is not None and self.steps == 0 and self.setting == "dt":
+            needed = (self.t_end - self.t0) / self.setting_value
+            if needed > self.max_steps:
+                return self._stop(
+                    "budget",
+                    f"this run needs {needed:.3g} steps of dt = {self.setting_value:.3g}, "
+                    f"more than the step budget of {self.max_steps:,}; raise it "
+                    "(--max-steps), shorten the run or use a larger step",
+                )
+        nsteps = self.nsteps
+        if self.max_steps is not None:
+            if self.steps >= self.max_steps:
+                return self._stop("budget", self._over_budget())
+            nsteps = min(nsteps, self.max_steps - self.steps)
+        start = time.perf_counter()
+        try:
+            out = self.runner.advance(nsteps, self.max_points, until)
+        except ZeroDivisionError as exc:
+            return self._stop(
+                "singular", _division(exc) + f"; the last good state is at t = {self.good[0]:.6g}"
+            )
+        elapsed = time.perf_counter() - start
+        self.steps += out.steps
+        self.evals += out.evals
+        status, message = "running", ""
+        if out.code == Status.END:
+            status = "ok"
+        elif out.code in STATUS_WORDS:
+            status, message = STATUS_WORDS[out.code], _explain(out.code, self.stepper, self.runner)
+        elif self.max_steps is not None and self.steps >= self.max_steps:
+            status, message = "budget", self._over_budget()
+        t, y = out.t, out.y
+        diag = _diagnostics(self.compiled, self.diagnostics, t, y)
+        if self.watch_energy and status in ("running", "ok", "budget") and len(t):
+            H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
+            worst = float(np.max(np.abs(H - self.H0))) / self.H_scale
+            if not worst <= self.energy_tolerance:
+                status = "energy_error"
+                message = (
+                    f"the energy error reached {worst:.3g} (tolerance "
+                    f"{self.energy_tolerance:g}) by t = {t[-1]:.6g}; reduce the step or "
+                    "tolerance, or raise the energy tolerance (--energy-tolerance, 'off')"
+                )
+        if status in PROBLEMS and status not in ("singular", "budget") and len(t):
+            status, message = _diagnose(
+                self.compiled, self.runner, t[-1], y[-1], self.f0, status, message
+            )
+        events = None
+        if self.section is not None and len(out.events[0]):
+            events = locate_crossings(
+                self.compiled, out.events[0], out.events[1], int(self.section[0]),
+                float(self.section[1]), dense=self.stepper.family.adaptive,
+            )  # fmt: skip
+        block = self._block(t, y, status, message, diag, events)
+        if len(t):
+            self.good = (float(t[-1]), np.array(y[-1]))
+        if out.steps > 0:
+            rate = elapsed / out.steps
+            target = seconds / max(rate, 1e-12)
+            self.nsteps = int(min(max(target, self.nsteps / 4, 1), self.nsteps * 8, 1e9))
+        return block
 
 
 def stream(
@@ -109,8 +313,9 @@ def stream(
     block_seconds: float = 0.03,
     max_points: int = 4096,
     section: tuple[int, float, int] | None = None,
-    energy_tolerance: float = 1e-2,
+    energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
     compensated: bool = True,
+    max_steps: int | None = None,
 ) -> Iterator[Block]:
     """Integrate ``compiled`` and yield ``Block``s, each after about ``block_seconds``.
 
@@ -123,18 +328,22 @@ def stream(
     y0 : ndarray, shape (2n,), optional
         Initial ``(q, p)``; the scene's initial state by default.
     dt, tol
-        Fixed step (fictitious-time step for log-H methods) or tolerance of adaptive
-        methods; defaults from the time scales at ``y0``.
+        Fixed step (fictitious-time step for time-transformed methods) or tolerance of
+        adaptive methods, whichever the method takes (``ValueError`` for the other);
+        defaults from the method family's rule.
     diagnostics : sequence of {"H", "qdot", "points"}
     section : (index, value, direction), optional
         Record crossings of ``y[index] = value`` (direction +1 upward, -1 downward,
         0 both) in ``Block.events_t``/``events_y``.
-    energy_tolerance : float
+    energy_tolerance : float or None
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
-        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8).
+        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8). None: never.
     compensated : bool
-        Kahan-compensated summation of the state in fixed-step and log-H loops, so
+        Kahan-compensated summation of the state in the fixed-step and log-H loops, so
         round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
+    max_steps : int or None
+        Stop with ``"budget"`` after this many steps (a fixed-step run that would need
+        more is refused at once). None: no budget.
 
     Yields
     ------
@@ -142,100 +351,13 @@ def stream(
         The last one has status ``"ok"`` (at ``t_end``) or a problem; an endless run
         (``t_end = inf``) yields until the caller stops iterating.
     """
-    if method is None:
-        method, _ = choose_method(compiled.mechanics)
-    stepper = get_stepper(method)
-    for d in diagnostics:
-        if d not in DIAGNOSTICS:
-            raise ValueError(f"unknown diagnostic {d!r}; choose from {sorted(DIAGNOSTICS)}")
-    missing = required_wants(method, diagnostics) - compiled.wanted
-    if missing:
-        raise ValueError(
-            f"method {method!r} with diagnostics {list(diagnostics)} needs the compiled "
-            f"functions {sorted(missing)}; pass them to compile_system"
-        )
-    y0 = compiled.initial_state(t0) if y0 is None else np.array(y0, dtype=float)
-    if t_end <= t0:
-        raise ValueError("t_end must be after t0")
-    sec = no_section() if section is None else np.array(section, dtype=float)
-    f_start = _rhs_size(compiled, t0, y0)
-    if not np.isfinite(f_start) or not np.all(np.isfinite(y0)):
-        yield Block(
-            np.array([t0]), y0[None, :], {}, "singular",
-            f"the equations of motion are singular at the initial state (|dy/dt| = "
-            f"{f_start:.3g}): a collision, r = 0 or a coordinate singularity; move it",
-            0, 1, method,
-        )  # fmt: skip
-        return
-    runner = make_runner(compiled, stepper, y0, t0, t_end, dt, tol, sec, compensated)
-    c = compiled.mechanics.classification
-    watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
-    H0 = float(compiled.hamiltonian(t0, y0[None, :])[0]) if watch_energy else 0.0
-    H_scale = abs(H0) if abs(H0) > 1e-8 else 1.0
-    f0 = max(f_start, 1e-300)
-
-    nsteps = 16 if stepper.family != "scipy" else 4
-    steps = evals = 0
-    good = (t0, y0.copy())  # the last state handed out: a division may stop mid-step
-    while True:
-        start = time.perf_counter()
-        try:
-            out = runner.advance(nsteps, max_points)
-        except ZeroDivisionError as exc:
-            t_good, y_good = good
-            yield Block(
-                np.array([t_good]), y_good[None, :], {}, "singular",
-                _division(exc) + f"; the last good state is at t = {t_good:.6g}",
-                steps, evals, method,
-            )  # fmt: skip
-            return
-        elapsed = time.perf_counter() - start
-        steps += out.steps
-        evals += out.evals
-        status, message = "running", ""
-        if out.code == 5:
-            status = "ok"
-        elif out.code in STATUS_CODES:
-            status, message = STATUS_CODES[out.code], _explain(out.code, stepper, runner)
-        t, y = out.t, out.y
-        diag = _diagnostics(compiled, diagnostics, t, y)
-        if watch_energy and status in ("running", "ok") and len(t):
-            H = diag["H"] if "H" in diag else compiled.hamiltonian(t[-1], y[-1:])
-            worst = float(np.max(np.abs(H - H0))) / H_scale
-            if not worst <= energy_tolerance:
-                status = "energy_error"
-                message = (
-                    f"the energy error reached {worst:.3g} (tolerance {energy_tolerance:g}) by "
-                    f"t = {t[-1]:.6g}; reduce the step or tolerance"
-                )
-        if status in PROBLEMS and status != "singular" and len(t):
-            status, message = _diagnose(compiled, runner, t[-1], y[-1], f0, status, message)
-        ev_t, ev_y = np.empty(0), np.empty((0, len(y0)))
-        if section is not None and len(out.events[0]):
-            ev_t, ev_y = locate_crossings(
-                compiled, out.events[0], out.events[1], int(section[0]), float(section[1]),
-                dense=stepper.family == "dop853",
-            )  # fmt: skip
-        yield Block(
-            t=t,
-            y=y,
-            diagnostics=diag,
-            status=status,
-            message=message,
-            steps=steps,
-            rhs_evaluations=evals,
-            method=method,
-            events_t=ev_t,
-            events_y=ev_y,
-        )
-        if status != "running":
-            return
-        if len(t):
-            good = (float(t[-1]), np.array(y[-1]))
-        if out.steps > 0:
-            rate = elapsed / out.steps
-            target = block_seconds / max(rate, 1e-12)
-            nsteps = int(min(max(target, nsteps / 4, 1), nsteps * 8, 1e9))
+    run = Run(
+        compiled, method=method, y0=y0, t0=t0, t_end=t_end, dt=dt, tol=tol,
+        diagnostics=diagnostics, max_points=max_points, section=section,
+        energy_tolerance=energy_tolerance, compensated=compensated, max_steps=max_steps,
+    )  # fmt: skip
+    while not run.finished:
+        yield run.advance(block_seconds)
 
 
 def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str, message: str):
@@ -248,14 +370,14 @@ def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str,
     """
     size = _rhs_size(compiled, t, y)
     peak, collapsed, t_stop = size, False, t
-    horizon = 4.0 * getattr(runner, "dt", 0.0)
+    horizon = 4.0 * getattr(runner, "value", 0.0) if runner.s.setting == "dt" else 0.0
     if math.isfinite(size) and horizon > 0.0 and "rhs" in compiled.wanted:
-        probe = Dop853Runner(compiled, STEPPERS["dop853"], y, t, t + horizon, 1e-8, no_section())
+        probe = make_runner(compiled, STEPPERS["dop853"], y, t, t + horizon, 1e-8, None)
         try:
             out = probe.advance(20000, 20000)
         except ZeroDivisionError:
             out = None
-        collapsed = out is None or out.code in (1, 4)
+        collapsed = out is None or out.code in (Status.NON_FINITE, Status.STEP_COLLAPSED)
         if out is not None and len(out.t):
             t_stop = float(out.t[-1])
             sizes = [_rhs_size(compiled, ti, yi) for ti, yi in zip(out.t, out.y, strict=True)]
@@ -282,19 +404,19 @@ def _division(exc: Exception) -> str:
     )
 
 
-def _explain(code: int, stepper: Stepper, runner) -> str:
+def _explain(code: Status, stepper: Stepper, runner) -> str:
     t = runner.t
-    if code == 1:
+    if code == Status.NON_FINITE:
         return (
             f"the state became non-finite after t = {t:.6g}; the last finite state is "
             "shown. Reduce the step or tolerance, or check the equations"
         )
-    if code == 2:
+    if code == Status.NOT_CONVERGED:
         return (
             f"the implicit {stepper.name} solve did not converge at t = {t:.6g}; reduce the "
             "step (the motion is too fast for it there)"
         )
-    if code == 3:
+    if code == Status.BAD_TRANSFORM:
         return (
             f"the time transformation of {stepper.name} broke down at t = {t:.6g} "
             "(it needs V < 0 and T - E > 0); choose another method"
@@ -323,9 +445,10 @@ def precompile(compiled, method: str, y0: np.ndarray | None = None, **kwargs) ->
     """
     start = time.perf_counter()
     y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
-    if get_stepper(method).family in FIXED_STEP_FAMILIES:
-        kwargs.setdefault("dt", 1e-10)  # any step compiles the loop; skip choosing one
-    for _ in stream(compiled, method=method, y0=y0, t_end=1e-9, energy_tolerance=math.inf,
+    if get_stepper(method).setting != "tol" and kwargs.get("tol") is None:
+        kwargs.pop("tol", None)
+        kwargs["dt"] = kwargs.get("dt") or 1e-10  # any step compiles the loop; skip choosing one
+    for _ in stream(compiled, method=method, y0=y0, t_end=1e-9, energy_tolerance=None,
                     **kwargs):  # fmt: skip
         pass
     return time.perf_counter() - start
@@ -393,9 +516,12 @@ def ensemble(
     Y : ndarray, shape (N, m, 2n)
         Rows past a failure keep their last good values (see ``status``).
     status : ndarray of int, shape (N,)
-        0 fine, 1 non-finite, 2 implicit solve failed.
+        ``Status`` codes: 0 (``RUNNING``) fine, else what stopped the row.
     """
     stepper = get_stepper(method)
+    kernel = stepper.family.ensemble_kernel
+    if kernel is None:
+        raise ValueError(f"ensembles run fixed-step methods, not {method!r}")
     Y = np.array(Y0, dtype=float, copy=True)
     N, m = Y.shape
     nsteps = max(1, int(round((t_end - t0) / dt)))
@@ -403,15 +529,14 @@ def ensemble(
     count = nsteps // stride
     out = np.full((N, count, m), np.nan)
     status = np.zeros(N, dtype=np.int64)
-    K, P = compiled.native().kernels, compiled.parameters  # never the interpreter's loops
-    if stepper.family == "composition":
-        kick, drift = stepper.kick_drift()
-        K.compose_ensemble_parallel(t0, Y, P, dt, nsteps, stride, kick, drift, out, status)
-    elif stepper.family == "gauss":
-        A, b, c, E = gauss_tableau(stepper.stages)
-        K.gauss_ensemble_parallel(t0, Y, P, dt, nsteps, stride, A, b, c, E, 1e-15, 50, out, status)
-    else:
-        raise ValueError(f"ensembles run composition or Gauss-Legendre methods, not {method!r}")
+    native = compiled.native()  # never the interpreter's loops
+    coef = stepper.family.coefficients(stepper, native, t0, Y[0], False)
+    clock = np.zeros(CLOCK_SIZE)
+    clock[Clock.T] = clock[Clock.T0] = t0
+    clock[Clock.H] = dt
+    clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
+    limits = (nsteps, stride)
+    getattr(native.kernels, kernel)(Y, clock, compiled.parameters, coef, limits, out, status)
     t = t0 + dt * stride * np.arange(1, count + 1)
     # rows that failed keep their last good sample instead of NaN
     for r in np.flatnonzero(status):

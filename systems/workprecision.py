@@ -23,7 +23,6 @@ import sympy
 
 from systems.expressions import as_expr
 from systems.integrators import STEPPERS, choose_method, get_stepper
-from systems.integrators.stepsize import default_step, fictitious_step
 from systems.simulation import stream
 
 KEPLER_SCENES = {"kepler_cartesian": "cartesian", "planetary_motion": "polar"}
@@ -97,35 +96,39 @@ class WorkPrecision:
         return path
 
 
+SWEEP_CANDIDATES = (
+    "leapfrog",
+    "yoshida4",
+    "yoshida6",
+    "yoshida8",
+    "implicit_midpoint",
+    "gauss_legendre4",
+    "gauss_legendre6",
+    "gauss_legendre4_tt",
+    "dop853",
+)
+"""The methods a sweep compares by default, where they apply (teaching methods and
+scipy's stiff solvers only on request)."""
+
+
 def default_methods(mechanics) -> list[str]:
-    """The automatic choice and the other methods that apply, cheapest families first."""
+    """The automatic choice first, then the other candidates that apply to ``mechanics``."""
     chosen, _ = choose_method(mechanics)
-    c = mechanics.classification
-    if not c.conservative or not c.hamiltonian_conserved:
-        names = ["dop853", "gauss_legendre4", "gauss_legendre6"]
-    elif c.separable:
-        names = ["leapfrog", "yoshida4", "yoshida6", "yoshida8", "gauss_legendre4", "dop853"]
-    else:
-        names = ["implicit_midpoint", "gauss_legendre4", "gauss_legendre6", "dop853"]
-        names += ["gauss_legendre4_tt"]
-    if chosen not in names:
-        names.insert(0, chosen)
-    return names
+    names = [m for m in SWEEP_CANDIDATES if STEPPERS[m].applies_to(mechanics) is None]
+    if STEPPERS["yoshida4"].applies_to(mechanics) is None:
+        names.remove("gauss_legendre4_tt")  # separable: the explicit methods say enough
+    return [chosen] + [m for m in names if m != chosen]
 
 
 def settings_for(compiled, method: str, y0: np.ndarray, t_end: float, levels: int) -> list:
-    """(setting name, values) of a sweep of ``method``: halving steps or decade tolerances."""
+    """(setting name, values) of a sweep of ``method``: halving steps from twice the
+    default step, or decade tolerances."""
     stepper = get_stepper(method)
-    if stepper.adaptive:
-        low = 1e-3 if stepper.family == "dop853" else 1e-3
-        high = 1e-13 if stepper.family == "dop853" else 1e-9
-        return "tol", list(np.logspace(math.log10(low), math.log10(high), levels))
-    if stepper.family == "logh":
-        base = fictitious_step(compiled, stepper, 0.0, y0, t_end)
-    else:
-        base = default_step(compiled, stepper, 0.0, y0, t_end)
-    name = "ds" if stepper.time_transformed else "dt"
-    return name, [base * 2.0 ** (1 - j) for j in range(levels)]
+    if stepper.setting == "tol":
+        high = 1e-13 if not stepper.stiff else 1e-9
+        return "tol", list(np.logspace(-3.0, math.log10(high), levels))
+    base = stepper.default_setting(compiled, 0.0, y0, t_end)
+    return stepper.setting, [base * 2.0 ** (1 - j) for j in range(levels)]
 
 
 # -- references -----------------------------------------------------------------------
@@ -195,7 +198,7 @@ MAX_REPEATS = 200
 
 
 def _timed_run(compiled, method, y0, t_end, setting, value, watch_energy, cancelled):
-    kwargs = {"dt": value} if setting in ("dt", "ds") else {"tol": value}
+    kwargs = {"tol": value} if setting == "tol" else {"dt": value}
     diagnostics = ("H",) if watch_energy else ()
     best, spent, repeats = math.inf, 0.0, 0
     # Repeat short runs until TIMING_BUDGET seconds are spent: the minimum is the least
@@ -206,7 +209,7 @@ def _timed_run(compiled, method, y0, t_end, setting, value, watch_energy, cancel
         last, worst = None, 0.0
         for block in stream(
             compiled, method=method, y0=y0, t_end=t_end, diagnostics=diagnostics,
-            energy_tolerance=math.inf, max_points=512, **kwargs,
+            energy_tolerance=None, max_points=512, **kwargs,
         ):  # fmt: skip
             last = block
             if watch_energy and len(block.t):
@@ -253,8 +256,10 @@ def sweep(
     mech = compiled.mechanics
     methods = list(methods) if methods else default_methods(mech)
     for name in methods:
-        get_stepper(name)
-    runnable = [m for m in methods if STEPPERS[m].wants <= compiled.wanted | {"rhs"}]
+        refusal = get_stepper(name).applies_to(mech)
+        if refusal is not None:
+            raise ValueError(refusal)
+    runnable = [m for m in methods if STEPPERS[m].wants <= compiled.wanted]
     y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
     y_ref, t_end, reference = reference_state(compiled, y0, t_end)
     watch = None

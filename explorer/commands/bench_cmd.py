@@ -61,10 +61,11 @@ def run(args: argparse.Namespace) -> int:
             check_method(mechanics, method)
     else:
         methods = default_methods(mechanics)
-    if any(STEPPERS[m].needs_separable for m in methods):
+    wants = set().union(*(STEPPERS[m].wants for m in methods))
+    if not wants <= compiled.wanted:
         from systems.compiled import compile_system
 
-        compiled = compile_system(mechanics, compiled.wanted | {"separable"})
+        compiled = compile_system(mechanics, compiled.wanted | wants)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
     if not t_end > 0:
         raise UserError("--t-end must be positive")

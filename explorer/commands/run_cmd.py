@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from explorer.commands.errors import UserError, user_errors
+from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -19,11 +20,47 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
     parser.add_argument("--t-end", type=float, default=None, help="end time (default: scene's)")
     parser.add_argument("--method", default=None, help="a stepper name (default: automatic)")
-    step = parser.add_mutually_exclusive_group()
-    step.add_argument("--dt", type=float, default=None, help="fixed step of fixed-step methods")
-    step.add_argument("--tol", type=float, default=None, help="tolerance of adaptive methods")
+    add_integration_options(parser)
     parser.add_argument("--out", default=None, help="write the trajectory to FILE.csv or .npz")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def add_integration_options(parser: argparse.ArgumentParser) -> None:
+    """--dt / --tol, --max-steps and --energy-tolerance, shared by run and export."""
+    step = parser.add_mutually_exclusive_group()
+    step.add_argument(
+        "--dt", type=float, default=None,
+        help="step of a fixed-step method (fictitious-time step of a time-transformed one)",
+    )  # fmt: skip
+    step.add_argument("--tol", type=float, default=None, help="tolerance of an adaptive method")
+    parser.add_argument(
+        "--max-steps", type=int, default=DEFAULT_MAX_STEPS,
+        help=f"step budget: stop with status 'budget' beyond it (default {DEFAULT_MAX_STEPS:.0e})",
+    )  # fmt: skip
+    parser.add_argument(
+        "--energy-tolerance", default=str(DEFAULT_ENERGY_TOLERANCE),
+        help="stop when the relative energy error exceeds this (a number, or 'off')",
+    )  # fmt: skip
+
+
+def integration_options(args: argparse.Namespace, method: str) -> dict:
+    """``stream`` keywords from the options of ``add_integration_options``, checked against
+    the method (``UserError``, exit 2, for a setting it does not take)."""
+    from systems.integrators import get_stepper
+    from systems.simulation import parse_energy_tolerance
+
+    problem = get_stepper(method).setting_error(args.dt, args.tol)
+    if problem:
+        raise UserError(problem)
+    if not args.max_steps > 0:
+        raise UserError(f"--max-steps must be a positive whole number, not {args.max_steps}")
+    try:
+        energy_tolerance = parse_energy_tolerance(args.energy_tolerance)
+    except ValueError as exc:
+        raise UserError(f"--energy-tolerance: {exc}") from None
+    return dict(
+        dt=args.dt, tol=args.tol, max_steps=args.max_steps, energy_tolerance=energy_tolerance
+    )
 
 
 def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
@@ -55,29 +92,17 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
 
 
 def check_method(mechanics, method: str) -> None:
-    """``UserError`` when ``method`` needs a structure the system lacks."""
+    """``UserError`` when ``method`` does not apply to the system (the registry says why)."""
     from systems.integrators import STEPPERS
 
-    stepper = STEPPERS[method]
-    c = mechanics.classification
-    if stepper.needs_separable and not c.separable:
-        raise UserError(
-            f"method {method!r} needs a separable Hamiltonian H = T(p) + V(q), and this "
-            "system's is not; try gauss_legendre4 or dop853"
-        )
-    if stepper.family == "logh" and (c.time_dependent or not c.hamiltonian_conserved):
-        raise UserError(
-            f"method {method!r} needs a conservative, time-independent system; try dop853"
-        )
+    refusal = STEPPERS[method].applies_to(mechanics)
+    if refusal is not None:
+        raise UserError(f"method {method!r} does not apply: {refusal}")
 
 
 def run(args: argparse.Namespace) -> int:
     from systems.simulation import precompile, stream
 
-    if args.dt is not None and not args.dt > 0:
-        raise UserError("--dt must be positive")
-    if args.tol is not None and not args.tol > 0:
-        raise UserError("--tol must be positive")
     if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
         raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
     start = time.perf_counter()
@@ -85,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
     if not t_end > 0:
         raise UserError("--t-end must be positive")
+    options = integration_options(args, method)
     y0 = compiled.initial_state()
     precompile(compiled, method, y0, dt=args.dt, tol=args.tol)
     compile_s = time.perf_counter() - start
@@ -92,9 +118,7 @@ def run(args: argparse.Namespace) -> int:
     ts, ys, Hs = [np.array([0.0])], [y0[None, :]], []
     last = None
     start = time.perf_counter()
-    for block in stream(
-        compiled, method=method, y0=y0, t_end=t_end, dt=args.dt, tol=args.tol, max_points=4096
-    ):
+    for block in stream(compiled, method=method, y0=y0, t_end=t_end, max_points=4096, **options):
         ts.append(block.t)
         ys.append(block.y)
         last = block
@@ -118,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
         "why": why,
         "steps": int(last.steps),
         "rhs_evaluations": int(last.rhs_evaluations),
+        "setting": {last.setting: last.setting_value} if last.setting else {},
         "wall_s": wall_s,
         "compile_s": compile_s,
         "t_end": float(t[-1]),

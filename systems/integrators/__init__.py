@@ -1,10 +1,13 @@
-"""Steppers: a registry by name, their compiled loops, and the automatic choice."""
+"""Integration methods: a registry of families and methods, their runners and the choice."""
 
 from systems.integrators.choice import choose_method, stiffness_ratio
-from systems.integrators.registry import STEPPERS, Stepper, gauss_tableau, get_stepper
+from systems.integrators.registry import FAMILIES, STEPPERS, Family, Stepper, get_stepper
+from systems.integrators.tableaux import gauss_tableau
 
 __all__ = [
+    "FAMILIES",
     "STEPPERS",
+    "Family",
     "Stepper",
     "choose_method",
     "gauss_tableau",

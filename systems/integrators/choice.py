@@ -4,7 +4,7 @@ Rules, first match wins:
 
 1. stiff (see ``stiffness_ratio``): with decaying fast modes -> ``radau``; with purely
    oscillatory fast modes in a conservative system (a stiff spring) ->
-   ``gauss_legendre4`` with a step that resolves the fastest mode, since an L-stable
+   ``gauss_legendre6`` with a step that resolves the fastest mode, since an L-stable
    method must resolve an excited oscillation too, at far higher cost per step;
 2. not conservative (dissipation, driving forces, explicitly time-dependent potential)
    or H not conserved -> ``dop853``;
@@ -12,8 +12,12 @@ Rules, first match wins:
    denominator of V, e.g. -k/r, and V < 0 at the initial state): separable ->
    ``logh_yoshida6``; not separable (Kepler in polar coordinates) -> ``dop853``, whose
    adaptive steps follow close approaches that a fixed step cannot;
-4. separable -> ``yoshida4``;
-5. otherwise (conservative, H = H(q, p) not separable) -> ``gauss_legendre4``.
+4. separable -> ``yoshida8``;
+5. otherwise (conservative, H = H(q, p) not separable) -> ``gauss_legendre6``.
+
+Conservative choices are high order because the default step (``stepsize``) aims at a
+relative energy error of ``stepsize.ENERGY_TARGET`` (1e-10) over a scene's run, which
+low orders reach only at many times the cost.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import numpy as np
 import sympy
 
 from systems.expressions import as_expr
-from systems.integrators.stepsize import jacobian
+from systems.integrators.stepsize import DEFAULT_TOL, ENERGY_TARGET, jacobian
 
 STIFF_RATIO = 100.0
 """Stiff when the fastest rate of the linearisation exceeds the slowest by this factor."""
@@ -110,20 +114,26 @@ def _potential(mechanics):
     return as_expr(mechanics.hamiltonian).xreplace(dict.fromkeys(mechanics.p, sympy.S.Zero))
 
 
+def potential_at_start(mechanics) -> float | None:
+    """V at the scene's initial state (``_potential``), or None where it is not a number."""
+    params, y0 = initial_point(mechanics)
+    n = mechanics.n
+    subs = {**params, mechanics.t: 0.0} | dict(zip(mechanics.q, y0[:n], strict=True))
+    try:
+        value = _number(_potential(mechanics), subs)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return None
+    return value if np.isfinite(value) else None
+
+
 def _singular_attractive(mechanics) -> bool:
     """V has a coordinate expression in a denominator and is negative at the start."""
     V = _potential(mechanics)
     coords = set(mechanics.q)
     if not any(b.free_symbols & coords for b in singular_terms(V)):
         return False
-    params, y0 = initial_point(mechanics)
-    n = mechanics.n
-    subs = {**params, mechanics.t: 0.0} | dict(zip(mechanics.q, y0[:n], strict=True))
-    try:
-        value = _number(V, subs)
-    except (TypeError, ValueError):
-        return False
-    return value < 0.0
+    value = potential_at_start(mechanics)
+    return value is not None and value < 0.0
 
 
 def choose_method(mechanics) -> tuple[str, str]:
@@ -153,11 +163,17 @@ def _remembered_choice(mechanics) -> tuple[str, str]:
     import sys
 
     from systems import derivation_cache
-    from systems.integrators import stepsize
+    from systems.integrators import registry, stepsize, tableaux
 
-    tag = "method choice " + derivation_cache.code_hash(sys.modules[__name__], stepsize)
+    tag = "method choice " + derivation_cache.code_hash(
+        sys.modules[__name__], stepsize, registry, tableaux
+    )
     text = derivation_cache.remembered(mechanics.scene, tag, lambda: "\n".join(_choose(mechanics)))
     method, reason = text.split("\n", 1)
+    from systems.integrators.registry import get_stepper
+
+    if get_stepper(method).applies_to(mechanics) is not None:  # a stale or damaged cache entry
+        method, reason = _choose(mechanics)
     return method, reason
 
 
@@ -169,7 +185,7 @@ def _choose(mechanics) -> tuple[str, str]:
         fast = eigenvalues[np.abs(eigenvalues) > 0.5 * np.abs(eigenvalues).max()]
         oscillatory = np.all(np.abs(fast.real) <= 0.01 * np.abs(fast))
         if oscillatory and c.conservative and c.hamiltonian_conserved:
-            return "gauss_legendre4", (
+            return "gauss_legendre6", (
                 f"stiff (time scales differ by {ratio:.3g}) but the fast modes oscillate: "
                 "implicit symplectic Gauss-Legendre with steps that resolve them"
             )
@@ -179,7 +195,10 @@ def _choose(mechanics) -> tuple[str, str]:
         )
     if not c.conservative or not c.hamiltonian_conserved:
         what = "dissipative or driven" if not c.conservative else "H depends on time"
-        return "dop853", f"{what}: no energy to preserve, so adaptive 8th-order Runge-Kutta"
+        return "dop853", (
+            f"{what}: no energy to preserve, so adaptive 8th-order Runge-Kutta "
+            f"(tolerance {DEFAULT_TOL:g})"
+        )
     singular = not c.time_dependent and _singular_attractive(mechanics)
     if singular and c.separable:
         return "logh_yoshida6", (
@@ -189,10 +208,12 @@ def _choose(mechanics) -> tuple[str, str]:
     if singular:
         return "dop853", (
             "a singular attractive potential with H not separable: adaptive 8th-order "
-            "steps shrink at close approaches, where fixed steps would fail"
+            "steps shrink at close approaches, where fixed steps would fail "
+            f"(tolerance {DEFAULT_TOL:g})"
         )
+    aim = f"steps aimed at a relative energy error of {ENERGY_TARGET:g}"
     if c.separable:
-        return "yoshida4", "separable H = T(p) + V(q): explicit symplectic, 4th order"
-    return "gauss_legendre4", (
-        "conservative but H is not separable: implicit symplectic Gauss-Legendre, 4th order"
+        return "yoshida8", f"separable H = T(p) + V(q): explicit symplectic, 8th order, {aim}"
+    return "gauss_legendre6", (
+        f"conservative but H is not separable: implicit symplectic Gauss-Legendre, 6th order, {aim}"
     )

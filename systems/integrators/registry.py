@@ -1,224 +1,456 @@
-"""The steppers by name, their tableaux, and the automatic choice of one.
+"""The integration methods by name, grouped in families: the one place that says what a
+method is, what it needs and what it takes.
 
-Like scipy's ``METHODS``: each ``Stepper`` declares its order, whether it is symplectic,
-and what structure of system it needs. The stepping loops themselves are the compiled
-templates of ``systems.integrators.kernels``; this module only holds their coefficients.
+Like scipy's ``METHODS``. A ``Family`` declares its runner, its compiled kernel (the
+``X_step`` of ``systems.integrators.kernels``, driven by ``X_run`` and, for ensembles,
+``X_ensemble_parallel``), its coefficients, the setting it takes (``dt``, ``ds`` or
+``tol``) and the rule for its default, what it needs compiled, and ``applies_to``: None or
+the reason it cannot integrate a given system without dropping part of it. A ``Stepper``
+is one method of a family (order, weights or stages). The automatic choice, the command
+line, the window's method list, ensembles and work-precision sweeps ask this module and
+nothing else.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cache
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
-FAMILIES = ("composition", "gauss", "gauss_tt", "logh", "dop853", "scipy")
+from systems.integrators import runners, stepsize
+from systems.integrators.tableaux import (
+    EXPLICIT_TABLEAUX,
+    LEAPFROG,
+    TRIPLE_JUMP,
+    YOSHIDA6,
+    YOSHIDA8,
+    gauss_tableau,
+    kick_drift,
+)
+
+SETTINGS = {"dt": "a time step", "ds": "a fictitious-time step", "tol": "a tolerance"}
+GAUSS_TOL = 1e-15
+GAUSS_MAXIT = 50
+
+
+@dataclass(frozen=True)
+class Family:
+    """A kind of method: everything that is the same for all its members.
+
+    Attributes
+    ----------
+    kernel : str or None
+        Prefix of the compiled step and drivers (``{kernel}_run``); None for scipy's.
+    setting : {"dt", "ds", "tol"}
+        What the user sets: a fixed step, a fictitious-time step, or a tolerance.
+    runner : type
+        A runner class of ``systems.integrators.runners``.
+    coefficients : callable(stepper, compiled, t0, y0, compensated) -> tuple
+        The kernel's ``coef`` tuple.
+    default_setting : callable(compiled, stepper, t0, y0, t_end) -> float
+    applies : callable(mechanics, stepper) -> str or None
+    wants : frozenset of str
+        What ``compile_system`` must provide besides ``rhs``.
+    """
+
+    name: str
+    description: str
+    kernel: str | None
+    setting: str
+    runner: type
+    coefficients: Callable | None
+    default_setting: Callable
+    applies: Callable
+    wants: frozenset[str] = frozenset()
+    symplectic: bool = False
+    needs_separable: bool = False
+    time_transformed: bool = False
+    adaptive: bool = False
+    ensemble: bool = False
+    teaching: bool = False
+
+    @property
+    def run_kernel(self) -> str | None:
+        return None if self.kernel is None else f"{self.kernel}_run"
+
+    @property
+    def ensemble_kernel(self) -> str | None:
+        return f"{self.kernel}_ensemble_parallel" if self.ensemble else None
 
 
 @dataclass(frozen=True)
 class Stepper:
-    """One integration method.
+    """One method of a family.
 
     Attributes
     ----------
-    name, description : str
     order : int
-        Global order of accuracy (error ~ dt**order for fixed steps).
-    symplectic : bool
-    needs_separable : bool
-        Needs H = T(p) + V(q, t) (the ``separable`` kernels).
-    adaptive : bool
-        Chooses its own steps from a tolerance.
-    time_transformed : bool
-        Steps in a fictitious time (step sizes in t follow the dynamics).
-    family : str
-        Which compiled loop runs it: one of ``FAMILIES``.
+        Global order of accuracy (error ~ step**order).
     weights : tuple of float
-        Composition weights of the leapfrog (composition and logh families).
+        Composition weights of the leapfrog (composition and log-H families).
     stages : int
         Stages of a Gauss-Legendre method.
+    finisher : str
+        Time-transformed methods: the fixed-step method that lands on the end time.
     """
 
     name: str
     order: int
-    symplectic: bool
-    needs_separable: bool
-    adaptive: bool
-    time_transformed: bool
+    family: Family
     description: str
-    family: str
     weights: tuple[float, ...] = (1.0,)
     stages: int = 0
     stiff: bool = False
-    wants: frozenset[str] = field(default_factory=frozenset)
+    finisher: str = ""
+
+    symplectic = property(lambda self: self.family.symplectic)
+    needs_separable = property(lambda self: self.family.needs_separable)
+    adaptive = property(lambda self: self.family.adaptive)
+    time_transformed = property(lambda self: self.family.time_transformed)
+    setting = property(lambda self: self.family.setting)
+    teaching = property(lambda self: self.family.teaching)
+
+    @property
+    def wants(self) -> frozenset[str]:
+        return self.family.wants | {"rhs"}
 
     def kick_drift(self) -> tuple[np.ndarray, np.ndarray]:
-        """Merged stage coefficients of the composed kick-drift-kick leapfrog.
+        """Merged kick and drift coefficients of the composition (see ``tableaux``)."""
+        return kick_drift(self.weights)
 
-        Returns
-        -------
-        kick : ndarray, shape (s + 1,)
-        drift : ndarray, shape (s,)
-        """
-        w = np.array(self.weights, dtype=float)
-        kick = np.empty(len(w) + 1)
-        kick[0] = w[0] / 2
-        kick[1:-1] = (w[:-1] + w[1:]) / 2
-        kick[-1] = w[-1] / 2
-        return kick, w.copy()
+    def applies_to(self, mechanics) -> str | None:
+        """None if this method integrates ``mechanics`` as derived, else why it cannot."""
+        return self.family.applies(mechanics, self)
+
+    def default_setting(self, compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
+        """The step or tolerance used when none is given, for a run from ``(t0, y0)``."""
+        return self.family.default_setting(compiled, self, t0, y0, t_end)
+
+    def setting_error(self, dt: float | None = None, tol: float | None = None) -> str | None:
+        """None if the given settings are the kind this method takes, else what it takes."""
+        takes = SETTINGS[self.setting]
+        if dt is not None and self.setting == "tol":
+            return f"{self.name} is adaptive: it takes {takes} (--tol), not a step (--dt)"
+        if tol is not None and self.setting != "tol":
+            return f"{self.name} takes {takes} (--dt), not a tolerance (--tol)"
+        for name, value in (("dt", dt), ("tol", tol)):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                return f"--{name} must be a positive finite number, not {value!r}"
+        return None
 
 
-def _symmetric(outer_to_inner: tuple[float, ...]) -> tuple[float, ...]:
-    """Weights ``(w_m, ..., w_1)`` -> the palindrome with ``w_0 = 1 - 2 sum`` in the middle."""
-    w0 = 1.0 - 2.0 * sum(outer_to_inner)
-    return (*outer_to_inner, w0, *reversed(outer_to_inner))
+# -- applicability ---------------------------------------------------------------------------
 
 
-_CBRT2 = 2.0 ** (1.0 / 3.0)
-TRIPLE_JUMP = _symmetric((1.0 / (2.0 - _CBRT2),))
-# Yoshida (1990), Phys. Lett. A 150, 262: order 6 solution A and order 8 solution D,
-# listed as (w_m, ..., w_1).
-YOSHIDA6 = _symmetric((0.784513610477560, 0.235573213359357, -1.17767998417887))
-YOSHIDA8 = _symmetric(
-    (
-        0.914844246229740,
-        0.253693336566229,
-        -1.44485223686048,
-        -0.158240635368243,
-        1.93813913762276,
-        -1.96061023297549,
-        0.102799849391985,
+def enabled_effects(mechanics) -> list[str]:
+    """The scene's effects that are on and not identically zero, in words."""
+    forces = getattr(mechanics, "generalized_forces", ())
+    if all(_vanishes(f) for f in forces):
+        return []
+    words = []
+    for key in mechanics.scene.enabled_effects():
+        if key == "dissipation":
+            words.append("dissipation (the Rayleigh function)")
+        else:
+            words.append(f"driving force on {key.split('.', 1)[1]}")
+    return words
+
+
+def _vanishes(expr) -> bool:
+    from systems.expressions import as_expr
+
+    return as_expr(expr) == 0
+
+
+def _applies_always(mechanics, stepper: Stepper) -> str | None:
+    return None
+
+
+def _splitting_applies(mechanics, stepper: Stepper) -> str | None:
+    c = mechanics.classification
+    if not c.separable:
+        return (
+            f"{stepper.name} needs a separable Hamiltonian H = T(p) + V(q, t), and this "
+            "system's is not; use gauss_legendre6 or dop853"
+        )
+    effects = enabled_effects(mechanics)
+    if effects:
+        return (
+            f"{stepper.name} would drop the {' and the '.join(effects)}: its splitting "
+            "steps only T(p) and V(q, t); use dop853 or gauss_legendre6, which include it, "
+            "or switch the effect off"
+        )
+    return None
+
+
+def _logh_applies(mechanics, stepper: Stepper) -> str | None:
+    reason = _splitting_applies(mechanics, stepper)
+    if reason:
+        return reason
+    c = mechanics.classification
+    if c.time_dependent or not c.hamiltonian_conserved:
+        return f"{stepper.name} needs an autonomous system with H conserved; use dop853"
+    from systems.integrators.choice import potential_at_start
+
+    value = potential_at_start(mechanics)
+    if value is None or not value < 0.0:
+        shown = "undefined" if value is None else f"{value:.4g}"
+        return (
+            f"{stepper.name} steps in a time scaled by 1/(-V), so it needs V < 0 along the "
+            f"orbit (an attractive singular potential such as -k/r); V = {shown} at the "
+            "initial state. Use yoshida6 or dop853"
+        )
+    return None
+
+
+# -- coefficients ----------------------------------------------------------------------------
+
+
+def _composition_coef(stepper, compiled, t0, y0, compensated):
+    kick, drift = stepper.kick_drift()
+    return (kick, drift, bool(compensated))
+
+
+def _logh_coef(stepper, compiled, t0, y0, compensated):
+    kick, drift = stepper.kick_drift()
+    energy = float(
+        compiled.kernels.hamiltonian(float(t0), np.asarray(y0, float), compiled.parameters)
     )
-)
+    return (kick, drift, energy, bool(compensated))
 
 
-@cache
-def gauss_tableau(stages: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Gauss-Legendre collocation tableau and its stage extrapolation matrix.
-
-    Returns
-    -------
-    A : ndarray, shape (s, s)
-    b, c : ndarray, shape (s,)
-    E : ndarray, shape (s, s)
-        ``Z_next = E @ Z``: the collocation polynomial of a step (through 0 at node 0 and
-        the increments ``Z`` at the nodes ``c``), continued to ``1 + c`` and taken
-        relative to its value at 1. This is the starting guess of the next step.
-    """
-    x, _ = np.polynomial.legendre.leggauss(stages)
-    c = (x + 1.0) / 2.0
-    nodes = np.concatenate([[0.0], c])
-    s = stages
-    A = np.empty((s, s))
-    b = np.empty(s)
-    E = np.empty((s, s))
-    P = np.polynomial.Polynomial
-    for j in range(s):
-        # Lagrange basis on the nodes c (for A, b) and on (0, c) (for the extrapolation)
-        others = np.delete(c, j)
-        ell = (P.fromroots(others) if len(others) else P([1.0])) / np.prod(c[j] - others)
-        integral = ell.integ()
-        b[j] = integral(1.0) - integral(0.0)
-        A[:, j] = integral(c) - integral(0.0)
-        others0 = np.delete(nodes, j + 1)
-        L = P.fromroots(others0) / np.prod(c[j] - others0)
-        E[:, j] = L(1.0 + c) - L(1.0)
-    return A, b, c, E
+def _gauss_coef(stepper, compiled, t0, y0, compensated):
+    A, b, c, E = gauss_tableau(stepper.stages)
+    return (A, b, c, E, GAUSS_TOL, GAUSS_MAXIT, bool(compensated))
 
 
-def _stepper(name, order, family, description, **kw) -> Stepper:
-    symplectic = family in ("composition", "gauss", "logh")
-    needs_separable = family in ("composition", "logh")
-    wants = {"rhs"}
-    if needs_separable:
-        wants = {"separable"}
-    if family == "logh":
-        wants = {"separable", "rhs"}
-    return Stepper(
-        name=name,
-        order=order,
-        symplectic=symplectic,
-        needs_separable=needs_separable,
-        adaptive=family in ("dop853", "scipy"),
-        time_transformed=family in ("logh", "gauss_tt"),
-        description=description,
-        family=family,
-        wants=frozenset(wants),
-        **kw,
+def _gauss_tt_coef(stepper, compiled, t0, y0, compensated):
+    A, b, c, E = gauss_tableau(stepper.stages)
+    f0 = float(np.linalg.norm(compiled.rhs(t0, y0)))
+    return (A, b, c, E, GAUSS_TOL, GAUSS_MAXIT, f0 if f0 > 0.0 else 1.0, runners.SUNDMAN_POWER)
+
+
+def _explicit_coef(stepper, compiled, t0, y0, compensated):
+    A, b, c = EXPLICIT_TABLEAUX[stepper.name]
+    return (A, b, c, bool(compensated))
+
+
+def _dop853_coef(stepper, compiled, t0, y0, compensated):
+    from scipy.integrate._ivp import dop853_coefficients as dc
+
+    return (
+        np.ascontiguousarray(dc.A[:12, :12]),
+        dc.B.copy(),
+        np.ascontiguousarray(dc.C[:12]),
+        dc.E3.copy(),
+        dc.E5.copy(),
     )
+
+
+def _adaptive_tol(compiled, stepper, t0, y0, t_end):
+    return stepsize.STIFF_TOL if stepper.stiff else stepsize.DEFAULT_TOL
+
+
+FAMILIES: dict[str, Family] = {
+    f.name: f
+    for f in (
+        Family(
+            name="runge_kutta",
+            description="explicit Runge-Kutta, fixed step: not symplectic (for teaching)",
+            kernel="erk",
+            setting="dt",
+            runner=runners.FixedStepRunner,
+            coefficients=_explicit_coef,
+            default_setting=stepsize.default_step,
+            applies=_applies_always,
+            ensemble=True,
+            teaching=True,
+        ),
+        Family(
+            name="composition",
+            description="explicit symplectic splitting of H = T(p) + V(q, t)",
+            kernel="compose",
+            setting="dt",
+            runner=runners.FixedStepRunner,
+            coefficients=_composition_coef,
+            default_setting=stepsize.default_step,
+            applies=_splitting_applies,
+            wants=frozenset({"separable"}),
+            symplectic=True,
+            needs_separable=True,
+            ensemble=True,
+        ),
+        Family(
+            name="gauss",
+            description="implicit symplectic Gauss-Legendre collocation, any H and effects",
+            kernel="gauss",
+            setting="dt",
+            runner=runners.FixedStepRunner,
+            coefficients=_gauss_coef,
+            default_setting=stepsize.default_step,
+            applies=_applies_always,
+            symplectic=True,
+            ensemble=True,
+        ),
+        Family(
+            name="logh",
+            description="logarithmic-Hamiltonian time-transformed splitting (Mikkola-Tanikawa)",
+            kernel="logh",
+            setting="ds",
+            runner=runners.TimeTransformedRunner,
+            coefficients=_logh_coef,
+            default_setting=stepsize.fictitious_step,
+            applies=_logh_applies,
+            wants=frozenset({"separable", "hamiltonian"}),
+            symplectic=True,
+            needs_separable=True,
+            time_transformed=True,
+        ),
+        Family(
+            name="gauss_tt",
+            description="Gauss-Legendre on the Sundman-transformed system (symmetric)",
+            kernel="gauss_tt",
+            setting="ds",
+            runner=runners.TimeTransformedRunner,
+            coefficients=_gauss_tt_coef,
+            default_setting=stepsize.time_transformed_step,
+            applies=_applies_always,
+            time_transformed=True,
+        ),
+        Family(
+            name="dop853",
+            description="compiled adaptive Runge-Kutta",
+            kernel="dop853",
+            setting="tol",
+            runner=runners.AdaptiveRunner,
+            coefficients=_dop853_coef,
+            default_setting=_adaptive_tol,
+            applies=_applies_always,
+            adaptive=True,
+        ),
+        Family(
+            name="scipy",
+            description="scipy's implicit solvers for stiff systems",
+            kernel=None,
+            setting="tol",
+            runner=runners.ScipyRunner,
+            coefficients=None,
+            default_setting=_adaptive_tol,
+            applies=_applies_always,
+            adaptive=True,
+        ),
+    )
+}
+
+
+def _method(name, order, family, description, **kw) -> Stepper:
+    return Stepper(name=name, order=order, family=FAMILIES[family], description=description, **kw)
 
 
 STEPPERS: dict[str, Stepper] = {
     s.name: s
     for s in (
-        _stepper("leapfrog", 2, "composition", "Störmer-Verlet (kick-drift-kick) leapfrog"),
-        _stepper(
+        _method("euler", 1, "runge_kutta", "explicit Euler (first order, not symplectic)"),
+        _method("rk4", 4, "runge_kutta", "classical 4th-order Runge-Kutta (not symplectic)"),
+        _method(
+            "leapfrog",
+            2,
+            "composition",
+            "Störmer-Verlet (kick-drift-kick) leapfrog",
+            weights=LEAPFROG,
+        ),
+        _method(
             "yoshida4",
             4,
             "composition",
             "Yoshida/Suzuki triple-jump leapfrog composition",
             weights=TRIPLE_JUMP,
         ),
-        _stepper("yoshida6", 6, "composition", "Yoshida 7-stage composition (A)", weights=YOSHIDA6),
-        _stepper(
-            "yoshida8", 8, "composition", "Yoshida 15-stage composition (D)", weights=YOSHIDA8
-        ),
-        _stepper("implicit_midpoint", 2, "gauss", "implicit midpoint rule", stages=1),
-        _stepper("gauss_legendre4", 4, "gauss", "2-stage Gauss-Legendre collocation", stages=2),
-        _stepper("gauss_legendre6", 6, "gauss", "3-stage Gauss-Legendre collocation", stages=3),
-        _stepper(
+        _method("yoshida6", 6, "composition", "Yoshida 7-stage composition (A)", weights=YOSHIDA6),
+        _method("yoshida8", 8, "composition", "Yoshida 15-stage composition (D)", weights=YOSHIDA8),
+        _method("implicit_midpoint", 2, "gauss", "implicit midpoint rule", stages=1),
+        _method("gauss_legendre4", 4, "gauss", "2-stage Gauss-Legendre collocation", stages=2),
+        _method("gauss_legendre6", 6, "gauss", "3-stage Gauss-Legendre collocation", stages=3),
+        _method(
             "logh_leapfrog",
             2,
             "logh",
             "logarithmic-Hamiltonian time-transformed leapfrog (Mikkola-Tanikawa)",
+            weights=LEAPFROG,
+            finisher="yoshida8",
         ),
-        _stepper(
+        _method(
             "logh_yoshida4",
             4,
             "logh",
             "logarithmic-Hamiltonian leapfrog, triple jump",
             weights=TRIPLE_JUMP,
+            finisher="yoshida8",
         ),
-        _stepper(
+        _method(
             "logh_yoshida6",
             6,
             "logh",
             "logarithmic-Hamiltonian leapfrog, Yoshida order 6",
             weights=YOSHIDA6,
+            finisher="yoshida8",
         ),
-        _stepper(
+        _method(
             "logh_yoshida8",
             8,
             "logh",
             "logarithmic-Hamiltonian leapfrog, Yoshida order 8",
             weights=YOSHIDA8,
+            finisher="yoshida8",
         ),
-        _stepper(
+        _method(
             "gauss_legendre4_tt",
             4,
             "gauss_tt",
             "2-stage Gauss-Legendre on the Sundman-transformed system (steps follow |dy/dt|)",
             stages=2,
+            finisher="gauss_legendre4",
         ),
-        _stepper(
+        _method(
             "gauss_legendre6_tt",
             6,
             "gauss_tt",
             "3-stage Gauss-Legendre on the Sundman-transformed system (steps follow |dy/dt|)",
             stages=3,
+            finisher="gauss_legendre6",
         ),
-        _stepper("dop853", 8, "dop853", "compiled adaptive Dormand-Prince 8(5,3)"),
-        _stepper("radau", 5, "scipy", "scipy Radau IIA (implicit, stiff)", stiff=True),
-        _stepper("bdf", 5, "scipy", "scipy BDF (implicit multistep, stiff)", stiff=True),
-        _stepper("lsoda", 12, "scipy", "scipy LSODA (switches stiff/non-stiff)", stiff=True),
+        _method("dop853", 8, "dop853", "compiled adaptive Dormand-Prince 8(5,3)"),
+        _method("radau", 5, "scipy", "scipy Radau IIA (implicit, stiff)", stiff=True),
+        _method("bdf", 5, "scipy", "scipy BDF (implicit multistep, stiff)", stiff=True),
+        _method("lsoda", 12, "scipy", "scipy LSODA (switches stiff/non-stiff)", stiff=True),
     )
 }
 
 
 def get_stepper(name: str) -> Stepper:
-    """The stepper called ``name``; ``KeyError`` lists the known names."""
+    """The method called ``name``; ``KeyError`` lists the known names."""
     try:
         return STEPPERS[name]
     except KeyError:
         known = ", ".join(STEPPERS)
         raise KeyError(f"unknown method {name!r}; choose from {known}") from None
+
+
+def applicable(mechanics) -> dict[str, str | None]:
+    """Every method by name -> None if it applies to ``mechanics``, else the reason."""
+    return {name: stepper.applies_to(mechanics) for name, stepper in STEPPERS.items()}
+
+
+def make_runner(compiled, stepper: Stepper, y0, t0, t_end, value, section, compensated=True):
+    """The runner of ``stepper``'s family for one trajectory.
+
+    ``value`` is the step or tolerance (None: the family's default rule).
+    """
+    if value is None:
+        value = stepper.default_setting(compiled, t0, y0, t_end)
+    finisher = STEPPERS[stepper.finisher] if stepper.finisher else None
+    return stepper.family.runner(
+        compiled, stepper, y0, t0, t_end, value, section, compensated, finisher
+    )

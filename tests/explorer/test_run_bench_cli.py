@@ -24,6 +24,7 @@ JSON_KEYS = {
     "t_end",
     "final",
     "max_rel_energy_error",
+    "setting",
     "status",
     "message",
 }
@@ -41,7 +42,7 @@ def test_run_json_report_and_csv(tmp_path, capsys):
     assert set(report) == JSON_KEYS
     assert report["status"] == "ok" and report["message"] == ""
     assert report["t_end"] == 3.0
-    assert report["method"] == "yoshida4" and "separable" in report["why"]
+    assert report["method"] == "yoshida8" and "separable" in report["why"]
     assert report["steps"] > 0 and report["rhs_evaluations"] >= report["steps"]
     assert report["wall_s"] >= 0 and report["compile_s"] > 0
     final = report["final"]
@@ -96,12 +97,23 @@ def test_run_stops_with_a_problem_status_and_exit_code(capsys):
 @pytest.mark.parametrize(
     "args, fragment",
     [
-        (["run", "simple_pendulum", "--method", "euler"], "unknown method"),
+        (["run", "simple_pendulum", "--method", "euler_maruyama"], "unknown method"),
         (["run", "planetary_motion", "--method", "leapfrog"], "separable"),
-        (["run", "simple_pendulum", "--dt", "-1"], "--dt must be positive"),
+        (["run", "simple_pendulum", "--dt", "-1"], "--dt must be a positive finite number"),
+        (["run", "simple_pendulum", "--dt", "inf"], "--dt must be a positive finite number"),
         (["run", "simple_pendulum", "--out", "x.txt"], ".csv or .npz"),
         (["bench", "simple_pendulum", "--out", "x.jpg"], ".png or .svg"),
-        (["bench", "simple_pendulum", "--methods", "rk4"], "unknown method"),
+        (["bench", "simple_pendulum", "--methods", "rk5"], "unknown method"),
+        # a method never silently drops an effect: refused, naming the effect and a method
+        (["run", "damped_pendulum", "--method", "leapfrog"], "drop the dissipation"),
+        (["run", "driven_damped_pendulum", "--method", "yoshida4"], "driving force on theta"),
+        (["bench", "damped_pendulum", "--methods", "yoshida6"], "use dop853"),
+        # settings that mean what they say
+        (["run", "damped_pendulum", "--dt", "0.01"], "dop853 is adaptive: it takes a tolerance"),
+        (["run", "simple_pendulum", "--tol", "1e-8"], "not a tolerance"),
+        (["run", "harmonic_oscillator", "--method", "logh_leapfrog"], "needs V < 0"),
+        (["run", "simple_pendulum", "--energy-tolerance", "abc"], "--energy-tolerance"),
+        (["run", "simple_pendulum", "--max-steps", "0"], "--max-steps"),
     ],
 )
 def test_user_errors(args, fragment, capsys):
@@ -138,3 +150,24 @@ def test_bench_writes_csv_and_figures(tmp_path, capsys):
     assert main([*args, "--levels", "2", "--out", str(svg)]) == 0
     text = svg.read_text()
     assert text.startswith("<?xml") and "<path" in text
+
+
+def test_a_run_over_its_step_budget_stops_with_status_budget(capsys):
+    args = ["run", "simple_pendulum", "--t-end", "1000", "--dt", "1e-6", "--max-steps", "1000"]
+    code, report = run_json(capsys, *args[1:])
+    assert code == 1 and report["status"] == "budget"
+    assert "budget" in report["message"] and report["steps"] == 0  # refused before running
+    code, report = run_json(capsys, "planetary_motion", "--t-end", "100", "--max-steps", "50")
+    assert code == 1 and report["status"] == "budget" and report["steps"] == 50
+
+
+def test_energy_guard_off_shows_leapfrog_bounded_and_euler_growing(capsys):
+    # the classic demonstration: at a large step leapfrog's energy error stays bounded,
+    # explicit Euler's grows without bound
+    common = ["--t-end", "200", "--dt", "0.2", "--energy-tolerance", "off"]
+    code, leap = run_json(capsys, "simple_pendulum", "--method", "leapfrog", *common)
+    assert code == 0 and leap["status"] == "ok" and 1e-4 < leap["max_rel_energy_error"] < 0.2
+    code, euler = run_json(capsys, "simple_pendulum", "--method", "euler", *common)
+    assert code == 0 and euler["max_rel_energy_error"] > 10 * leap["max_rel_energy_error"]
+    code, guarded = run_json(capsys, "simple_pendulum", "--method", "euler", "--dt", "0.2")
+    assert code == 1 and guarded["status"] == "energy_error"

@@ -24,25 +24,34 @@ class FakeBlock:
     method: str = "fake"
 
 
-def fake_stream(points_per_block: int = 500):
-    """A stand-in for ``systems.simulation.stream``: uniform motion, many points a block."""
+def fake_runs(points_per_block: int = 500):
+    """A stand-in for ``systems.simulation.Run``: uniform motion, many points a block."""
     calls = []
 
-    def stream(compiled, *, y0, t0, t_end, dt=None, block_seconds=0.03, **options):
-        calls.append(dict(t0=t0, t_end=t_end, dt=dt, **options))
-        t = t0
-        while t < t_end:
-            ts = np.linspace(t, min(t + 1.0, t_end), points_per_block + 1)[1:]
+    class FakeRun:
+        def __init__(self, compiled, *, y0, t0, t_end, **options):
+            calls.append(dict(t0=t0, t_end=t_end, **options))
+            self.t, self.t_end, self.finished = t0, t_end, False
+            self.untils = []
+
+        def advance(self, seconds=0.03, until=math.inf):
+            self.untils.append((self.t, until))
+            end = min(self.t + 1.0, self.t_end, until)
+            ts = np.linspace(self.t, end, points_per_block + 1)[1:]
             ys = np.column_stack([ts, np.ones_like(ts)])
-            t = ts[-1]
-            yield FakeBlock(ts, ys, steps=len(ts), status="ok" if t >= t_end else "running")
+            self.t = ts[-1]
+            self.finished = self.t >= self.t_end
+            runs.append(self)
+            return FakeBlock(ts, ys, steps=len(ts), status="ok" if self.finished else "running")
 
-    stream.calls = calls
-    return stream
+    runs: list = []
+    FakeRun.calls = calls
+    FakeRun.runs = runs
+    return FakeRun
 
 
-def run_worker(qtbot, settings, stream, until, timeout=5000):
-    worker = SimulationWorker(None, settings, stream=stream)
+def run_worker(qtbot, settings, runs, until, timeout=5000):
+    worker = SimulationWorker(None, settings, runs=runs)
     frames = []
     worker.blocks_ready.connect(frames.append)
     worker.add_trajectory(0, np.zeros(2))
@@ -57,9 +66,9 @@ def run_worker(qtbot, settings, stream, until, timeout=5000):
 
 
 def test_one_signal_per_frame_carries_every_point(qtbot):
-    stream = fake_stream(points_per_block=500)
+    runs = fake_runs(points_per_block=500)
     settings = RunSettings(speed=math.inf, t_end=20.0)
-    worker, frames = run_worker(qtbot, settings, stream, lambda f: len(f) >= 5)
+    worker, frames = run_worker(qtbot, settings, runs, lambda f: len(f) >= 5)
     points = sum(len(block.t) for frame in frames for _, block in frame.blocks)
     assert points >= 5 * 500
     assert len(frames) == worker.frames <= points / 500
@@ -67,16 +76,36 @@ def test_one_signal_per_frame_carries_every_point(qtbot):
 
 
 def test_paced_frames_advance_by_speed_times_frame_time(qtbot):
-    stream = fake_stream()
+    runs = fake_runs()
     settings = RunSettings(method=None, speed=2.0, frame_seconds=0.02)
-    _, frames = run_worker(qtbot, settings, stream, lambda f: len(f) >= 4)
-    spans = [call["t_end"] - call["t0"] for call in stream.calls[:4]]
+    _, frames = run_worker(qtbot, settings, runs, lambda f: len(f) >= 4)
+    assert len(runs.calls) == 1  # one run for the trajectory, throttled, never restarted
+    spans = [until - t for t, until in runs.runs[0].untils[:4]]
     assert spans == pytest.approx([0.04] * 4)
 
 
+def test_a_speed_change_keeps_the_run_and_a_method_change_restarts_it(qtbot):
+    runs = fake_runs()
+    worker = SimulationWorker(None, RunSettings(speed=1.0, t_end=1e9), runs=runs)
+    frames = []
+    worker.blocks_ready.connect(frames.append)
+    worker.add_trajectory(0, np.zeros(2))
+    runner = WorkerThread(worker)
+    runner.start()
+    try:
+        qtbot.waitUntil(lambda: len(frames) >= 2, timeout=5000)
+        worker.set_settings(worker.settings.with_(speed=math.inf))
+        qtbot.waitUntil(lambda: len(frames) >= 6, timeout=5000)
+        assert len(runs.calls) == 1
+        worker.set_settings(worker.settings.with_(method="rk4"))
+        qtbot.waitUntil(lambda: len(runs.calls) == 2, timeout=5000)
+    finally:
+        runner.stop()
+    assert runs.calls[1]["method"] == "rk4" and runs.calls[1]["t0"] > 0
+
+
 def test_pause_then_single_step_then_abort(qtbot):
-    stream = fake_stream()
-    worker = SimulationWorker(None, RunSettings(speed=1.0), stream=stream)
+    worker = SimulationWorker(None, RunSettings(speed=1.0), runs=fake_runs())
     frames = []
     worker.blocks_ready.connect(frames.append)
     worker.pause()
@@ -94,12 +123,17 @@ def test_pause_then_single_step_then_abort(qtbot):
 
 
 def test_stops_a_trajectory_with_a_problem(qtbot):
-    def failing(compiled, **options):
-        yield FakeBlock(
-            np.array([0.1]), np.array([[np.nan, 0.0]]), status="non_finite", message="NaN"
-        )
+    class Failing:
+        def __init__(self, compiled, **options):
+            self.finished = False
 
-    worker, frames = run_worker(qtbot, RunSettings(speed=math.inf), failing, lambda f: len(f) >= 1)
+        def advance(self, seconds=0.03, until=math.inf):
+            self.finished = True
+            return FakeBlock(
+                np.array([0.1]), np.array([[np.nan, 0.0]]), status="non_finite", message="NaN"
+            )
+
+    worker, frames = run_worker(qtbot, RunSettings(speed=math.inf), Failing, lambda f: len(f) >= 1)
     qtbot.wait(100)
     assert len(frames) == 1 and frames[0].blocks[0][1].status == "non_finite"
 
@@ -135,3 +169,39 @@ def test_real_stream_keeps_a_fixed_step_across_frames(qtbot):
     t = np.concatenate([block.t for frame in frames for _, block in frame.blocks])
     steps = np.diff(t)
     assert steps == pytest.approx(np.full_like(steps, steps[0]), rel=1e-9)
+
+
+def _states(qtbot, compiled, method, speed, t_stop):
+    settings = RunSettings(method=method, speed=speed, t_end=t_stop)
+    worker = SimulationWorker(compiled, settings)
+    frames = []
+    worker.blocks_ready.connect(frames.append)
+    worker.add_trajectory(0, compiled.initial_state())
+    runner = WorkerThread(worker)
+    runner.start()
+    try:
+        qtbot.waitUntil(
+            lambda: any(b.status != "running" for f in frames for _, b in f.blocks), timeout=60000
+        )
+    finally:
+        runner.stop()
+    blocks = [block for frame in frames for _, block in frame.blocks]
+    t = np.concatenate([b.t for b in blocks])
+    y = np.concatenate([b.y for b in blocks])
+    return dict(zip(t.tolist(), map(tuple, y.tolist()), strict=True)), blocks
+
+
+@pytest.mark.parametrize("method", ["yoshida8", "gauss_legendre6"])
+def test_playback_speed_never_changes_the_states(qtbot, method):
+    # the same orbit at 1x and at max speed passes through the same states, bitwise
+    from explorer.builder import build
+    from systems.scene import load_scene
+
+    built = build(load_scene("simple_pendulum"))
+    compiled = built.compiled.native()
+    paced, blocks = _states(qtbot, compiled, method, 20.0, 3.0)
+    fast, _ = _states(qtbot, compiled, method, math.inf, 3.0)
+    common = sorted(set(paced) & set(fast))
+    assert len(common) > 10 and common[-1] == 3.0
+    assert all(paced[t] == fast[t] for t in common)
+    assert blocks[-1].setting == "dt" and blocks[-1].setting_value > 0

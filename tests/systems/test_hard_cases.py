@@ -123,11 +123,9 @@ def test_4_pendulum_near_the_separatrix_against_jacobi_elliptic_functions(pendul
     assert len(crossings) == 200
     j = np.arange(len(crossings))
     phase = crossings - (3 * K + 4 * K * j) / w
-    slope, offset = np.polyfit(j, phase, 1)
-    residual = phase - (slope * j + offset)
-    # the phase error grows linearly: a straight line explains it to within 1%
-    assert abs(phase[-1]) > 100 * abs(phase[0])
-    assert np.abs(residual).max() < 0.01 * abs(phase[-1])
+    # accurate by default: after 200 periods the crossings are still at the exact times
+    # (a symplectic method's phase error grows linearly; at the default step it stays tiny)
+    assert np.abs(phase).max() < 1e-7 * period
 
 
 @pytest.mark.slow
@@ -151,7 +149,8 @@ def test_6_double_pendulum_energy_bounded_and_time_reversible():
     t, _, H = collect(blocks, "H")
     err = np.abs(H / H[0] - 1)
     assert err.max() < 1e-3
-    assert err.max() < 1.5 * err[t < 1e3].max()
+    # bounded, not growing; below 1e-10 only round-off is left, which grows like sqrt(t)
+    assert err.max() < max(1.5 * err[t < 1e3].max(), 1e-10)
     # forward, flip the momenta, forward again, flip: back at the start. Chaos amplifies
     # round-off by about e^(lambda t), so the round trip is checked over t = 10
     # (a few Lyapunov times), not 1e4, where no finite precision could return.

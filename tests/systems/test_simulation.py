@@ -164,10 +164,10 @@ def test_separable_ensemble(pendulum):
 
 def test_automatic_choices_on_the_catalogue():
     expected = {
-        "harmonic_oscillator": "yoshida4",
+        "harmonic_oscillator": "yoshida8",
         "planetary_motion": "dop853",
         "kepler_cartesian": "logh_yoshida6",
-        "double_pendulum": "gauss_legendre4",
+        "double_pendulum": "gauss_legendre6",
         "driven_damped_pendulum": "dop853",
         "damped_pendulum": "dop853",
     }

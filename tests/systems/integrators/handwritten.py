@@ -4,6 +4,8 @@ P holds the parameters; each source defines the system functions of the generate
 (``rhs``, ``hamiltonian`` and, for separable H, ``kinetic``/``potential`` and gradients).
 """
 
+import numpy as np
+
 from systems.codegen import build_module
 
 # H = p^2/(2m) + k q^2/2, P = (m, k)
@@ -140,3 +142,32 @@ def hamiltonian(t, y, P):
 def module(source: str):
     """The generated kernel module of ``source`` with the stepper templates."""
     return build_module(source)
+
+
+class Handwritten:
+    """A kernel module and parameter values, in the shape runners expect of a compiled
+    system (``kernels``, ``parameters``, ``rhs``)."""
+
+    def __init__(self, kernels, P):
+        self.kernels = kernels
+        self.parameters = np.asarray(P, dtype=float)
+
+    def rhs(self, t, y):
+        out = np.empty(len(y))
+        self.kernels.rhs(float(t), np.ascontiguousarray(y, dtype=float), self.parameters, out)
+        return out
+
+
+def run_to(mod, name, P, y0, t_end, value, compensated=True):
+    """(final state, total steps, final status) of method ``name`` from 0 to ``t_end``."""
+    from systems.integrators.registry import STEPPERS, make_runner
+
+    system = Handwritten(mod, P)
+    runner = make_runner(system, STEPPERS[name], np.array(y0, float), 0.0, t_end, value, None,
+                         compensated)  # fmt: skip
+    steps = 0
+    while True:
+        outcome = runner.advance(10**7, 2)
+        steps += outcome.steps
+        if outcome.code != 0:
+            return runner.y.copy(), steps, outcome.code, runner.t

@@ -1,0 +1,95 @@
+"""Coefficients of the methods: composition weights, Gauss-Legendre and explicit tableaux."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+
+def _symmetric(outer_to_inner: tuple[float, ...]) -> tuple[float, ...]:
+    """Weights ``(w_m, ..., w_1)`` -> the palindrome with ``w_0 = 1 - 2 sum`` in the middle."""
+    w0 = 1.0 - 2.0 * sum(outer_to_inner)
+    return (*outer_to_inner, w0, *reversed(outer_to_inner))
+
+
+_CBRT2 = 2.0 ** (1.0 / 3.0)
+LEAPFROG = (1.0,)
+TRIPLE_JUMP = _symmetric((1.0 / (2.0 - _CBRT2),))
+# Yoshida (1990), Phys. Lett. A 150, 262: order 6 solution A and order 8 solution D,
+# listed as (w_m, ..., w_1).
+YOSHIDA6 = _symmetric((0.784513610477560, 0.235573213359357, -1.17767998417887))
+YOSHIDA8 = _symmetric(
+    (
+        0.914844246229740,
+        0.253693336566229,
+        -1.44485223686048,
+        -0.158240635368243,
+        1.93813913762276,
+        -1.96061023297549,
+        0.102799849391985,
+    )
+)
+
+
+def kick_drift(weights: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Merged stage coefficients of the composed kick-drift-kick leapfrog.
+
+    Returns
+    -------
+    kick : ndarray, shape (s + 1,)
+    drift : ndarray, shape (s,)
+    """
+    w = np.array(weights, dtype=float)
+    kick = np.empty(len(w) + 1)
+    kick[0] = w[0] / 2
+    kick[1:-1] = (w[:-1] + w[1:]) / 2
+    kick[-1] = w[-1] / 2
+    return kick, w.copy()
+
+
+@cache
+def gauss_tableau(stages: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gauss-Legendre collocation tableau and its stage extrapolation matrix.
+
+    Returns
+    -------
+    A : ndarray, shape (s, s)
+    b, c : ndarray, shape (s,)
+    E : ndarray, shape (s, s)
+        ``Z_next = E @ Z``: the collocation polynomial of a step (through 0 at node 0 and
+        the increments ``Z`` at the nodes ``c``), continued to ``1 + c`` and taken
+        relative to its value at 1. This is the starting guess of the next step.
+    """
+    x, _ = np.polynomial.legendre.leggauss(stages)
+    c = (x + 1.0) / 2.0
+    nodes = np.concatenate([[0.0], c])
+    s = stages
+    A = np.empty((s, s))
+    b = np.empty(s)
+    E = np.empty((s, s))
+    P = np.polynomial.Polynomial
+    for j in range(s):
+        # Lagrange basis on the nodes c (for A, b) and on (0, c) (for the extrapolation)
+        others = np.delete(c, j)
+        ell = (P.fromroots(others) if len(others) else P([1.0])) / np.prod(c[j] - others)
+        integral = ell.integ()
+        b[j] = integral(1.0) - integral(0.0)
+        A[:, j] = integral(c) - integral(0.0)
+        others0 = np.delete(nodes, j + 1)
+        L = P.fromroots(others0) / np.prod(c[j] - others0)
+        E[:, j] = L(1.0 + c) - L(1.0)
+    return A, b, c, E
+
+
+EXPLICIT_TABLEAUX = {
+    "euler": (np.zeros((1, 1)), np.array([1.0]), np.array([0.0])),
+    "rk4": (
+        np.array(
+            [[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]
+        ),
+        np.array([1.0, 2.0, 2.0, 1.0]) / 6.0,
+        np.array([0.0, 0.5, 0.5, 1.0]),
+    ),
+}
+"""Explicit Runge-Kutta tableaux ``(A, b, c)`` by name."""
