@@ -89,6 +89,25 @@ def _combine(M, Z, out):
 # -- explicit Runge-Kutta (Euler, classical RK4: teaching methods) -----------------------
 
 
+def _rk_stages(t, y, P, h, A, c, K, Yst, first, s):
+    """Explicit stages ``first`` .. ``s - 1`` of a Runge-Kutta step into ``K`` (rows)."""
+    for i in range(first, s):
+        for k in range(y.shape[0]):
+            acc = 0.0
+            for j in range(i):
+                acc += A[i, j] * K[j, k]
+            Yst[k] = y[k] + h * acc
+        rhs(t + c[i] * h, Yst, P, K[i])
+
+
+def _rk_sum(K, b, k):
+    """Component ``k`` of the weighted sum of the stages, sum_j b_j K[j, k]."""
+    acc = 0.0
+    for j in range(b.shape[0]):
+        acc += b[j] * K[j, k]
+    return acc
+
+
 def erk_work(coef, m):
     s = coef[0].shape[0]
     return (np.empty((s, m)), np.empty(m), np.zeros(1))
@@ -102,18 +121,9 @@ def erk_step(y, comp, clock, P, coef, work):
     m = y.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
-    for i in range(s):
-        for k in range(m):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, k]
-            Yst[k] = y[k] + h * acc
-        rhs(t + c[i] * h, Yst, P, K[i])
+    _rk_stages(t, y, P, h, A, c, K, Yst, 0, s)
     for k in range(m):
-        acc = 0.0
-        for i in range(s):
-            acc += b[i] * K[i, k]
-        _add(y, comp, k, h * acc, kahan)
+        _add(y, comp, k, h * _rk_sum(K, b, k), kahan)
     _tick_fixed(clock)
     return STATUS_RUNNING, s
 
@@ -206,13 +216,60 @@ def logh_step(y, comp, clock, P, coef, work):
 
 
 # -- Gauss-Legendre collocation, any rhs -----------------------------------------------------
+#
+# Round-off grows like sqrt(t) (Brouwer's law) only if nothing in a step is biased
+# (Hairer, McLachlan & Razakarivony, BIT 48, 2008): the fixed-point iteration runs until it
+# stops improving, not to a tolerance; the stages see the compensated state y - comp; the
+# stage increments are Z_i = sum_j MU_ij (h b_j) F_j with MU_ij = a_ij / b_j, whose pairs
+# MU_ij + MU_ji = 1 hold exactly in floating point (so the rounded method is still
+# symplectic); and the products and sums of h b_j F_j are formed without rounding error.
 
 
-def _collocate(t, y, P, h, A, c, Z, F, Yst, tol, maxit):
-    """Solve for the stage increments ``Z`` (s, m) by fixed-point iteration from the guess
-    in ``Z``. Returns (iterations, converged); on success ``F`` holds f at the converged
-    stages."""
-    s = A.shape[0]
+def _two_prod(a, b):
+    """(p, e) with p = fl(a b) and a b = p + e exactly (Dekker)."""
+    p = a * b
+    t = 134217729.0 * a
+    ah = t - (t - a)
+    al = a - ah
+    t = 134217729.0 * b
+    bh = t - (t - b)
+    bl = b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def _two_sum(a, b):
+    """(s, e) with s = fl(a + b) and a + b = s + e exactly (Knuth)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def _stage_rates(t, y, comp, P, stages, scaling):
+    """f (and the Sundman factor g) at the stages y - comp + Z_i, into ``F`` (and ``G``)."""
+    Z, Zlo, F, Yst, hb, T, G = stages
+    fscale, power = scaling
+    for i in range(Z.shape[0]):
+        for k in range(y.shape[0]):
+            Yst[k] = y[k] + (Z[i, k] + (Zlo[i, k] - comp[k]))
+        rhs(t + T[i, 0], Yst, P, F[i])
+        if power > 0.0:
+            G[i] = _rate(F[i], fscale, power)
+
+
+def _collocate(t, y, comp, P, MU, c, stages, scaling, maxit):
+    """Solve a collocation step for its stage increments by fixed-point iteration.
+
+    ``stages = (Z, Zlo, F, Yst, hb, T, G)``: increments ``Z`` (s, m) with their low-order
+    parts ``Zlo``, starting from the guess in them; f at the stages ``F`` (s, m); scratch
+    ``Yst`` (m,); ``hb`` (s,) the step times the weights; stage time offsets ``T`` (s, 1)
+    and rhs scales ``G`` (s,). ``scaling = (fscale, power)``: power 0 leaves ``T`` and
+    ``G`` as given (plain collocation, ``T = c h``, ``G = 1``); otherwise the stages
+    follow the Sundman transformation g = (fscale / |f|)^power, with ``T`` solved too.
+    Returns (iterations, converged); on success ``F`` and ``G`` belong to the final stages.
+    """
+    Z, Zlo, F, Yst, hb, T, G = stages
+    fscale, power = scaling
+    s = MU.shape[0]
     m = y.shape[0]
     prev = np.inf
     converged = False
@@ -220,57 +277,101 @@ def _collocate(t, y, P, h, A, c, Z, F, Yst, tol, maxit):
     diff = 0.0
     while it < maxit:
         it += 1
-        for i in range(s):
-            for k in range(m):
-                Yst[k] = y[k] + Z[i, k]
-            rhs(t + c[i] * h, Yst, P, F[i])
+        _stage_rates(t, y, comp, P, stages, scaling)
         diff = 0.0
         for i in range(s):
-            for k in range(m):
-                z = 0.0
+            if power > 0.0:
+                acc = 0.0
                 for j in range(s):
-                    z += A[i, j] * F[j, k]
-                z *= h
+                    acc += MU[i, j] * hb[j] * G[j]
+                T[i, 0] = acc
+            for k in range(m):
+                hi = 0.0
+                lo = 0.0
+                for j in range(s):
+                    ph, pl = _two_prod(hb[j], F[j, k] * G[j])
+                    mh, ml = _two_prod(MU[i, j], ph)
+                    hi, e = _two_sum(hi, mh)
+                    lo += ml + e + MU[i, j] * pl
+                z = hi + lo
                 d = abs(z - Z[i, k]) / (1.0 + abs(y[k]))
                 if d > diff:
                     diff = d
                 Z[i, k] = z
+                Zlo[i, k] = lo - (z - hi)
         if not diff == diff:
             break
-        if diff <= tol:
-            converged = True
-            break
-        if diff >= prev and diff < 1e-10:
-            # round-off level reached (Hairer's criterion): further iterations only wander
-            converged = True
+        if diff == 0.0 or (diff >= prev and diff < 1e-10):
+            converged = True  # round-off level: further iterations only wander
             break
         prev = diff
     if not converged and diff < 1e-10:
         converged = True
     if converged:
-        # the increment uses f at the converged stages
-        for i in range(s):
-            for k in range(m):
-                Yst[k] = y[k] + Z[i, k]
-            rhs(t + c[i] * h, Yst, P, F[i])
+        _stage_rates(t, y, comp, P, stages, scaling)
         it += 1
     return it, converged
 
 
-def gauss_work(coef, m):
+def _collocation_update(y, comp, hb, F, G, kahan):
+    """y += sum_j hb_j G_j F_j, summed without rounding error into the compensated state."""
+    for k in range(y.shape[0]):
+        if not kahan:
+            acc = 0.0
+            for j in range(hb.shape[0]):
+                acc += hb[j] * G[j] * F[j, k]
+            y[k] += acc
+            continue
+        hi = 0.0
+        lo = -comp[k]
+        for j in range(hb.shape[0]):
+            ph, pl = _two_prod(hb[j], F[j, k] * G[j])
+            hi, e = _two_sum(hi, ph)
+            lo += pl + e
+        yn, e = _two_sum(y[k], hi)
+        lo += e
+        yh = yn + lo
+        comp[k] = (yh - yn) - lo
+        y[k] = yh
+
+
+def _extrapolate(E, Z, Zlo, Zold):
+    """The next step's starting guess: ``Z`` continued by ``E``, low parts cleared."""
+    for j in range(Z.shape[0]):
+        for k in range(Z.shape[1]):
+            Zold[j, k] = Z[j, k]
+            Zlo[j, k] = 0.0
+    _combine(E, Zold, Z)
+
+
+def _collocation_work(coef, m):
     s = coef[0].shape[0]
-    # Z, F, Yst, scratch, and the step the guess in Z was made for (0: none)
-    return (np.zeros((s, m)), np.empty((s, m)), np.empty(m), np.empty((s, m)), np.zeros(1))
+    # Z, Zlo, F, Yst, hb, T, G, Zold, Told, and the guess flag (the step it was made for)
+    return (
+        np.zeros((s, m)),
+        np.zeros((s, m)),
+        np.empty((s, m)),
+        np.empty(m),
+        np.empty(s),
+        np.zeros((s, 1)),
+        np.ones(s),
+        np.empty((s, m)),
+        np.empty((s, 1)),
+        np.zeros(1),
+    )
+
+
+def gauss_work(coef, m):
+    return _collocation_work(coef, m)
 
 
 def gauss_step(y, comp, clock, P, coef, work):
-    """Gauss-Legendre collocation with ``s`` stages (order 2s): ``A`` (s, s), ``b``, ``c``
-    (s,), and ``E`` (s, s), which continues a step's collocation polynomial to the
-    starting guess of the next step's stage increments."""
-    A, b, c, E, tol, maxit, kahan = coef
-    Z, F, Yst, Zold, guess_h = work
+    """Gauss-Legendre collocation with ``s`` stages (order 2s): ``MU`` (s, s) the tableau
+    as a_ij / b_j, ``b``, ``c`` (s,), and ``E`` (s, s), which continues a step's
+    collocation polynomial to the starting guess of the next step's stage increments."""
+    MU, b, c, E, maxit, kahan = coef
+    Z, Zlo, F, Yst, hb, T, G, Zold, _, guess_h = work
     s = b.shape[0]
-    m = y.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
     evals = 0
@@ -278,22 +379,18 @@ def gauss_step(y, comp, clock, P, coef, work):
         rhs(t, y, P, F[0])
         evals += 1
         for j in range(s):
-            for k in range(m):
+            hb[j] = h * b[j]
+            T[j, 0] = c[j] * h
+            for k in range(y.shape[0]):
                 Z[j, k] = c[j] * h * F[0, k]
-    its, ok = _collocate(t, y, P, h, A, c, Z, F, Yst, tol, maxit)
+                Zlo[j, k] = 0.0
+    its, ok = _collocate(t, y, comp, P, MU, c, (Z, Zlo, F, Yst, hb, T, G), (1.0, 0.0), maxit)
     evals += its * s
     if not ok:
         guess_h[0] = 0.0
         return STATUS_NOT_CONVERGED, evals
-    for k in range(m):
-        d = 0.0
-        for j in range(s):
-            d += b[j] * F[j, k]
-        _add(y, comp, k, h * d, kahan)
-    for j in range(s):
-        for k in range(m):
-            Zold[j, k] = Z[j, k]
-    _combine(E, Zold, Z)
+    _collocation_update(y, comp, hb, F, G, kahan)
+    _extrapolate(E, Z, Zlo, Zold)
     guess_h[0] = h
     _tick_fixed(clock)
     return STATUS_RUNNING, evals
@@ -314,18 +411,7 @@ def _rate(f, fscale, power):
 
 
 def gauss_tt_work(coef, m):
-    s = coef[0].shape[0]
-    # Z, T (stage increments of t), F, G, Yst, Zold, Told, guess valid
-    return (
-        np.zeros((s, m)),
-        np.zeros((s, 1)),
-        np.empty((s, m)),
-        np.empty(s),
-        np.empty(m),
-        np.empty((s, m)),
-        np.empty((s, 1)),
-        np.zeros(1),
-    )
+    return _collocation_work(coef, m)
 
 
 def gauss_tt_step(y, comp, clock, P, coef, work):
@@ -335,10 +421,9 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
     A symmetric method on a reversible system: energy errors stay bounded on Kepler-like
     orbits though the map is not symplectic. ``ds = clock[CLOCK_H]``.
     """
-    A, b, c, E, tol, maxit, fscale, power = coef
-    Z, T, F, G, Yst, Zold, Told, valid = work
+    MU, b, c, E, maxit, fscale, power = coef
+    Z, Zlo, F, Yst, hb, T, G, Zold, Told, valid = work
     s = b.shape[0]
-    m = y.shape[0]
     t = clock[CLOCK_T]
     ds = clock[CLOCK_H]
     evals = 0
@@ -347,67 +432,25 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
         evals += 1
         g0 = _rate(F[0], fscale, power)
         for j in range(s):
+            hb[j] = ds * b[j]
             T[j, 0] = c[j] * ds * g0
-            for k in range(m):
+            for k in range(y.shape[0]):
                 Z[j, k] = c[j] * ds * g0 * F[0, k]
-    prev = np.inf
-    converged = False
-    it = 0
-    diff = 0.0
-    while it < maxit:
-        it += 1
-        for j in range(s):
-            for k in range(m):
-                Yst[k] = y[k] + Z[j, k]
-            rhs(t + T[j, 0], Yst, P, F[j])
-            G[j] = _rate(F[j], fscale, power)
-        diff = 0.0
-        for j in range(s):
-            tz = 0.0
-            for l in range(s):
-                tz += A[j, l] * G[l]
-            T[j, 0] = tz * ds
-            for k in range(m):
-                z = 0.0
-                for l in range(s):
-                    z += A[j, l] * G[l] * F[l, k]
-                z *= ds
-                d = abs(z - Z[j, k]) / (1.0 + abs(y[k]))
-                if d > diff:
-                    diff = d
-                Z[j, k] = z
-        if not diff == diff:
-            break
-        if diff <= tol or (diff >= prev and diff < 1e-10):
-            converged = True
-            break
-        prev = diff
-    evals += it * s
-    if not converged and diff < 1e-10:
-        converged = True
-    if not converged:
+                Zlo[j, k] = 0.0
+    stages = (Z, Zlo, F, Yst, hb, T, G)
+    its, ok = _collocate(t, y, comp, P, MU, c, stages, (fscale, power), maxit)
+    evals += its * s
+    if not ok:
         valid[0] = 0.0
         return STATUS_NOT_CONVERGED, evals
-    for j in range(s):
-        for k in range(m):
-            Yst[k] = y[k] + Z[j, k]
-        rhs(t + T[j, 0], Yst, P, F[j])
-        G[j] = _rate(F[j], fscale, power)
-    evals += s
     dt = 0.0
     for j in range(s):
-        dt += b[j] * G[j]
-    for k in range(m):
-        d = 0.0
-        for j in range(s):
-            d += b[j] * G[j] * F[j, k]
-        _add(y, comp, k, d * ds, True)
-    _tick(clock, dt * ds)
+        dt += hb[j] * G[j]
+    _collocation_update(y, comp, hb, F, G, True)
+    _tick(clock, dt)
+    _extrapolate(E, Z, Zlo, Zold)
     for j in range(s):
         Told[j, 0] = T[j, 0]
-        for k in range(m):
-            Zold[j, k] = Z[j, k]
-    _combine(E, Zold, Z)
     _combine(E, Told, T)
     valid[0] = 1.0
     return STATUS_RUNNING, evals
@@ -451,33 +494,24 @@ def dop853_step(y, comp, clock, P, coef, work):
     """
     A, B, C, E3, E5, rtol, atol = coef
     K, ynew, ys, flags = work
-    m = y.shape[0]
-    S = B.shape[0]
     t = clock[CLOCK_T]
-    h = clock[CLOCK_H]
-    t_end = clock[CLOCK_T_END]
     evals = 0
-    if flags[0] == 0.0:
+    if flags[0] == 0.0:  # K[0] is f at the start of the step (first same as last)
         rhs(t, y, P, K[0])
         evals += 1
         flags[0] = 1.0
+    m = y.shape[0]
+    S = B.shape[0]
+    h = clock[CLOCK_H]
+    t_end = clock[CLOCK_T_END]
     last = h >= t_end - t
     if last:
         h = t_end - t
     if h < 1e-14 * max(abs(t), 1.0) * 4.0:
         return STATUS_STEP_COLLAPSED, evals
-    for i in range(1, S):
-        for k in range(m):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, k]
-            ys[k] = y[k] + h * acc
-        rhs(t + C[i] * h, ys, P, K[i])
+    _rk_stages(t, y, P, h, A, C, K, ys, 1, S)
     for k in range(m):
-        acc = 0.0
-        for j in range(S):
-            acc += B[j] * K[j, k]
-        ynew[k] = y[k] + h * acc
+        ynew[k] = y[k] + h * _rk_sum(K, B, k)
     rhs(t + h, ynew, P, K[S])
     evals += S
     err = _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol)

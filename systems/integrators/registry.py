@@ -28,10 +28,10 @@ from systems.integrators.tableaux import (
     YOSHIDA8,
     gauss_tableau,
     kick_drift,
+    symplectic_weights,
 )
 
 SETTINGS = {"dt": "a time step", "ds": "a fictitious-time step", "tol": "a tolerance"}
-GAUSS_TOL = 1e-15
 GAUSS_MAXIT = 50
 
 
@@ -222,14 +222,15 @@ def _logh_coef(stepper, compiled, t0, y0, compensated):
 
 
 def _gauss_coef(stepper, compiled, t0, y0, compensated):
-    A, b, c, E = gauss_tableau(stepper.stages)
-    return (A, b, c, E, GAUSS_TOL, GAUSS_MAXIT, bool(compensated))
+    _, b, c, E = gauss_tableau(stepper.stages)
+    return (symplectic_weights(stepper.stages), b, c, E, GAUSS_MAXIT, bool(compensated))
 
 
 def _gauss_tt_coef(stepper, compiled, t0, y0, compensated):
-    A, b, c, E = gauss_tableau(stepper.stages)
+    _, b, c, E = gauss_tableau(stepper.stages)
     f0 = float(np.linalg.norm(compiled.rhs(t0, y0)))
-    return (A, b, c, E, GAUSS_TOL, GAUSS_MAXIT, f0 if f0 > 0.0 else 1.0, runners.SUNDMAN_POWER)
+    power = runners.SUNDMAN_POWER
+    return (symplectic_weights(stepper.stages), b, c, E, GAUSS_MAXIT, f0 if f0 > 0 else 1.0, power)
 
 
 def _explicit_coef(stepper, compiled, t0, y0, compensated):

@@ -93,3 +93,23 @@ EXPLICIT_TABLEAUX = {
     ),
 }
 """Explicit Runge-Kutta tableaux ``(A, b, c)`` by name."""
+
+
+@cache
+def symplectic_weights(stages: int) -> np.ndarray:
+    """``MU`` (s, s) with a_ij = MU_ij b_j for the Gauss-Legendre tableau of ``stages``.
+
+    MU_ii = 1/2 and MU_ji = 1 - MU_ij, which floating point computes exactly (Sterbenz:
+    every MU_ij of s <= 3 lies in [1/2, 2]), so b_i a_ij + b_j a_ji = b_i b_j holds for the
+    rounded coefficients too: the method as computed conserves quadratic invariants.
+    """
+    A, b, _, _ = gauss_tableau(stages)
+    MU = np.empty((stages, stages))
+    for i in range(stages):
+        MU[i, i] = 0.5
+        for j in range(i):
+            MU[i, j] = A[i, j] / b[j]
+            MU[j, i] = 1.0 - MU[i, j]
+            if (MU[i, j] - 1.0) + MU[j, i] != 0.0:
+                raise ArithmeticError(f"MU[{i}, {j}] is outside [1/2, 2] for {stages} stages")
+    return MU
