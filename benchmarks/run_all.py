@@ -13,6 +13,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 SCRIPTS = (
+    "catalogue_defaults",
     "throughput",
     "kepler_polar_vs_scipy",
     "kepler_cartesian_vs_rebound",

@@ -1,7 +1,8 @@
 # ruff: noqa: F821
 # The templates below call the system functions ``rhs``, ``kinetic``, ``potential``,
-# ``grad_kinetic``, ``grad_potential``, the constant ``N_DOF`` and the named codes of
-# ``systems.integrators.codes`` (``STATUS_*``, ``CLOCK_*``, ``INFO_*``) by global name.
+# ``grad_kinetic``, ``grad_potential`` (all of the whole state y = (q, p)), the constant
+# ``N_DOF`` and the named codes of ``systems.integrators.codes`` (``STATUS_*``,
+# ``CLOCK_*``, ``INFO_*``) by global name.
 # They are not defined here: ``systems.codegen`` copies everything after the marker line
 # into each scene's generated module, next to the system functions printed from sympy and
 # the code constants, and wraps every top-level function in ``numba.njit``.
@@ -145,13 +146,11 @@ def compose_step(y, comp, clock, P, coef, work):
     kick, drift, kahan = coef
     F, G, valid = work
     n = N_DOF
-    q = y[:n]
-    p = y[n:]
     h = clock[CLOCK_H]
     tau = clock[CLOCK_T]
     evals = 0
     if valid[0] == 0.0:
-        grad_potential(tau, q, P, F)
+        grad_potential(tau, y, P, F)
         evals += 1
         valid[0] = 1.0
     ns = drift.shape[0]
@@ -161,11 +160,11 @@ def compose_step(y, comp, clock, P, coef, work):
             _add(y, comp, n + k, -a * F[k], kahan)
         if j < ns:
             a = drift[j] * h
-            grad_kinetic(p, P, G)
+            grad_kinetic(y, P, G)
             for k in range(n):
                 _add(y, comp, k, a * G[k], kahan)
             tau += a
-            grad_potential(tau, q, P, F)
+            grad_potential(tau, y, P, F)
             evals += 1
     _tick_fixed(clock)
     return STATUS_RUNNING, evals
@@ -189,26 +188,24 @@ def logh_step(y, comp, clock, P, coef, work):
     kick, drift, energy, kahan = coef
     F, G, _ = work
     n = N_DOF
-    q = y[:n]
-    p = y[n:]
     ds = clock[CLOCK_H]
     evals = 0
     ns = drift.shape[0]
     for j in range(ns + 1):
-        w = kinetic(p, P) - energy
+        w = kinetic(y, P) - energy
         if not w > 0.0:
             return STATUS_BAD_TRANSFORM, evals
         h = kick[j] * ds / w
-        grad_kinetic(p, P, G)
+        grad_kinetic(y, P, G)
         for k in range(n):
             _add(y, comp, k, h * G[k], kahan)
         _tick(clock, h)
         if j < ns:
-            u = -potential(clock[CLOCK_T], q, P)
+            u = -potential(clock[CLOCK_T], y, P)
             if not u > 0.0:
                 return STATUS_BAD_TRANSFORM, evals
             h = drift[j] * ds / u
-            grad_potential(clock[CLOCK_T], q, P, F)
+            grad_potential(clock[CLOCK_T], y, P, F)
             evals += 1
             for k in range(n):
                 _add(y, comp, n + k, -h * F[k], kahan)
@@ -246,7 +243,7 @@ def _two_sum(a, b):
 
 def _stage_rates(t, y, comp, P, stages, scaling):
     """f (and the Sundman factor g) at the stages y - comp + Z_i, into ``F`` (and ``G``)."""
-    Z, Zlo, F, Yst, hb, T, G = stages
+    Z, Zlo, F, Yst, hb, T, G, _, _ = stages
     fscale, power = scaling
     for i in range(Z.shape[0]):
         for k in range(y.shape[0]):
@@ -259,26 +256,32 @@ def _stage_rates(t, y, comp, P, stages, scaling):
 def _collocate(t, y, comp, P, MU, c, stages, scaling, maxit):
     """Solve a collocation step for its stage increments by fixed-point iteration.
 
-    ``stages = (Z, Zlo, F, Yst, hb, T, G)``: increments ``Z`` (s, m) with their low-order
-    parts ``Zlo``, starting from the guess in them; f at the stages ``F`` (s, m); scratch
-    ``Yst`` (m,); ``hb`` (s,) the step times the weights; stage time offsets ``T`` (s, 1)
-    and rhs scales ``G`` (s,). ``scaling = (fscale, power)``: power 0 leaves ``T`` and
-    ``G`` as given (plain collocation, ``T = c h``, ``G = 1``); otherwise the stages
-    follow the Sundman transformation g = (fscale / |f|)^power, with ``T`` solved too.
-    Returns (iterations, converged); on success ``F`` and ``G`` belong to the final stages.
+    ``stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)``: increments ``Z`` (s, m) with their
+    low-order parts ``Zlo``, starting from the guess in them; f at the stages ``F``
+    (s, m); scratch ``Yst`` (m,), ``PH`` and ``PL`` (s, m); ``hb`` (s,) the step times the
+    weights; stage time offsets ``T`` (s, 1) and rhs scales ``G`` (s,).
+    ``scaling = (fscale, power)``: power 0 leaves ``T`` and ``G`` as given (plain
+    collocation, ``T = c h``, ``G = 1``); otherwise the stages follow the Sundman
+    transformation g = (fscale / |f|)^power, with ``T`` solved too. Returns (iterations,
+    converged); on success ``F`` and ``G`` belong to the final stages.
     """
-    Z, Zlo, F, Yst, hb, T, G = stages
+    Z, Zlo, F, Yst, hb, T, G, PH, PL = stages
     fscale, power = scaling
     s = MU.shape[0]
     m = y.shape[0]
     prev = np.inf
     converged = False
+    exact = False  # plain sums until near the fixed point, then error-free ones to the end
     it = 0
     diff = 0.0
     while it < maxit:
         it += 1
         _stage_rates(t, y, comp, P, stages, scaling)
         diff = 0.0
+        if exact:
+            for j in range(s):
+                for k in range(m):  # h b_j g_j f_j, split exactly into high and low parts
+                    PH[j, k], PL[j, k] = _two_prod(hb[j], F[j, k] * G[j])
         for i in range(s):
             if power > 0.0:
                 acc = 0.0
@@ -288,11 +291,14 @@ def _collocate(t, y, comp, P, MU, c, stages, scaling, maxit):
             for k in range(m):
                 hi = 0.0
                 lo = 0.0
-                for j in range(s):
-                    ph, pl = _two_prod(hb[j], F[j, k] * G[j])
-                    mh, ml = _two_prod(MU[i, j], ph)
-                    hi, e = _two_sum(hi, mh)
-                    lo += ml + e + MU[i, j] * pl
+                if exact:
+                    for j in range(s):
+                        mh, ml = _two_prod(MU[i, j], PH[j, k])
+                        hi, e = _two_sum(hi, mh)
+                        lo += ml + e + MU[i, j] * PL[j, k]
+                else:
+                    for j in range(s):
+                        hi += MU[i, j] * (hb[j] * (F[j, k] * G[j]))
                 z = hi + lo
                 d = abs(z - Z[i, k]) / (1.0 + abs(y[k]))
                 if d > diff:
@@ -301,7 +307,12 @@ def _collocate(t, y, comp, P, MU, c, stages, scaling, maxit):
                 Zlo[i, k] = lo - (z - hi)
         if not diff == diff:
             break
-        if diff == 0.0 or (diff >= prev and diff < 1e-10):
+        near = diff == 0.0 or (diff >= prev and diff < 1e-10)
+        if not exact and (near or diff < 1e-12):
+            exact = True
+            prev = np.inf
+            continue
+        if near:
             converged = True  # round-off level: further iterations only wander
             break
         prev = diff
@@ -346,7 +357,8 @@ def _extrapolate(E, Z, Zlo, Zold):
 
 def _collocation_work(coef, m):
     s = coef[0].shape[0]
-    # Z, Zlo, F, Yst, hb, T, G, Zold, Told, and the guess flag (the step it was made for)
+    # Z, Zlo, F, Yst, hb, T, G, PH, PL, Zold, Told, and the guess flag (the step it was
+    # made for)
     return (
         np.zeros((s, m)),
         np.zeros((s, m)),
@@ -355,6 +367,8 @@ def _collocation_work(coef, m):
         np.empty(s),
         np.zeros((s, 1)),
         np.ones(s),
+        np.empty((s, m)),
+        np.empty((s, m)),
         np.empty((s, m)),
         np.empty((s, 1)),
         np.zeros(1),
@@ -370,7 +384,7 @@ def gauss_step(y, comp, clock, P, coef, work):
     as a_ij / b_j, ``b``, ``c`` (s,), and ``E`` (s, s), which continues a step's
     collocation polynomial to the starting guess of the next step's stage increments."""
     MU, b, c, E, maxit, kahan = coef
-    Z, Zlo, F, Yst, hb, T, G, Zold, _, guess_h = work
+    Z, Zlo, F, Yst, hb, T, G, PH, PL, Zold, _, guess_h = work
     s = b.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
@@ -384,7 +398,8 @@ def gauss_step(y, comp, clock, P, coef, work):
             for k in range(y.shape[0]):
                 Z[j, k] = c[j] * h * F[0, k]
                 Zlo[j, k] = 0.0
-    its, ok = _collocate(t, y, comp, P, MU, c, (Z, Zlo, F, Yst, hb, T, G), (1.0, 0.0), maxit)
+    stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
+    its, ok = _collocate(t, y, comp, P, MU, c, stages, (1.0, 0.0), maxit)
     evals += its * s
     if not ok:
         guess_h[0] = 0.0
@@ -422,7 +437,7 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
     orbits though the map is not symplectic. ``ds = clock[CLOCK_H]``.
     """
     MU, b, c, E, maxit, fscale, power = coef
-    Z, Zlo, F, Yst, hb, T, G, Zold, Told, valid = work
+    Z, Zlo, F, Yst, hb, T, G, PH, PL, Zold, Told, valid = work
     s = b.shape[0]
     t = clock[CLOCK_T]
     ds = clock[CLOCK_H]
@@ -437,7 +452,7 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
             for k in range(y.shape[0]):
                 Z[j, k] = c[j] * ds * g0 * F[0, k]
                 Zlo[j, k] = 0.0
-    stages = (Z, Zlo, F, Yst, hb, T, G)
+    stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
     its, ok = _collocate(t, y, comp, P, MU, c, stages, (fscale, power), maxit)
     evals += its * s
     if not ok:

@@ -138,8 +138,7 @@ def fictitious_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end
     In log-H stepping dt = ds / (-V), so ``ds`` matches ``dt`` where the motion starts.
     """
     dt = time_transformed_step(compiled, stepper, t0, y0, t_end)
-    n = compiled.n
-    V = compiled.kernels.potential(float(t0), np.ascontiguousarray(y0[:n]), compiled.parameters)
+    V = compiled.kernels.potential(float(t0), np.ascontiguousarray(y0), compiled.parameters)
     return dt * max(abs(V), 1e-300)
 
 

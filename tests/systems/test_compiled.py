@@ -80,12 +80,13 @@ def test_separable_parts_compile_and_match():
     P = compiled.parameters
     m, g, l = P
     out = np.empty(1)
-    k.grad_kinetic(np.array([0.3]), P, out)
+    y = np.array([0.4, 0.3])  # the whole state (theta, p_theta)
+    k.grad_kinetic(y, P, out)
     assert out[0] == pytest.approx(0.3 / (m * l**2), rel=1e-14)
-    k.grad_potential(0.0, np.array([0.4]), P, out)
+    k.grad_potential(0.0, y, P, out)
     assert out[0] == pytest.approx(m * g * l * np.sin(0.4), rel=1e-14)
-    assert k.kinetic(np.array([0.3]), P) == pytest.approx(0.09 / (2 * m * l**2), rel=1e-14)
-    assert k.potential(0.0, np.array([0.4]), P) == pytest.approx(-m * g * l * np.cos(0.4))
+    assert k.kinetic(y, P) == pytest.approx(0.09 / (2 * m * l**2), rel=1e-14)
+    assert k.potential(0.0, y, P) == pytest.approx(-m * g * l * np.cos(0.4))
 
 
 def test_initial_state_mixing_momenta_and_velocities_in_a_coupled_system():

@@ -1,7 +1,8 @@
 """Hand-written kernel sources with exact solutions, independent of the derivation chain.
 
 P holds the parameters; each source defines the system functions of the generated module
-(``rhs``, ``hamiltonian`` and, for separable H, ``kinetic``/``potential`` and gradients).
+(``rhs``, ``hamiltonian`` and, for separable H, ``kinetic``/``potential`` and gradients,
+which read the whole state y = (q, p)).
 """
 
 import numpy as np
@@ -20,17 +21,17 @@ def rhs(t, y, P, out):
 def hamiltonian(t, y, P):
     return y[1] * y[1] / (2.0 * P[0]) + P[1] * y[0] * y[0] / 2.0
 
-def kinetic(p, P):
-    return p[0] * p[0] / (2.0 * P[0])
+def kinetic(y, P):
+    return y[1] * y[1] / (2.0 * P[0])
 
-def potential(t, q, P):
-    return P[1] * q[0] * q[0] / 2.0
+def potential(t, y, P):
+    return P[1] * y[0] * y[0] / 2.0
 
-def grad_kinetic(p, P, out):
-    out[0] = p[0] / P[0]
+def grad_kinetic(y, P, out):
+    out[0] = y[1] / P[0]
 
-def grad_potential(t, q, P, out):
-    out[0] = P[1] * q[0]
+def grad_potential(t, y, P, out):
+    out[0] = P[1] * y[0]
 """
 
 # H = p^2/(2 m l^2) - m g l cos(theta), P = (m, g, l)
@@ -45,17 +46,17 @@ def rhs(t, y, P, out):
 def hamiltonian(t, y, P):
     return y[1] * y[1] / (2.0 * P[0] * P[2] * P[2]) - P[0] * P[1] * P[2] * math.cos(y[0])
 
-def kinetic(p, P):
-    return p[0] * p[0] / (2.0 * P[0] * P[2] * P[2])
+def kinetic(y, P):
+    return y[1] * y[1] / (2.0 * P[0] * P[2] * P[2])
 
-def potential(t, q, P):
-    return -P[0] * P[1] * P[2] * math.cos(q[0])
+def potential(t, y, P):
+    return -P[0] * P[1] * P[2] * math.cos(y[0])
 
-def grad_kinetic(p, P, out):
-    out[0] = p[0] / (P[0] * P[2] * P[2])
+def grad_kinetic(y, P, out):
+    out[0] = y[1] / (P[0] * P[2] * P[2])
 
-def grad_potential(t, q, P, out):
-    out[0] = P[0] * P[1] * P[2] * math.sin(q[0])
+def grad_potential(t, y, P, out):
+    out[0] = P[0] * P[1] * P[2] * math.sin(y[0])
 """
 
 # Kepler in the plane, Cartesian: H = |p|^2/(2m) - k/|q|, P = (m, k)
@@ -75,21 +76,21 @@ def hamiltonian(t, y, P):
     r = math.sqrt(y[0] * y[0] + y[1] * y[1])
     return (y[2] * y[2] + y[3] * y[3]) / (2.0 * P[0]) - P[1] / r
 
-def kinetic(p, P):
-    return (p[0] * p[0] + p[1] * p[1]) / (2.0 * P[0])
+def kinetic(y, P):
+    return (y[2] * y[2] + y[3] * y[3]) / (2.0 * P[0])
 
-def potential(t, q, P):
-    return -P[1] / math.sqrt(q[0] * q[0] + q[1] * q[1])
+def potential(t, y, P):
+    return -P[1] / math.sqrt(y[0] * y[0] + y[1] * y[1])
 
-def grad_kinetic(p, P, out):
-    out[0] = p[0] / P[0]
-    out[1] = p[1] / P[0]
+def grad_kinetic(y, P, out):
+    out[0] = y[2] / P[0]
+    out[1] = y[3] / P[0]
 
-def grad_potential(t, q, P, out):
-    r = math.sqrt(q[0] * q[0] + q[1] * q[1])
+def grad_potential(t, y, P, out):
+    r = math.sqrt(y[0] * y[0] + y[1] * y[1])
     f = P[1] / (r * r * r)
-    out[0] = f * q[0]
-    out[1] = f * q[1]
+    out[0] = f * y[0]
+    out[1] = f * y[1]
 """
 
 # Kepler in polar coordinates (r, theta), non-separable:
