@@ -196,3 +196,39 @@ def test_classification_card_lists_the_equilibria(qtbot, window):
     text = window.editor.classification_card.text()
     assert "θ = 0: stable, ω = 3.132" in text
     assert "θ = 3.142: unstable" in text
+
+
+def test_methods_that_would_drop_an_effect_are_disabled_with_the_reason(qtbot, window):
+    request = window.open_scene("damped_pendulum")
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=90000
+    )
+    combo = window.controls.method_combo
+    names = [combo.itemData(i) for i in range(combo.count())]
+    from systems.integrators import STEPPERS
+
+    assert names[1:] == list(STEPPERS)  # every method is listed
+    for name in ("leapfrog", "yoshida8", "logh_yoshida6"):
+        index = names.index(name)
+        assert not combo.model().item(index).isEnabled()
+        assert "dissipation" in window.controls.refusal(name)
+    for name in ("gauss_legendre6", "dop853", "rk4"):
+        assert combo.model().item(names.index(name)).isEnabled()
+        assert window.controls.refusal(name) is None
+    # the adaptive automatic choice takes a tolerance, and shows the one in use
+    assert window.controls.step_label.text() == "tol:"
+    wait_for_points(qtbot, window, 5)
+    window._update_status()
+    assert window.controls.step_edit.placeholderText() == "auto: 1e-12"
+
+
+def test_automatic_step_is_shown_and_the_energy_guard_is_a_setting(qtbot, window):
+    wait_for_points(qtbot, window, 5)
+    window._update_status()
+    main = window.store.main
+    assert main.setting == "dt" and main.setting_value > 0
+    assert window.controls.step_edit.placeholderText() == f"auto: {main.setting_value:.3g}"
+    window.set_energy_tolerance(None)
+    assert window.worker.settings.energy_tolerance is None
+    window.set_energy_tolerance(1e-3)
+    assert window.worker.settings.energy_tolerance == 1e-3
