@@ -171,3 +171,13 @@ def test_energy_guard_off_shows_leapfrog_bounded_and_euler_growing(capsys):
     assert code == 0 and euler["max_rel_energy_error"] > 10 * leap["max_rel_energy_error"]
     code, guarded = run_json(capsys, "simple_pendulum", "--method", "euler", "--dt", "0.2")
     assert code == 1 and guarded["status"] == "energy_error"
+
+
+def test_methods_lists_the_registry_with_refusals(capsys):
+    assert main(["methods", "damped_pendulum", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    by_name = {row["method"]: row for row in data["methods"]}
+    assert data["automatic"] == "dop853" and by_name["dop853"]["takes"] == "tol"
+    assert not by_name["leapfrog"]["applies"] and "dissipation" in by_name["leapfrog"]["why_not"]
+    assert by_name["gauss_legendre6"]["applies"] and by_name["rk4"]["family"] == "runge_kutta"
+    assert main(["methods"]) == 0 and "yoshida8" in capsys.readouterr().out
