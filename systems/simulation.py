@@ -131,7 +131,31 @@ class Run:
     which time (``advance(until=...)``), changes only where blocks begin and end, never
     the states: a paced window and a full-speed export pass through the same states.
 
-    Parameters are those of ``stream``; ``block_seconds`` goes to ``advance``.
+    Parameters
+    ----------
+    compiled : CompiledSystem
+        Must provide ``required_wants(method, diagnostics)``.
+    method : str or None
+        A key of ``STEPPERS``; None chooses automatically (``choose_method``).
+    y0 : ndarray, shape (2n,), optional
+        Initial ``(q, p)``; the scene's initial state by default.
+    dt, tol
+        Fixed step (fictitious-time step for time-transformed methods) or tolerance of
+        adaptive methods, whichever the method takes (``ValueError`` for the other);
+        defaults from the method family's rule.
+    diagnostics : sequence of {"H", "qdot", "points"}
+    section : (index, value, direction), optional
+        Record crossings of ``y[index] = value`` (direction +1 upward, -1 downward,
+        0 both) in ``Block.events_t``/``events_y``.
+    energy_tolerance : float or None
+        Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
+        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8). None: never.
+    compensated : bool
+        Kahan-compensated summation of the state in the fixed-step and log-H loops, so
+        round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
+    max_steps : int or None
+        Stop with ``"budget"`` after this many steps (a fixed-step run that would need
+        more is refused at once). None: no budget.
     """
 
     def __init__(
@@ -300,50 +324,11 @@ class Run:
         return block
 
 
-def stream(
-    compiled,
-    *,
-    method: str | None = None,
-    y0: np.ndarray | None = None,
-    t0: float = 0.0,
-    t_end: float = math.inf,
-    dt: float | None = None,
-    tol: float | None = None,
-    diagnostics: Sequence[str] = (),
-    block_seconds: float = 0.03,
-    max_points: int = 4096,
-    section: tuple[int, float, int] | None = None,
-    energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
-    compensated: bool = True,
-    max_steps: int | None = None,
-) -> Iterator[Block]:
+def stream(compiled, *, block_seconds: float = 0.03, **options) -> Iterator[Block]:
     """Integrate ``compiled`` and yield ``Block``s, each after about ``block_seconds``.
 
-    Parameters
-    ----------
-    compiled : CompiledSystem
-        Must provide ``required_wants(method, diagnostics)``.
-    method : str or None
-        A key of ``STEPPERS``; None chooses automatically (``choose_method``).
-    y0 : ndarray, shape (2n,), optional
-        Initial ``(q, p)``; the scene's initial state by default.
-    dt, tol
-        Fixed step (fictitious-time step for time-transformed methods) or tolerance of
-        adaptive methods, whichever the method takes (``ValueError`` for the other);
-        defaults from the method family's rule.
-    diagnostics : sequence of {"H", "qdot", "points"}
-    section : (index, value, direction), optional
-        Record crossings of ``y[index] = value`` (direction +1 upward, -1 downward,
-        0 both) in ``Block.events_t``/``events_y``.
-    energy_tolerance : float or None
-        Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
-        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8). None: never.
-    compensated : bool
-        Kahan-compensated summation of the state in the fixed-step and log-H loops, so
-        round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
-    max_steps : int or None
-        Stop with ``"budget"`` after this many steps (a fixed-step run that would need
-        more is refused at once). None: no budget.
+    ``options`` are those of ``Run`` (method, y0, t0, t_end, dt or tol, diagnostics,
+    max_points, section, energy_tolerance, compensated, max_steps).
 
     Yields
     ------
@@ -351,11 +336,7 @@ def stream(
         The last one has status ``"ok"`` (at ``t_end``) or a problem; an endless run
         (``t_end = inf``) yields until the caller stops iterating.
     """
-    run = Run(
-        compiled, method=method, y0=y0, t0=t0, t_end=t_end, dt=dt, tol=tol,
-        diagnostics=diagnostics, max_points=max_points, section=section,
-        energy_tolerance=energy_tolerance, compensated=compensated, max_steps=max_steps,
-    )  # fmt: skip
+    run = Run(compiled, **options)
     while not run.finished:
         yield run.advance(block_seconds)
 

@@ -90,9 +90,13 @@ def _combine(M, Z, out):
 # -- explicit Runge-Kutta (Euler, classical RK4: teaching methods) -----------------------
 
 
-def _rk_stages(t, y, P, h, A, c, K, Yst, first, s):
-    """Explicit stages ``first`` .. ``s - 1`` of a Runge-Kutta step into ``K`` (rows)."""
-    for i in range(first, s):
+def _rk_stages(t, y, P, h, tableau, buffers, stages):
+    """Explicit stages ``first`` .. ``last - 1`` (``stages``) of a Runge-Kutta step with
+    ``tableau = (A, c)`` into the rows of ``K``, for ``buffers = (K, Yst)``."""
+    A, c = tableau
+    K, Yst = buffers
+    first, last = stages
+    for i in range(first, last):
         for k in range(y.shape[0]):
             acc = 0.0
             for j in range(i):
@@ -122,7 +126,7 @@ def erk_step(y, comp, clock, P, coef, work):
     m = y.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
-    _rk_stages(t, y, P, h, A, c, K, Yst, 0, s)
+    _rk_stages(t, y, P, h, (A, c), (K, Yst), (0, s))
     for k in range(m):
         _add(y, comp, k, h * _rk_sum(K, b, k), kahan)
     _tick_fixed(clock)
@@ -253,7 +257,7 @@ def _stage_rates(t, y, comp, P, stages, scaling):
             G[i] = _rate(F[i], fscale, power)
 
 
-def _collocate(t, y, comp, P, MU, c, stages, scaling, maxit):
+def _collocate(t, y, comp, P, MU, stages, scaling, maxit):
     """Solve a collocation step for its stage increments by fixed-point iteration.
 
     ``stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)``: increments ``Z`` (s, m) with their
@@ -399,7 +403,7 @@ def gauss_step(y, comp, clock, P, coef, work):
                 Z[j, k] = c[j] * h * F[0, k]
                 Zlo[j, k] = 0.0
     stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
-    its, ok = _collocate(t, y, comp, P, MU, c, stages, (1.0, 0.0), maxit)
+    its, ok = _collocate(t, y, comp, P, MU, stages, (1.0, 0.0), maxit)
     evals += its * s
     if not ok:
         guess_h[0] = 0.0
@@ -453,7 +457,7 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
                 Z[j, k] = c[j] * ds * g0 * F[0, k]
                 Zlo[j, k] = 0.0
     stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
-    its, ok = _collocate(t, y, comp, P, MU, c, stages, (fscale, power), maxit)
+    its, ok = _collocate(t, y, comp, P, MU, stages, (fscale, power), maxit)
     evals += its * s
     if not ok:
         valid[0] = 0.0
@@ -524,7 +528,7 @@ def dop853_step(y, comp, clock, P, coef, work):
         h = t_end - t
     if h < 1e-14 * max(abs(t), 1.0) * 4.0:
         return STATUS_STEP_COLLAPSED, evals
-    _rk_stages(t, y, P, h, A, C, K, ys, 1, S)
+    _rk_stages(t, y, P, h, (A, C), (K, ys), (1, S))
     for k in range(m):
         ynew[k] = y[k] + h * _rk_sum(K, B, k)
     rhs(t + h, ynew, P, K[S])
@@ -553,8 +557,9 @@ def dop853_step(y, comp, clock, P, coef, work):
 # -- the drivers -------------------------------------------------------------------------------
 
 
-def DRIVER_run(y, comp, clock, P, coef, work, limits, section, out, info):
-    """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP``.
+def DRIVER_run(state, P, coef, work, limits, section, out, info):
+    """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP`` from
+    ``state = (y, comp, clock)``.
 
     ``out = (out_t (k,), out_y (k, m), ev_t (e, 2), ev_y (e, 2, m))`` receives every
     ``stride``-th state and the states on both sides of each crossing of
@@ -565,6 +570,7 @@ def DRIVER_run(y, comp, clock, P, coef, work, limits, section, out, info):
     (``STATUS_OVERSHOT``). The call also returns after the first step that reaches
     ``clock[CLOCK_T_PAUSE]``, which changes nothing in the solution.
     """
+    y, comp, clock = state
     nsteps, stride = limits
     out_t, out_y, ev_t, ev_y = out
     m = y.shape[0]

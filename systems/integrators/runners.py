@@ -83,10 +83,9 @@ class KernelRunner:
         info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.clock[Clock.T_PAUSE] = until
         run = getattr(self.c.kernels, self.s.family.run_kernel)
-        run(
-            self.y, self.comp, self.clock, self.c.parameters, self.coef, self.work,
-            (int(nsteps), int(stride)), self.section, out, info,
-        )  # fmt: skip
+        state = (self.y, self.comp, self.clock)
+        limits = (int(nsteps), int(stride))
+        run(state, self.c.parameters, self.coef, self.work, limits, self.section, out, info)
         n_out, n_ev = int(info[Info.OUTPUTS]), int(info[Info.EVENTS])
         return (
             out[0][:n_out],
