@@ -78,6 +78,7 @@ class _Track:
     y: np.ndarray
     run: object | None = None
     done: bool = False
+    target: float | None = None  # paced playback: the simulated time due by this frame
 
 
 def default_runs() -> Callable:
@@ -143,6 +144,7 @@ class SimulationWorker(QObject):
             if restart:
                 for track in self._tracks.values():
                     track.run = None
+                    track.target = None
                     track.done = False
         self._wake.set()
 
@@ -187,6 +189,8 @@ class SimulationWorker(QObject):
                     if not stepping:
                         self._idle(0.05)
                         continue
+                    for track in self._tracks.values():
+                        track.target = None  # a single step always moves
                 active = [track for track in self._tracks.values() if not track.done]
                 if not active:
                     self._idle(0.05)
@@ -231,7 +235,15 @@ class SimulationWorker(QObject):
             track.run = self._runs(self.compiled, y0=track.y, t0=track.t, **settings.run_options())
         until = math.inf
         if math.isfinite(settings.speed):
-            until = track.t + settings.speed * settings.frame_seconds
+            # simulated time falls due at speed x wall time; a step longer than a frame's
+            # share is taken only once it is due, and a machine that falls behind does not
+            # pile up a debt of more than two frames
+            frame = settings.speed * settings.frame_seconds
+            due = track.t if track.target is None else track.target
+            track.target = min(due + frame, track.t + 2 * frame)
+            if track.t >= track.target:
+                return []
+            until = track.target
         block = track.run.advance(settings.frame_seconds / count, until)
         self._follow(track, block)
         if track.run.finished:

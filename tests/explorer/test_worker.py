@@ -205,3 +205,27 @@ def test_playback_speed_never_changes_the_states(qtbot, method):
     assert len(common) > 10 and common[-1] == 3.0
     assert all(paced[t] == fast[t] for t in common)
     assert blocks[-1].setting == "dt" and blocks[-1].setting_value > 0
+
+
+def test_paced_playback_keeps_to_the_speed_when_a_step_is_longer_than_a_frame(qtbot):
+    # steps of 0.05 at 0.1x with 20 ms frames: a step falls due every 25 frames, so
+    # simulated time keeps pace with speed x wall time instead of one step a frame
+    class CoarseRun:
+        def __init__(self, compiled, *, y0, t0, t_end, **options):
+            self.t, self.finished = t0, False
+
+        def advance(self, seconds=0.03, until=math.inf):
+            self.t += 0.05
+            return FakeBlock(np.array([self.t]), np.array([[self.t, 0.0]]), steps=1)
+
+    settings = RunSettings(speed=0.1, frame_seconds=0.02, t_end=1e9)
+    worker = SimulationWorker(None, settings, runs=CoarseRun)
+    frames = []
+    worker.blocks_ready.connect(frames.append)
+    worker.add_trajectory(0, np.zeros(2))
+    runner = WorkerThread(worker)
+    runner.start()
+    qtbot.wait(1500)
+    runner.stop()
+    simulated = max(block.t[-1] for frame in frames for _, block in frame.blocks)
+    assert 0.05 <= simulated <= 0.25  # about 0.1 x 1.5 s, not 75 steps' worth (3.75)
