@@ -121,6 +121,7 @@ class SimulationWorker(QObject):
         self._tracks: dict[int, _Track] = {}
         self._pending: list[_Track] = []
         self._removed: set[int] = set()
+        self._restart = False
         self.frames = 0
 
     # -- called from the GUI thread --------------------------------------------------------
@@ -139,13 +140,9 @@ class SimulationWorker(QObject):
         """New settings; runs restart from their current states unless only the pacing
         (speed, frame time) changed."""
         with self._lock:
-            restart = settings.run_options() != self._settings.run_options()
+            if settings.run_options() != self._settings.run_options():
+                self._restart = True  # applied by the worker thread, between frames
             self._settings = settings
-            if restart:
-                for track in self._tracks.values():
-                    track.run = None
-                    track.target = None
-                    track.done = False
         self._wake.set()
 
     @property
@@ -226,6 +223,12 @@ class SimulationWorker(QObject):
             for key in self._removed:
                 self._tracks.pop(key, None)
             self._removed.clear()
+            if self._restart:
+                self._restart = False
+                for track in self._tracks.values():
+                    track.run = None
+                    track.target = None
+                    track.done = False
 
     def _advance(self, track: _Track, settings: RunSettings, count: int) -> list:
         if track.run is None:
