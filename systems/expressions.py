@@ -433,10 +433,13 @@ class _Builder:
                     f"the exponent {_short(exponent)} is too large (limit {MAX_INTEGER_EXPONENT})",
                     node,
                 )
-            if base.is_Number and base != 0:
-                digits = abs(float(exponent)) * math.log10(abs(float(base)) or 1.0)
+            if base.is_Rational and base != 0:
+                # the exact value's size: digits of numerator and denominator, times the
+                # exponent (log10|base| alone is negative for |base| < 1 and let
+                # (10**-60)**100 through to sympy, which then never returned)
+                digits = abs(float(exponent)) * _exact_digits(base)
                 if digits > MAX_RESULT_DIGITS:
-                    raise self.fail("the power is too large to compute", node)
+                    raise self.fail("the power is too large to compute exactly", node)
         elif exponent.is_number:
             magnitude = self.value(node.right, 0)
             if magnitude is not None and abs(magnitude) > MAX_INTEGER_EXPONENT:
@@ -455,10 +458,16 @@ class _Builder:
                     f"(limit {MAX_INTEGER_EXPONENT})",
                     node,
                 )
-        if result.is_Integer and abs(result.p).bit_length() > MAX_RESULT_DIGITS * 3.33:
-            raise self.fail("the number is too large to compute", node)
+        if result.is_Rational and _exact_digits(result) > MAX_RESULT_DIGITS:
+            raise self.fail("the number is too large to compute exactly", node)
         if result is sympy.zoo or result is sympy.nan or result.has(sympy.zoo, sympy.nan):
             raise self.fail("the expression is undefined (division by zero)", node)
+
+
+def _exact_digits(number: sympy.Rational) -> float:
+    """Decimal digits of a rational's numerator and denominator together."""
+    bits = abs(int(number.p)).bit_length() + abs(int(number.q)).bit_length()
+    return bits * math.log10(2.0)
 
 
 def as_expr(value: sympy.Basic | int | float) -> sympy.Basic:
