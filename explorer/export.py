@@ -28,15 +28,25 @@ def export_widget(widget, path: str | Path) -> Path:
         raise ValueError(
             f"cannot export a figure as {suffix or 'a file without suffix'}; use .png or .svg"
         )
-    if suffix == ".svg":
-        from explorer.svg import write_svg
+    from systems.files import atomic_path
 
-        write_svg(widget, path, title=widget.window().windowTitle() or "Phase Explorer")
-        return path
-    pixmap = widget.grab()
-    if not pixmap.save(str(path)):
-        raise OSError(f"could not write {path}")
+    with atomic_path(path) as temporary:
+        if suffix == ".svg":
+            from explorer.svg import write_svg
+
+            write_svg(widget, temporary, title=widget.window().windowTitle() or "Phase Explorer")
+            check_svg(temporary)
+        elif not widget.grab().save(str(temporary)):
+            raise OSError(f"could not write {path}")
     return path
+
+
+def check_svg(path: Path) -> None:
+    """``OSError`` unless ``path`` holds a whole SVG document (a full disk cuts it short
+    without Qt saying so)."""
+    data = path.read_bytes()
+    if not data.rstrip().endswith(b"</svg>"):
+        raise OSError(f"the SVG written to {path} is incomplete (is the disk full?)")
 
 
 def csv_header(scene) -> list[str]:
@@ -63,8 +73,10 @@ def write_trajectories_csv(compiled, trajectories, path: str | Path) -> Path:
     scene = compiled.mechanics.scene
     header = csv_header(scene)
     many = len(trajectories) > 1
-    with path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
+    from systems.files import atomic_path
+
+    with atomic_path(path) as temporary, temporary.open("w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out)
         writer.writerow((["orbit"] if many else []) + header)
         for number, trajectory in enumerate(trajectories, start=1):
             table = trajectory_table(compiled, trajectory)

@@ -557,7 +557,14 @@ class MainWindow(QMainWindow):
 
     def save_scene(self, path: str | Path) -> None:
         """Write the edited system (with the current parameter values) as a scene file."""
-        Path(path).write_text(self.editor.scene_text(), encoding="utf-8")
+        from systems.files import atomic_path
+
+        try:
+            with atomic_path(path) as temporary:
+                temporary.write_text(self.editor.scene_text(), encoding="utf-8")
+        except OSError as exc:
+            self.statusBar().showMessage(f"could not save {path}: {exc.strerror or exc}", 10000)
+            return
         self.statusBar().showMessage(f"saved {path}", 5000)
 
     def export_panel_dialog(self, key: str) -> None:
@@ -565,7 +572,10 @@ class MainWindow(QMainWindow):
             self, "Export figure", f"{key}.png", "PNG image (*.png);;SVG drawing (*.svg)"
         )
         if path:
-            self.export_panel(key, path)
+            try:
+                self.export_panel(key, path)
+            except (OSError, ValueError) as exc:
+                self.statusBar().showMessage(f"could not export {path}: {exc}", 10000)
 
     def export_panel(self, key: str, path: str | Path) -> Path:
         """Render a panel to PNG or SVG (chosen by the suffix of ``path``)."""
@@ -583,7 +593,10 @@ class MainWindow(QMainWindow):
             self, "Export trajectories", "trajectories.csv", "CSV (*.csv)"
         )
         if path:
-            self.export_csv(path)
+            try:
+                self.export_csv(path)
+            except OSError as exc:
+                self.statusBar().showMessage(f"could not export {path}: {exc}", 10000)
 
     def export_csv(self, path: str | Path) -> Path:
         """Write every trajectory (t, q, q_dot, p_q, H; an ``orbit`` column) to CSV."""

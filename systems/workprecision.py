@@ -87,8 +87,10 @@ class WorkPrecision:
         return [p for p in self.points if p.method == method and p.status == "ok"]
 
     def write_csv(self, path: str | Path) -> Path:
+        from systems.files import atomic_path
+
         path = Path(path)
-        with path.open("w", newline="", encoding="utf-8") as handle:
+        with atomic_path(path) as temporary, temporary.open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(CSV_COLUMNS)
             for point in self.points:

@@ -70,21 +70,26 @@ def render(result, path: str | Path, size=(1100, 520)) -> Path:
         plots.append(plot)
     widget.show()
     app.processEvents()
-    if suffix == ".svg":
-        from PySide6.QtSvg import QSvgGenerator
+    from explorer.export import check_svg
+    from systems.files import atomic_path
 
-        generator = QSvgGenerator()
-        generator.setFileName(str(path))
-        generator.setSize(QSize(*size))
-        generator.setViewBox(QRect(0, 0, *size))
-        generator.setTitle(f"{result.title}: work-precision")
-        painter = QPainter(generator)
-        try:
-            widget.render(painter)
-        finally:
-            painter.end()
-    elif not widget.grab().save(str(path)):
-        raise OSError(f"could not write {path}")
+    with atomic_path(path) as temporary:
+        if suffix == ".svg":
+            from PySide6.QtSvg import QSvgGenerator
+
+            generator = QSvgGenerator()
+            generator.setFileName(str(temporary))
+            generator.setSize(QSize(*size))
+            generator.setViewBox(QRect(0, 0, *size))
+            generator.setTitle(f"{result.title}: work-precision")
+            painter = QPainter(generator)
+            try:
+                widget.render(painter)
+            finally:
+                painter.end()
+            check_svg(temporary)
+        elif not widget.grab().save(str(temporary)):
+            raise OSError(f"could not write {path}")
     widget.close()
     widget.deleteLater()
     app.processEvents()

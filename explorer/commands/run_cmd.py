@@ -105,6 +105,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
         raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
+    if args.out is not None:
+        from systems.files import write_problem
+
+        problem = write_problem(args.out)
+        if problem:
+            raise UserError(f"--out: {problem}")
     start = time.perf_counter()
     scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
@@ -136,7 +142,10 @@ def run(args: argparse.Namespace) -> int:
         scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
         max_rel = float(np.max(np.abs(H - H[0])) / scale)
     if args.out:
-        write_trajectory(args.out, scene, t, y, qdot, H, n)
+        try:
+            write_trajectory(args.out, scene, t, y, qdot, H, n)
+        except OSError as exc:
+            raise UserError(f"could not write {args.out}: {exc.strerror or exc}") from None
     report = {
         "method": method,
         "why": why,
@@ -166,25 +175,25 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:
-    """CSV columns t, each q, each q_dot, each p_q, H; or the same arrays in an .npz."""
+    """CSV columns t, each q, each q_dot, each p_q, H; or the same arrays in an .npz.
+
+    Written whole or not at all (``systems.files.atomic_path``).
+    """
+    from systems.files import atomic_path
+
     header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
     table = np.column_stack([t, y[:, :n], qdot, y[:, n:], H])
-    if Path(path).suffix.lower() == ".npz":
-        np.savez(
-            path,
-            t=t,
-            q=y[:, :n],
-            qdot=qdot,
-            p=y[:, n:],
-            H=H,
-            columns=np.array(header),
-        )
-        return
-    with open(path, "w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(header)
-        for row in table:
-            writer.writerow([repr(float(v)) for v in row])
+    with atomic_path(path) as temporary:
+        if Path(path).suffix.lower() == ".npz":
+            np.savez(
+                temporary, t=t, q=y[:, :n], qdot=qdot, p=y[:, n:], H=H, columns=np.array(header)
+            )
+            return
+        with open(temporary, "w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(header)
+            for row in table:
+                writer.writerow([repr(float(v)) for v in row])
 
 
 def readable(scene, report: dict) -> str:

@@ -181,3 +181,18 @@ def test_methods_lists_the_registry_with_refusals(capsys):
     assert not by_name["leapfrog"]["applies"] and "dissipation" in by_name["leapfrog"]["why_not"]
     assert by_name["gauss_legendre6"]["applies"] and by_name["rk4"]["family"] == "runge_kutta"
     assert main(["methods"]) == 0 and "yoshida8" in capsys.readouterr().out
+
+
+def test_out_is_checked_before_integrating_and_written_whole(tmp_path, capsys):
+    missing = tmp_path / "no_such_folder" / "x.csv"
+    assert main(["run", "simple_pendulum", "--out", str(missing)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    (tmp_path / "folder.csv").mkdir()
+    assert main(["run", "simple_pendulum", "--out", str(tmp_path / "folder.csv")]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    (tmp_path / "folder.csv").rmdir()
+    out = tmp_path / "x.npz"
+    assert main(["run", "simple_pendulum", "--t-end", "1", "--out", str(out), "--json"]) == 0
+    capsys.readouterr()
+    assert np.load(out)["t"][-1] == 1.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.npz"]
