@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -14,6 +15,9 @@ import numpy as np
 from explorer.commands.errors import UserError, user_errors
 from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS
 
+DEFAULT_SAMPLES = 10_000
+"""Rows ``run --out`` writes by default: the states at this many evenly spaced times."""
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("run", help="integrate a scene headless and report the result")
@@ -21,6 +25,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--t-end", type=float, default=None, help="end time (default: scene's)")
     parser.add_argument("--method", default=None, help="a stepper name (default: automatic)")
     add_integration_options(parser)
+    rows = parser.add_mutually_exclusive_group()
+    rows.add_argument(
+        "--samples", type=int, default=None,
+        help=f"rows written: states at this many evenly spaced times (default {DEFAULT_SAMPLES})",
+    )  # fmt: skip
+    rows.add_argument("--every", type=float, default=None, help="rows written: one every DT")
     parser.add_argument("--out", default=None, help="write the trajectory to FILE.csv or .npz")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
 
@@ -101,7 +111,7 @@ def check_method(mechanics, method: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from systems.simulation import precompile, stream
+    from systems.simulation import Run, precompile
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
         raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
@@ -114,33 +124,28 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
-    if not t_end > 0:
-        raise UserError("--t-end must be positive")
+    if not (math.isfinite(t_end) and t_end > 0):
+        given = "--t-end" if args.t_end is not None else f"the scene's [view] t_end of {t_end}"
+        raise UserError(f"{given} must be a positive finite time")
     options = integration_options(args, method)
     y0 = compiled.initial_state()
     precompile(compiled, method, y0, dt=args.dt, tol=args.tol)
     compile_s = time.perf_counter() - start
 
-    ts, ys, Hs = [np.array([0.0])], [y0[None, :]], []
-    last = None
+    times = sample_times(args, t_end)
     start = time.perf_counter()
-    for block in stream(compiled, method=method, y0=y0, t_end=t_end, max_points=4096, **options):
-        ts.append(block.t)
-        ys.append(block.y)
-        last = block
+    run_ = Run(compiled, method=method, y0=y0, t_end=t_end, diagnostics=("H",), **options)
+    t, y, last, worst = sample(run_, times)
     wall_s = time.perf_counter() - start
-    t = np.concatenate(ts)
-    y = np.concatenate(ys)
     n = compiled.n
     with np.errstate(all="ignore"):
         H = compiled.hamiltonian(t, y)
         qdot = compiled.velocities(t, y)
-    del Hs
     conserved = mechanics.classification.hamiltonian_conserved
     max_rel = None
     if conserved:
         scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
-        max_rel = float(np.max(np.abs(H - H[0])) / scale)
+        max_rel = max(float(np.max(np.abs(H - H[0])) / scale), worst / scale)
     if args.out:
         try:
             write_trajectory(args.out, scene, t, y, qdot, H, n)
@@ -172,6 +177,50 @@ def run(args: argparse.Namespace) -> int:
         print(f"stopped: {last.status}: {last.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def sample_times(args: argparse.Namespace, t_end: float) -> np.ndarray:
+    """The simulation times whose states are written: ``--samples`` evenly spaced (default
+    10 000) or one every ``--every``. Chosen by simulation time, never by wall time, so
+    the same command writes the same file on any machine."""
+    if args.every is not None:
+        if not (math.isfinite(args.every) and args.every > 0):
+            raise UserError(f"--every must be a positive time, not {args.every}")
+        count = t_end / args.every
+        if count > 1e7:
+            raise UserError(f"--every {args.every:g} asks for {count:.3g} rows; at most 1e7")
+        return np.append(np.arange(0.0, t_end, args.every), t_end)
+    count = DEFAULT_SAMPLES if args.samples is None else args.samples
+    if not 1 <= count <= 10**7:
+        raise UserError(f"--samples must be between 1 and 10000000, not {count}")
+    return np.linspace(0.0, t_end, count + 1)
+
+
+def sample(run, times: np.ndarray):
+    """The run's states at the first step at or after each of ``times``.
+
+    Only the samples are kept, so memory does not grow with the length of the run.
+    Returns (t (k,), y (k, 2n), the last block, the largest |H - H0| seen in any block).
+    """
+    ts, ys = [run.t0], [run.y0.copy()]
+    last, worst = None, 0.0
+    H0 = None
+    for target in times[1:]:
+        while run.t < target and not run.finished:
+            last = run.advance(0.25, until=target)
+            if "H" in last.diagnostics and len(last.t):
+                if H0 is None:
+                    H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
+                with np.errstate(all="ignore"):
+                    worst = max(worst, float(np.max(np.abs(last.diagnostics["H"] - H0))))
+        if last is not None and len(last.t) and last.t[-1] > ts[-1]:
+            ts.append(float(last.t[-1]))
+            ys.append(np.array(last.y[-1]))
+        if run.finished:
+            break
+    if last is None:  # nothing to integrate: the start is all there is
+        last = run.advance(0.25)
+    return np.array(ts), np.array(ys), last, worst
 
 
 def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:

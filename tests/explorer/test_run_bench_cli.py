@@ -196,3 +196,36 @@ def test_out_is_checked_before_integrating_and_written_whole(tmp_path, capsys):
     capsys.readouterr()
     assert np.load(out)["t"][-1] == 1.0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.npz"]
+
+
+def test_rows_are_chosen_by_simulation_time_not_wall_time(tmp_path, capsys):
+    # the same command writes the same file, whatever the machine's speed
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    args = ["run", "double_pendulum", "--t-end", "20", "--samples", "400"]
+    assert main([*args, "--out", str(a)]) == 0
+    assert main([*args, "--out", str(b)]) == 0
+    capsys.readouterr()
+    assert a.read_bytes() == b.read_bytes()
+    with a.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 401 and float(rows[-1]["t"]) == 20.0
+    every = tmp_path / "every.npz"
+    assert (
+        main(["run", "simple_pendulum", "--t-end", "10", "--every", "0.5", "--out", str(every)])
+        == 0
+    )
+    t = np.load(every)["t"]
+    assert len(t) == 21 and np.all(np.diff(t) > 0) and t[-1] == 10.0
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--t-end", "inf"], "positive finite time"),
+        (["--samples", "0"], "--samples"),
+        (["--every", "-1"], "--every"),
+    ],
+)
+def test_bad_run_lengths_and_rows_are_refused(args, fragment, capsys):
+    assert main(["run", "simple_pendulum", *args]) == 2
+    assert fragment in capsys.readouterr().err
