@@ -238,7 +238,8 @@ class Run:
             setting=self.setting, setting_value=self.setting_value,
         )  # fmt: skip
 
-    def _stop(self, status: str, message: str) -> Block:
+    def stop(self, status: str, message: str) -> Block:
+        """End the run here: a block of the last good state with ``status`` and ``message``."""
         t_good, y_good = self.good
         return self._block(np.array([t_good]), y_good[None, :], status, message)
 
@@ -264,7 +265,7 @@ class Run:
         if self.max_steps is not None and self.steps == 0 and self.setting == "dt":
             needed = (self.t_end - self.t0) / self.setting_value
             if needed > self.max_steps:
-                return self._stop(
+                return self.stop(
                     "budget",
                     f"this run needs {needed:.3g} steps of dt = {self.setting_value:.3g}, "
                     f"more than the step budget of {self.max_steps:,}; raise it "
@@ -273,13 +274,13 @@ class Run:
         nsteps = self.nsteps
         if self.max_steps is not None:
             if self.steps >= self.max_steps:
-                return self._stop("budget", self._over_budget())
+                return self.stop("budget", self._over_budget())
             nsteps = min(nsteps, self.max_steps - self.steps)
         start = time.perf_counter()
         try:
             out = self.runner.advance(nsteps, self.max_points, until)
         except ZeroDivisionError as exc:
-            return self._stop(
+            return self.stop(
                 "singular", _division(exc) + f"; the last good state is at t = {self.good[0]:.6g}"
             )
         elapsed = time.perf_counter() - start

@@ -135,7 +135,11 @@ def run(args: argparse.Namespace) -> int:
     times = sample_times(args, t_end)
     start = time.perf_counter()
     run_ = Run(compiled, method=method, y0=y0, t_end=t_end, diagnostics=("H",), **options)
-    t, y, last, worst = sample(run_, times)
+    if args.out:
+        print(
+            f"integrating to t = {t_end:g}; Ctrl+C stops and writes what is done", file=sys.stderr
+        )
+    t, y, last, worst, interrupted = sample(run_, times)
     wall_s = time.perf_counter() - start
     n = compiled.n
     with np.errstate(all="ignore"):
@@ -166,16 +170,21 @@ def run(args: argparse.Namespace) -> int:
             "p": dict(zip(scene.coordinates, map(float, y[-1, n:]), strict=True)),
         },
         "max_rel_energy_error": max_rel,
-        "status": last.status,
-        "message": last.message,
+        "status": "interrupted" if interrupted else last.status,
+        "message": (
+            f"interrupted at t = {t[-1]:.6g}; the {len(t)} rows up to there were written"
+            + ("" if args.out else " (none: no --out)")
+            if interrupted
+            else last.message
+        ),
     }
     if args.json:
         print(json.dumps(report, indent=2))
     else:
         print(readable(scene, report))
-    if last.status != "ok":
-        print(f"stopped: {last.status}: {last.message}", file=sys.stderr)
-        return 1
+    if report["status"] != "ok":
+        print(f"stopped: {report['status']}: {report['message']}", file=sys.stderr)
+        return 130 if interrupted else 1
     return 0
 
 
@@ -199,28 +208,35 @@ def sample_times(args: argparse.Namespace, t_end: float) -> np.ndarray:
 def sample(run, times: np.ndarray):
     """The run's states at the first step at or after each of ``times``.
 
-    Only the samples are kept, so memory does not grow with the length of the run.
-    Returns (t (k,), y (k, 2n), the last block, the largest |H - H0| seen in any block).
+    Only the samples are kept, so memory does not grow with the length of the run. Ctrl+C
+    (SIGINT) stops the run between blocks, keeping the samples so far.
+    Returns (t (k,), y (k, 2n), the last block, the largest |H - H0| seen in any block,
+    whether it was interrupted).
     """
     ts, ys = [run.t0], [run.y0.copy()]
-    last, worst = None, 0.0
+    last, worst, interrupted = None, 0.0, False
     H0 = None
-    for target in times[1:]:
-        while run.t < target and not run.finished:
-            last = run.advance(0.25, until=target)
-            if "H" in last.diagnostics and len(last.t):
-                if H0 is None:
-                    H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
-                with np.errstate(all="ignore"):
-                    worst = max(worst, float(np.max(np.abs(last.diagnostics["H"] - H0))))
-        if last is not None and len(last.t) and last.t[-1] > ts[-1]:
-            ts.append(float(last.t[-1]))
-            ys.append(np.array(last.y[-1]))
-        if run.finished:
-            break
-    if last is None:  # nothing to integrate: the start is all there is
+    try:
+        for target in times[1:]:
+            while run.t < target and not run.finished:
+                last = run.advance(0.25, until=target)
+                if "H" in last.diagnostics and len(last.t):
+                    if H0 is None:
+                        H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
+                    with np.errstate(all="ignore"):
+                        worst = max(worst, float(np.max(np.abs(last.diagnostics["H"] - H0))))
+            if last is not None and len(last.t) and last.t[-1] > ts[-1]:
+                ts.append(float(last.t[-1]))
+                ys.append(np.array(last.y[-1]))
+            if run.finished:
+                break
+    except KeyboardInterrupt:
+        interrupted = True
+    if last is None and not interrupted:  # nothing to integrate: the start is all there is
         last = run.advance(0.25)
-    return np.array(ts), np.array(ys), last, worst
+    if last is None:
+        last = run.stop("interrupted", "")
+    return np.array(ts), np.array(ys), last, worst, interrupted
 
 
 def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:

@@ -229,3 +229,27 @@ def test_rows_are_chosen_by_simulation_time_not_wall_time(tmp_path, capsys):
 def test_bad_run_lengths_and_rows_are_refused(args, fragment, capsys):
     assert main(["run", "simple_pendulum", *args]) == 2
     assert fragment in capsys.readouterr().err
+
+
+def test_ctrl_c_stops_a_run_and_writes_the_rows_so_far(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "long.csv"
+    out.write_text("old\n")
+    process = subprocess.Popen(
+        [sys.executable, str(ROOT / "main.py"), "run", "double_pendulum", "--t-end", "1e5",
+         "--out", str(out)],
+        stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
+    )  # fmt: skip
+    line = process.stderr.readline()  # printed when the integration starts
+    assert "integrating" in line
+    time.sleep(1.5)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert "interrupted at t = " in stderr and "Traceback" not in stderr
+    with out.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) >= 2 and 0 < float(rows[-1]["t"]) < 1e5
+    assert "interrupted" in stdout
