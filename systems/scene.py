@@ -399,6 +399,57 @@ class _Reader:
 # -- validation and parsing ----------------------------------------------------------------
 
 
+VIEW_KEYS = {"t_end", "phase", "ranges", "section"}
+
+
+def _validate_view(scene: Scene, fail) -> None:
+    """Every key of ``[view]`` checked for type, finiteness and meaning (docs/scenes.md)."""
+    view = scene.view
+    unknown = set(view) - VIEW_KEYS
+    if unknown:
+        allowed = ", ".join(sorted(VIEW_KEYS))
+        raise fail(f"view.{sorted(unknown)[0]}", f"unknown key (allowed: {allowed})")
+    if "t_end" in view and not _positive_finite(view["t_end"]):
+        raise fail("view.t_end", f"must be a positive finite time, not {view['t_end']!r}")
+    names = {*scene.coordinates, *scene.momentum_names, *scene.velocity_names}
+    if "phase" in view:
+        pair = view["phase"]
+        if not (isinstance(pair, list) and len(pair) == 2 and all(p in names for p in pair)):
+            raise fail(
+                "view.phase",
+                f"must be two names among the coordinates and momenta, such as "
+                f'["{scene.coordinates[0]}", "{scene.momentum_names[0]}"], not {pair!r}',
+            )
+    if "ranges" in view:
+        ranges = view["ranges"]
+        if not isinstance(ranges, Mapping):
+            raise fail("view.ranges", "must be a table: name = [low, high]")
+        for name, span in ranges.items():
+            if name not in names | {"x", "y"}:
+                raise fail(f"view.ranges.{name}", "not a coordinate, momentum, x or y")
+            ok = isinstance(span, list) and len(span) == 2 and all(map(_finite, span))
+            if not ok or not span[0] < span[1]:
+                raise fail(
+                    f"view.ranges.{name}", f"must be [low, high] with low < high, not {span!r}"
+                )
+    if "section" in view:
+        section = view["section"]
+        if not isinstance(section, Mapping) or set(section) - {"coordinate", "value"}:
+            raise fail("view.section", 'must be a table { coordinate = "x", value = 0.0 }')
+        if "coordinate" in section and section["coordinate"] not in scene.coordinates:
+            raise fail("view.section.coordinate", f"{section['coordinate']!r} is not a coordinate")
+        if "value" in section and not _finite(section["value"]):
+            raise fail("view.section.value", f"must be a finite number, not {section['value']!r}")
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _positive_finite(value: Any) -> bool:
+    return _finite(value) and value > 0
+
+
 def _validate(scene: Scene) -> None:
     def fail(field: str, reason: str) -> SceneError:
         return SceneError(reason, source=scene.source, field=field)
@@ -433,6 +484,7 @@ def _validate(scene: Scene) -> None:
     unknown = set(scene.disabled) - set(scene.effect_keys())
     if unknown:
         raise fail("effects.disabled", f"unknown effect {sorted(unknown)[0]!r}")
+    _validate_view(scene, fail)
     valid_initial = set(scene.coordinates) | set(scene.velocity_names) | set(scene.momentum_names)
     for name, _ in scene.initial:
         if name not in valid_initial:

@@ -77,3 +77,25 @@ def test_expression_error_has_position():
 def test_bad_toml():
     with pytest.raises(SceneError, match="not valid TOML"):
         parse_scene("title = ", source="x.toml")
+
+
+@pytest.mark.parametrize(
+    "view, field, words",
+    [
+        ('t_end = "abc"', "view.t_end", "positive finite time"),
+        ("t_end = -1.0", "view.t_end", "positive finite time"),
+        ("t_end = inf", "view.t_end", "positive finite time"),
+        ('phase = ["zz", 5]', "view.phase", "two names"),
+        ("ranges = { theta = [1.0, -1.0] }", "view.ranges.theta", "low < high"),
+        ("ranges = { zeta = [0.0, 1.0] }", "view.ranges.zeta", "not a coordinate"),
+        ("ranges = 3", "view.ranges", "must be a table"),
+        ('section = { coordinate = "q" }', "view.section.coordinate", "not a coordinate"),
+        ("colour = 1", "view.colour", "unknown key"),
+    ],
+)
+def test_view_is_checked_when_the_scene_loads(view, field, words):
+    with pytest.raises(SceneError) as info:
+        parse_scene(PENDULUM + f"\n[view]\n{view}\n", source="pendulum.toml")
+    message = str(info.value)
+    assert message.startswith(f"pendulum.toml: {field}: ")
+    assert words in message
