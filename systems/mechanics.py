@@ -11,11 +11,13 @@ is never inverted symbolically to get the accelerations of a large system (see
 
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass, field
 
 import sympy
 
+from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
 from systems.expressions import as_expr
 from systems.scene import Scene
 
@@ -165,14 +167,24 @@ def derive(scene: Scene) -> Mechanics:
     Raises
     ------
     DerivationError
-        For a singular Legendre transform or one that cannot be inverted.
+        For a singular Legendre transform or one that cannot be inverted, or a
+        derivation that runs past ``systems.deadline.limit_seconds()``.
     """
     from systems import derivation_cache
 
     cached = derivation_cache.load(scene)
     if cached is not None:
         return cached
-    mechanics = _derive(scene)
+    try:
+        with time_limit(limit_seconds(), "deriving the equations of motion"):
+            mechanics = _derive(scene)
+    except TimeLimitExceeded as exc:
+        raise DerivationError(
+            f"{exc}: some expression is probably far larger once expanded or "
+            "differentiated than as written (a high power of a long sum, a tower of powers). "
+            "Simplify it, or allow more time with PHASE_EXPLORER_DERIVE_SECONDS",
+            source=scene.source,
+        ) from None
     derivation_cache.store(mechanics)
     return mechanics
 
@@ -543,17 +555,75 @@ def _tidy(expr: sympy.Expr) -> sympy.Expr:
     """A cheap, predictable simplification: cancel fractions, pull out common factors.
 
     No ``trigsimp``: across the catalogue it changed one expression out of ~100 (for the
-    worse) and cost half of the double pendulum's derivation time.
+    worse) and cost half of the double pendulum's derivation time. Nothing is done to an
+    expression whose expansion would be large: ``cancel`` expands numerator and
+    denominator, and a 40-term sum to the 20th power has 10**14 terms.
     """
     expr = as_expr(expr)
-    if expr.count_ops() > 400:
+    if expr.count_ops() > 400 or expanded_terms(expr) > EXPANSION_LIMIT:
         return expr
     tidy = sympy.cancel(sympy.together(expr))
     candidates = [expr, tidy, sympy.factor_terms(tidy)]
     return min(candidates, key=lambda e: (e.count_ops(), len(str(e))))
 
 
+EXPANSION_LIMIT = 2000
+"""Most terms an expression may expand to before the derivation stops expanding it."""
+
+
+def expanded_terms(expr: sympy.Expr, cap: int = 10**12) -> int:
+    """An upper bound on the number of terms of ``expand(expr)``, counted without expanding.
+
+    A sum adds its terms' counts, a product multiplies them, an integer power n of a sum
+    of k terms has at most C(k + n - 1, n); anything else counts as one term.
+    """
+    if expr.is_Add:
+        return min(cap, sum(expanded_terms(a, cap) for a in expr.args))
+    if expr.is_Mul:
+        total = 1
+        for a in expr.args:
+            total = min(cap, total * expanded_terms(a, cap))
+        return total
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 1:
+        k = expanded_terms(expr.base, cap)
+        n = int(expr.exp)
+        if k == 1:
+            return 1
+        if n > 10**4 or k > 10**4:
+            return cap
+        return min(cap, math.comb(k + n - 1, n))
+    return 1
+
+
+def _polynomial_degree(expr: sympy.Expr, gens) -> int | None:
+    """An upper bound on the degree of ``expr`` in ``gens`` read off its structure (no
+    expansion), or None if it is not visibly a polynomial in them."""
+    if not expr.has(*gens):
+        return 0
+    if expr in gens:
+        return 1
+    if expr.is_Add or expr.is_Mul:
+        degrees = [_polynomial_degree(a, gens) for a in expr.args]
+        if any(d is None for d in degrees):
+            return None
+        return max(degrees) if expr.is_Add else sum(degrees)
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp >= 0:
+        base = _polynomial_degree(expr.base, gens)
+        return None if base is None else base * int(expr.exp)
+    return None
+
+
 def _degree_at_most(expr: sympy.Expr, gens, degree: int) -> bool:
+    """True if ``expr`` is a polynomial of degree <= ``degree`` in ``gens``.
+
+    Read off the structure first; only a small expression that looks of higher degree (or
+    not polynomial) is expanded, since its terms may cancel.
+    """
+    bound = _polynomial_degree(expr, gens)
+    if bound is not None and bound <= degree:
+        return True
+    if expanded_terms(expr) > EXPANSION_LIMIT:
+        return False
     try:
         poly = sympy.Poly(sympy.expand(expr), *gens)
     except sympy.PolynomialError:
@@ -564,15 +634,18 @@ def _degree_at_most(expr: sympy.Expr, gens, degree: int) -> bool:
 
 
 def _homogeneous_part(expr: sympy.Expr, gens, degree: int) -> sympy.Expr:
-    poly = sympy.Poly(sympy.expand(expr), *gens)
-    return sum(
-        (
-            coeff * sympy.prod(g**k for g, k in zip(gens, monom, strict=True))
-            for monom, coeff in poly.terms()
-            if sum(monom) == degree
-        ),
-        sympy.S.Zero,
-    )
+    """The part of degree 1 or 2 of ``expr``, a polynomial of degree <= 2 in ``gens``.
+
+    From f(s) = expr at s * gens = a + b s + c s**2: b = (f(1) - f(-1))/2 and
+    c = (f(1) + f(-1))/2 - f(0), so nothing is expanded.
+    """
+    f_minus = expr.xreplace({g: -g for g in gens})
+    f_zero = expr.xreplace(dict.fromkeys(gens, sympy.S.Zero))
+    if degree == 1:
+        return (expr - f_minus) / 2
+    if degree == 2:
+        return (expr + f_minus) / 2 - f_zero
+    raise ValueError(f"degree {degree}: only 1 and 2")
 
 
 def _det(matrix: list[list[complex]]) -> complex:

@@ -25,7 +25,8 @@ import scipy.linalg
 import scipy.optimize
 import sympy
 
-from systems.mechanics import Mechanics
+from systems.deadline import TimeLimitExceeded, time_limit
+from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
 from systems.textbook._numeric import (
     cache_for,
     fold_angle,
@@ -128,6 +129,10 @@ class EquilibriumSearch:
     potential: sympy.Expr | None = None
 
 
+SEARCH_SECONDS = 15.0
+"""Longest an equilibrium search may take (the symbolic part has its own ``timeout``)."""
+
+
 def find_equilibria(
     mechanics: Mechanics,
     box: Box | None = None,
@@ -157,9 +162,14 @@ def equilibrium_potential(mechanics: Mechanics) -> tuple[sympy.Expr, str]:
     """
     if mechanics.lagrangian is not None:
         zero = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
-        return sympy.expand(-mechanics.lagrangian.xreplace(zero)), "lagrangian"
+        return _expand(-mechanics.lagrangian.xreplace(zero)), "lagrangian"
     zero = dict.fromkeys(mechanics.p, sympy.S.Zero)
-    return sympy.expand(mechanics.hamiltonian.xreplace(zero)), "hamiltonian"
+    return _expand(mechanics.hamiltonian.xreplace(zero)), "hamiltonian"
+
+
+def _expand(expr: sympy.Expr) -> sympy.Expr:
+    """``expand(expr)``, unless it would have more terms than anyone would read."""
+    return expr if expanded_terms(expr) > EXPANSION_LIMIT else sympy.expand(expr)
 
 
 def search_equilibria(
@@ -190,8 +200,17 @@ def search_equilibria(
     Returns
     -------
     EquilibriumSearch
-        Never raises for a scene that derived; ``reason`` explains an empty result.
+        Never raises for a scene that derived; ``reason`` explains an empty result. A
+        search that runs past ``SEARCH_SECONDS`` is stopped and says so.
     """
+    try:
+        with time_limit(SEARCH_SECONDS, "the equilibrium search"):
+            return _search_equilibria(mechanics, box, parameters, symbolic, timeout)
+    except TimeLimitExceeded as exc:
+        return EquilibriumSearch([], "none", f"{exc} (the potential is too large to scan)")
+
+
+def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> EquilibriumSearch:
     names = mechanics.scene.coordinates
     U, source = equilibrium_potential(mechanics)
     expression = mechanics.lagrangian if source == "lagrangian" else mechanics.hamiltonian
@@ -480,18 +499,22 @@ class _Problem:
             kind = "maximum"
         else:
             kind = "saddle"
-        try:
-            w2, vectors = scipy.linalg.eigh(K, Mrr)
-        except (np.linalg.LinAlgError, ValueError):
-            w2, vectors = scipy.linalg.eig(K, Mrr)
-            order = np.argsort(w2.real)
-            w2, vectors = w2.real[order], vectors.real[:, order]
+        if _regular(Mrr):
+            try:
+                w2, vectors = scipy.linalg.eigh(K, Mrr)
+            except (np.linalg.LinAlgError, ValueError):
+                w2, vectors = scipy.linalg.eig(K, Mrr)
+                order = np.argsort(w2.real)
+                w2, vectors = w2.real[order], vectors.real[:, order]
+        else:  # no inertia, or infinite: no small oscillations (H = p**4/4 at p = 0, m = 0)
+            w2, vectors = np.full(m, np.nan), np.zeros((m, m))
         modes = np.zeros((n, m))
         modes[index_r] = vectors
         if index_f:
             modes[index_f] = back @ vectors
         stable = kind == "minimum"
-        frequencies = [float(math.sqrt(max(v, 0.0))) for v in w2] if stable else []
+        frequencies = [float(math.sqrt(max(v, 0.0))) for v in w2 if math.isfinite(v)]
+        frequencies = frequencies if stable else []
         return Equilibrium(
             q=full,
             stable=stable,
@@ -545,10 +568,21 @@ def _mass_function(mechanics: Mechanics, parameters):
         f = vectorize(W, mechanics.q)
 
         def mass(q):
-            return np.linalg.inv(f(*q).reshape(n, n))
+            try:
+                return np.linalg.inv(f(*q).reshape(n, n))
+            except np.linalg.LinAlgError:
+                return np.full((n, n), np.nan)
 
     cache[key] = mass
     return mass
+
+
+def _regular(M: np.ndarray) -> bool:
+    """True if the mass matrix ``M`` is finite and invertible (not merely numerically)."""
+    if M.size == 0 or not np.all(np.isfinite(M)):
+        return False
+    singular = np.linalg.svd(M, compute_uv=False)
+    return bool(singular[-1] > 1e-13 * singular[0])
 
 
 def _typical(values: np.ndarray) -> float:
