@@ -191,11 +191,67 @@ def parse_scene(text: str, source: str = "<text>", name: str = "") -> Scene:
     SceneError
         Naming ``source``, the field and, for expressions, the position.
     """
+    if len(text) > MAX_SCENE_CHARACTERS:
+        raise SceneError(
+            f"the scene is {len(text):,} characters long; a scene may have at most "
+            f"{MAX_SCENE_CHARACTERS:,}",
+            source=source,
+        )
+    depth = _nesting(text)
+    if depth > MAX_TOML_NESTING:
+        raise SceneError(
+            f"arrays and tables are nested {depth} deep; a scene needs at most {MAX_TOML_NESTING}",
+            source=source,
+        )
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", source=source) from None
+    except RecursionError:
+        raise SceneError("arrays or tables are nested too deeply", source=source) from None
     return scene_from_dict(data, source=source, name=name)
+
+
+MAX_SCENE_CHARACTERS = 1_000_000
+"""Longest scene text read: a 64-particle chain written out by hand is about 20 000."""
+
+MAX_TOML_NESTING = 8
+"""Deepest nesting of TOML arrays and inline tables (a scene uses at most 3)."""
+
+
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in ``text`` outside strings and comments.
+
+    A cheap scan before ``tomllib``, whose recursive parser fails on a few hundred levels.
+    Table headers (``[system]``, ``[[x]]``) open and close on one line and count as 1 or 2.
+    """
+    depth = deepest = 0
+    i, size = 0, len(text)
+    while i < size:
+        c = text[i]
+        if c == "#":
+            end = text.find("\n", i)
+            i = size if end < 0 else end
+            continue
+        if c in "\"'":
+            triple = text.startswith(c * 3, i)
+            quote = c * 3 if triple else c
+            i += len(quote)
+            while i < size and not text.startswith(quote, i):
+                if c == '"' and text[i] == "\\":
+                    i += 1
+                elif not triple and text[i] == "\n":
+                    break
+                i += 1
+            i += len(quote)
+            continue
+        if c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth = max(0, depth - 1)
+        i += 1
+    return deepest
 
 
 def scene_from_dict(data: Mapping[str, Any], source: str = "<text>", name: str = "") -> Scene:
@@ -267,9 +323,26 @@ def load_scene(name_or_path: str | Path) -> Scene:
             )
         path = candidate
     try:
-        text = path.read_text(encoding="utf-8")
+        size = path.stat().st_size
+        if size > 4 * MAX_SCENE_CHARACTERS:
+            raise SceneError(
+                f"the file is {size:,} bytes; a scene is a text file of at most "
+                f"{MAX_SCENE_CHARACTERS:,} characters",
+                source=str(path),
+            )
+        raw = path.read_bytes()
     except OSError as exc:
-        raise SceneError(f"cannot read the file: {exc.strerror}", source=str(path)) from None
+        reason = exc.strerror or str(exc)
+        raise SceneError(f"cannot read the file: {reason}", source=str(path)) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(
+            f"not a text file: byte {exc.start} is not UTF-8 text (is this a .toml scene?)",
+            source=str(path),
+        ) from None
+    if "\x00" in text:
+        raise SceneError("not a text file: it contains NUL bytes", source=str(path))
     return parse_scene(text, source=str(path), name=path.stem)
 
 
@@ -381,11 +454,16 @@ class _Reader:
             points.append((name, self.text(xy[0], field), self.text(xy[1], field)))
         known = {name for name, _, _ in points} | {"origin"}
         links = []
-        for i, link in enumerate(table.get("links", [])):
+        links_raw = table.get("links", [])
+        if not isinstance(links_raw, list):
+            raise self.fail("drawing.links", 'must be a list of pairs, e.g. [["origin", "bob"]]')
+        for i, link in enumerate(links_raw):
             field = f"drawing.links[{i}]"
             if not isinstance(link, list) or len(link) != 2:
                 raise self.fail(field, 'must be a pair of point names, e.g. ["origin", "bob"]')
             for end in link:
+                if not isinstance(end, str):
+                    raise self.fail(field, f"point names are strings, not {end!r}")
                 if end not in known:
                     raise self.fail(field, f"unknown point {end!r}")
             links.append((link[0], link[1]))
