@@ -63,6 +63,7 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     from systems.native_build import compile_in_background
     from systems.scene import Scene, parse_scene, scene_from_dict
     from systems.simulation import DIAGNOSTICS, compile_natively
+    from systems.start_check import check_start
 
     start = time.perf_counter()
     if isinstance(source, Scene):
@@ -75,6 +76,7 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     method, reason = choose_method(mechanics)
     wants = wants_for(mechanics)
     compiled = compile_system(mechanics, wants, interpreted_start=interpreted_start)
+    check_start(compiled)
     diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
     if interpreted_start:
         compile_in_background(compiled, method, diagnostics)

@@ -17,25 +17,61 @@ def ensure_qt_platform() -> None:
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 
+EXPORT_SAMPLES = 20_000
+"""States an exported figure is drawn from, evenly spaced in simulation time: enough for
+a smooth curve at print resolution, and the same figure on any machine."""
+
+
 def integrate(built, t_end: float, *, diagnostics=("H",), section=None):
-    """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``."""
+    """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``.
+
+    The trajectory is sampled at ``EXPORT_SAMPLES`` evenly spaced times (and keeps every
+    section crossing), so memory does not grow with ``t_end``; the run has the command
+    line's step budget.
+    """
+    import dataclasses
+
+    import numpy as np
+
     from explorer.trajectories import TrajectoryStore
-    from systems.simulation import stream
+    from systems.limits import DEFAULT_MAX_STEPS
+    from systems.simulation import Run, Sampler
 
     compiled = built.compiled
     store = TrajectoryStore(n_points=len(compiled.point_names))
-    trajectory = store.add(compiled.initial_state())
-    if "drawing" in compiled.wanted:
-        diagnostics = (*diagnostics, "points")
-    for block in stream(
+    y0 = compiled.initial_state()
+    trajectory = store.add(y0)
+    run = Run(
         compiled,
         method=built.method or None,
+        y0=y0,
         t_end=t_end,
-        diagnostics=diagnostics,
+        diagnostics=("H",),
         section=section,
-        max_points=20000,
-    ):
-        store.append(trajectory.key, block)
+        max_points=64,
+        max_steps=DEFAULT_MAX_STEPS,
+    )
+    sampler = Sampler(run, np.linspace(0.0, t_end, EXPORT_SAMPLES + 1))
+    samples = list(sampler)
+    t = np.array([row[0] for row in samples])
+    y = np.array([row[1] for row in samples])
+    last = sampler.last if sampler.last is not None else run.stop("ok", "")
+    found = {}
+    with np.errstate(all="ignore"):
+        if "H" in diagnostics and "hamiltonian" in compiled.wanted:
+            found["H"] = compiled.hamiltonian(t, y)
+        if "drawing" in compiled.wanted:
+            found["points"] = compiled.drawing(t, y)
+    events_y = np.array(sampler.events_y).reshape(-1, len(y0))
+    block = dataclasses.replace(
+        last,
+        t=t,
+        y=y,
+        diagnostics=found,
+        events_t=np.array(sampler.events_t),
+        events_y=events_y,
+    )
+    store.append(trajectory.key, block)
     return store
 
 

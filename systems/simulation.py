@@ -187,11 +187,11 @@ class Run:
                 f"method {method!r} with diagnostics {list(diagnostics)} needs the compiled "
                 f"functions {sorted(missing)}; pass them to compile_system"
             )
+        if not t_end > t0:
+            raise ValueError("t_end must be after t0")
         problem = stepper.setting_error(dt, tol)
         if problem:
             raise ValueError(problem)
-        if not t_end > t0:
-            raise ValueError("t_end must be after t0")
         self.compiled, self.stepper, self.method = compiled, stepper, method
         self.diagnostics, self.max_points = tuple(diagnostics), max_points
         self.section = section
@@ -262,7 +262,8 @@ class Run:
                 f"the equations of motion are singular at the initial state (|dy/dt| = "
                 f"{self.f0:.3g}): a collision, r = 0 or a coordinate singularity; move it",
             )  # fmt: skip
-        if self.max_steps is not None and self.steps == 0 and self.setting == "dt":
+        endless = math.isinf(self.t_end)
+        if self.max_steps is not None and self.steps == 0 and self.setting == "dt" and not endless:
             needed = (self.t_end - self.t0) / self.setting_value
             if needed > self.max_steps:
                 return self.stop(
@@ -340,6 +341,68 @@ def stream(compiled, *, block_seconds: float = 0.03, **options) -> Iterator[Bloc
     run = Run(compiled, **options)
     while not run.finished:
         yield run.advance(block_seconds)
+
+
+class Sampler:
+    """A run's states at given simulation times, one at a time, for any length of run.
+
+    Iterating yields ``(t, y)``: the start, then the state of the first step at or after
+    each of ``times`` (an iterable, possibly endless). The samples depend on the times
+    only, never on how fast the machine is, and nothing else is kept but the events, so
+    memory does not grow with the length of the run. Ctrl+C (SIGINT) ends the iteration
+    between blocks with ``interrupted`` set.
+
+    Attributes (after iterating)
+    ----------------------------
+    last : Block or None
+        The last block (its status and message say how the run ended).
+    worst : float
+        The largest |H - H0| seen in any block (0 without the ``"H"`` diagnostic).
+    interrupted : bool
+    events_t : list of float
+    events_y : list of ndarray, shape (2n,)
+        Section crossings found on the way (with a ``section``).
+    """
+
+    def __init__(self, run: Run, times):
+        self.run = run
+        self.times = times
+        self.last: Block | None = None
+        self.worst = 0.0
+        self.interrupted = False
+        self.events_t: list[float] = []
+        self.events_y: list[np.ndarray] = []
+
+    def __iter__(self) -> Iterator[tuple[float, np.ndarray]]:
+        run = self.run
+        t_last = run.t0
+        yield run.t0, run.y0.copy()
+        H0 = None
+        try:
+            for target in self.times:
+                if target <= run.t0:
+                    continue
+                while run.t < target and not run.finished:
+                    block = self.last = run.advance(0.25, until=target)
+                    self.events_t.extend(map(float, block.events_t))
+                    self.events_y.extend(np.array(block.events_y))
+                    if "H" in block.diagnostics and len(block.t):
+                        if H0 is None:
+                            H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
+                        with np.errstate(all="ignore"):
+                            change = np.max(np.abs(block.diagnostics["H"] - H0))
+                        self.worst = max(self.worst, float(change))
+                last = self.last
+                if last is not None and len(last.t) and last.t[-1] > t_last:
+                    t_last = float(last.t[-1])
+                    yield t_last, np.array(last.y[-1])
+                if run.finished:
+                    break
+        except KeyboardInterrupt:
+            self.interrupted = True
+            return
+        if self.last is None:  # nothing to integrate: the start is all there is
+            self.last = run.advance(0.25)
 
 
 def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str, message: str):

@@ -145,7 +145,12 @@ def equilibria_sentences(mechanics, digits: int = 6) -> tuple[list[str], str]:
     lines = []
     for eq in search.equilibria:
         where = ", ".join(f"{shown.get(k, k)} = {v:.{digits}g}" for k, v in eq.q.items())
-        if eq.stable:
+        if eq.stable and not eq.frequencies:
+            lines.append(
+                f"{where}: stable, with no small-oscillation frequency (the inertia there is "
+                "zero or infinite, so the motion is not harmonic)"
+            )
+        elif eq.stable:
             omegas = ", ".join(f"{w:.{digits}g}" for w in eq.frequencies)
             lines.append(f"{where}: stable, \u03c9 = {omegas}")
         else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -39,10 +40,13 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".svg"):
         raise UserError(f"{args.out}: --out must end in .png or .svg")
-    if not out.parent.exists():
-        raise UserError(f"{args.out}: the folder {out.parent} does not exist")
-    if args.t_end is not None and not args.t_end > 0:
-        raise UserError(f"--t-end must be positive, got {args.t_end:g}")
+    from systems.files import write_problem
+
+    problem = write_problem(out)
+    if problem:
+        raise UserError(f"--out: {problem}")
+    if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
+        raise UserError(f"--t-end must be a positive finite time, not {args.t_end:g}")
     ensure_qt_platform()
     from systems.scene import load_scene
 

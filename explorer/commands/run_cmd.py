@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import json
 import math
 import sys
@@ -53,13 +54,14 @@ def add_integration_options(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
 
 
-def integration_options(args: argparse.Namespace, method: str) -> dict:
+def integration_options(args: argparse.Namespace, method: str, t_end: float) -> dict:
     """``stream`` keywords from the options of ``add_integration_options``, checked against
-    the method (``UserError``, exit 2, for a setting it does not take)."""
+    the method and a run from 0 to ``t_end`` (``UserError``, exit 2, for a setting it does
+    not take or cannot honour)."""
     from systems.integrators import get_stepper
     from systems.simulation import parse_energy_tolerance
 
-    problem = get_stepper(method).setting_error(args.dt, args.tol)
+    problem = get_stepper(method).setting_error(args.dt, args.tol, (0.0, t_end))
     if problem:
         raise UserError(problem)
     if not args.max_steps > 0:
@@ -83,6 +85,7 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
     from systems.mechanics import derive
     from systems.scene import load_scene
     from systems.simulation import required_wants
+    from systems.start_check import check_start
 
     with user_errors():
         scene = load_scene(scene_name)
@@ -98,6 +101,7 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
     wants = required_wants(method) | {"hamiltonian", *extra_wants}
     with user_errors():
         compiled = compile_system(mechanics, wants)
+        check_start(compiled)
     return scene, mechanics, method, why, compiled
 
 
@@ -111,23 +115,17 @@ def check_method(mechanics, method: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from systems.simulation import Run, precompile
+    from systems.simulation import Run, Sampler, precompile
 
-    if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
-        raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
-    if args.out is not None:
-        from systems.files import write_problem
-
-        problem = write_problem(args.out)
-        if problem:
-            raise UserError(f"--out: {problem}")
+    endless = args.t_end is not None and math.isinf(args.t_end) and args.t_end > 0
+    check_output(args, endless)
     start = time.perf_counter()
     scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
-    if not (math.isfinite(t_end) and t_end > 0):
+    if not endless and not (math.isfinite(t_end) and t_end > 0):
         given = "--t-end" if args.t_end is not None else f"the scene's [view] t_end of {t_end}"
-        raise UserError(f"{given} must be a positive finite time")
-    options = integration_options(args, method)
+        raise UserError(f"{given} must be a positive finite time (or inf, with --out and --every)")
+    options = integration_options(args, method, t_end)
     y0 = compiled.initial_state()
     precompile(compiled, method, y0, dt=args.dt, tol=args.tol)
     compile_s = time.perf_counter() - start
@@ -139,18 +137,25 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"integrating to t = {t_end:g}; Ctrl+C stops and writes what is done", file=sys.stderr
         )
-    t, y, last, worst, interrupted = sample(run_, times)
+    sampler = Sampler(run_, times)
+    if endless:
+        t, y, qdot, H = stream_trajectory(args.out, scene, compiled, sampler)
+    else:
+        t, y = collect(sampler)
+        with np.errstate(all="ignore"):
+            H = compiled.hamiltonian(t, y)
+            qdot = compiled.velocities(t, y)
+    last, interrupted = sampler.last, sampler.interrupted
+    if last is None:
+        last = run_.stop("interrupted", "")
     wall_s = time.perf_counter() - start
     n = compiled.n
-    with np.errstate(all="ignore"):
-        H = compiled.hamiltonian(t, y)
-        qdot = compiled.velocities(t, y)
     conserved = mechanics.classification.hamiltonian_conserved
     max_rel = None
     if conserved:
         scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
-        max_rel = max(float(np.max(np.abs(H - H[0])) / scale), worst / scale)
-    if args.out:
+        max_rel = max(float(np.max(np.abs(H - H[0])) / scale), sampler.worst / scale)
+    if args.out and not endless:
         try:
             write_trajectory(args.out, scene, t, y, qdot, H, n)
         except OSError as exc:
@@ -172,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
         "max_rel_energy_error": max_rel,
         "status": "interrupted" if interrupted else last.status,
         "message": (
-            f"interrupted at t = {t[-1]:.6g}; the {len(t)} rows up to there were written"
+            f"interrupted at t = {t[-1]:.6g}; the {sampler.count} rows up to there were written"
             + ("" if args.out else " (none: no --out)")
             if interrupted
             else last.message
@@ -188,13 +193,83 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def sample_times(args: argparse.Namespace, t_end: float) -> np.ndarray:
+def check_output(args: argparse.Namespace, endless: bool) -> None:
+    """``UserError`` for an ``--out`` that cannot be written, before any work is done."""
+    if args.out is not None and Path(args.out).suffix.lower() not in (".csv", ".npz"):
+        raise UserError(f"--out must end in .csv or .npz, not {args.out!r}")
+    if endless:
+        if args.out is None or Path(args.out).suffix.lower() != ".csv" or args.every is None:
+            raise UserError(
+                "an endless run (--t-end inf) streams its rows to disk: give --out FILE.csv "
+                "and --every DT; it ends with Ctrl+C, the step budget or a problem"
+            )
+    if args.out is not None:
+        from systems.files import write_problem
+
+        problem = write_problem(args.out)
+        if problem:
+            raise UserError(f"--out: {problem}")
+
+
+def collect(sampler) -> tuple[np.ndarray, np.ndarray]:
+    """All samples of ``sampler`` as arrays t (k,), y (k, 2n); Ctrl+C keeps those so far."""
+    ts, ys = [], []
+    try:
+        for t, y in sampler:
+            ts.append(t)
+            ys.append(y)
+    except KeyboardInterrupt:
+        sampler.interrupted = True
+    sampler.count = len(ts)
+    return np.array(ts), np.array(ys)
+
+
+def stream_trajectory(path: str, scene, compiled, sampler):
+    """Write the samples of an endless run to the CSV ``path`` as they come.
+
+    The rows go to a temporary file beside ``path``, renamed onto it when the run ends
+    (Ctrl+C, the step budget or a problem), so ``path`` never holds half a row. Returns
+    the first and last samples as (t (2,), y (2, 2n), qdot (2, n), H (2,)).
+    """
+    from systems.files import atomic_path
+
+    n = compiled.n
+    header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
+    kept: list[tuple[float, np.ndarray, np.ndarray, float]] = []
+    sampler.count = 0
+    try:
+        with (
+            atomic_path(path) as temporary,
+            open(temporary, "w", newline="", encoding="utf-8") as handle,
+        ):
+            writer = csv.writer(handle)
+            writer.writerow(header)
+            try:
+                for t, y in sampler:
+                    with np.errstate(all="ignore"):
+                        H = float(compiled.hamiltonian(t, y[None])[0])
+                        qdot = compiled.velocities(t, y[None])[0]
+                    row = [t, *y[:n], *qdot, *y[n:], H]
+                    writer.writerow([repr(float(v)) for v in row])
+                    sampler.count += 1
+                    kept = [*kept[:1], (t, y, qdot, H)]
+            except KeyboardInterrupt:
+                sampler.interrupted = True
+    except OSError as exc:
+        raise UserError(f"could not write {path}: {exc.strerror or exc}") from None
+    t, y, qdot, H = (np.array(column) for column in zip(*kept, strict=True))
+    return t, y, qdot, H
+
+
+def sample_times(args: argparse.Namespace, t_end: float):
     """The simulation times whose states are written: ``--samples`` evenly spaced (default
-    10 000) or one every ``--every``. Chosen by simulation time, never by wall time, so
-    the same command writes the same file on any machine."""
+    10 000) or one every ``--every`` (endlessly, for an endless run). Chosen by simulation
+    time, never by wall time, so the same command writes the same file on any machine."""
     if args.every is not None:
         if not (math.isfinite(args.every) and args.every > 0):
             raise UserError(f"--every must be a positive time, not {args.every}")
+        if math.isinf(t_end):
+            return (k * args.every for k in itertools.count(1))
         count = t_end / args.every
         if count > 1e7:
             raise UserError(f"--every {args.every:g} asks for {count:.3g} rows; at most 1e7")
@@ -203,40 +278,6 @@ def sample_times(args: argparse.Namespace, t_end: float) -> np.ndarray:
     if not 1 <= count <= 10**7:
         raise UserError(f"--samples must be between 1 and 10000000, not {count}")
     return np.linspace(0.0, t_end, count + 1)
-
-
-def sample(run, times: np.ndarray):
-    """The run's states at the first step at or after each of ``times``.
-
-    Only the samples are kept, so memory does not grow with the length of the run. Ctrl+C
-    (SIGINT) stops the run between blocks, keeping the samples so far.
-    Returns (t (k,), y (k, 2n), the last block, the largest |H - H0| seen in any block,
-    whether it was interrupted).
-    """
-    ts, ys = [run.t0], [run.y0.copy()]
-    last, worst, interrupted = None, 0.0, False
-    H0 = None
-    try:
-        for target in times[1:]:
-            while run.t < target and not run.finished:
-                last = run.advance(0.25, until=target)
-                if "H" in last.diagnostics and len(last.t):
-                    if H0 is None:
-                        H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
-                    with np.errstate(all="ignore"):
-                        worst = max(worst, float(np.max(np.abs(last.diagnostics["H"] - H0))))
-            if last is not None and len(last.t) and last.t[-1] > ts[-1]:
-                ts.append(float(last.t[-1]))
-                ys.append(np.array(last.y[-1]))
-            if run.finished:
-                break
-    except KeyboardInterrupt:
-        interrupted = True
-    if last is None and not interrupted:  # nothing to integrate: the start is all there is
-        last = run.advance(0.25)
-    if last is None:
-        last = run.stop("interrupted", "")
-    return np.array(ts), np.array(ys), last, worst, interrupted
 
 
 def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:

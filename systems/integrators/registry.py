@@ -128,8 +128,14 @@ class Stepper:
         """The step or tolerance used when none is given, for a run from ``(t0, y0)``."""
         return self.family.default_setting(compiled, self, t0, y0, t_end)
 
-    def setting_error(self, dt: float | None = None, tol: float | None = None) -> str | None:
-        """None if the given settings are the kind this method takes, else what it takes."""
+    def setting_error(
+        self,
+        dt: float | None = None,
+        tol: float | None = None,
+        span: tuple[float, float] | None = None,
+    ) -> str | None:
+        """None if the given settings suit this method (and the run from ``span[0]`` to
+        ``span[1]``, when given), else what is wrong and what the method takes."""
         takes = SETTINGS[self.setting]
         if dt is not None and self.setting == "tol":
             return f"{self.name} is adaptive: it takes {takes} (--tol), not a step (--dt)"
@@ -138,7 +144,30 @@ class Stepper:
         for name, value in (("dt", dt), ("tol", tol)):
             if value is not None and not (math.isfinite(value) and value > 0):
                 return f"--{name} must be a positive finite number, not {value!r}"
+        if tol is not None and not MIN_TOL <= tol <= 1.0:
+            return (
+                f"--tol {tol:g} is outside what an adaptive method can honour in double "
+                f"precision: give a tolerance between {MIN_TOL:g} and 1"
+            )
+        if dt is not None and self.setting == "dt" and span is not None:
+            t0, t_end = span
+            length, scale = t_end - t0, max(abs(t0), abs(t_end))
+            if math.isfinite(length) and dt > length:
+                return f"--dt {dt:g} is longer than the whole run ({length:g}); give a smaller step"
+            if math.isfinite(scale) and dt < TIME_RESOLUTION * scale:
+                return (
+                    f"--dt {dt:g} is below the resolution of the clock near t = {scale:g} "
+                    f"(about {TIME_RESOLUTION * scale:.2g}): time would not advance"
+                )
         return None
+
+
+MIN_TOL = 1e-16
+"""Smallest tolerance accepted: below it the error estimate is round-off."""
+
+TIME_RESOLUTION = 1e-13
+"""Smallest fixed step, relative to the largest |t| of the run: about 500 units of
+round-off, so that t + dt moves and the compensated clock stays meaningful."""
 
 
 # -- applicability ---------------------------------------------------------------------------

@@ -35,7 +35,8 @@ STIFF_TOL = 1e-6
 def jacobian(f, y0: np.ndarray) -> np.ndarray | None:
     """Central-difference Jacobian of ``f(y) -> (m,)`` at ``y0`` (shape (m,)), shape (m, m).
 
-    None where ``f`` fails (a division by zero, a domain error) or is not finite there.
+    None where ``f`` fails (a division by zero, a domain error), is complex or is not
+    finite there.
     """
     m = len(y0)
     J = np.empty((m, m))
@@ -45,8 +46,11 @@ def jacobian(f, y0: np.ndarray) -> np.ndarray | None:
         up[j] += h
         down[j] -= h
         try:
-            J[:, j] = (np.asarray(f(up), dtype=float) - np.asarray(f(down), dtype=float)) / (2 * h)
-        except (ZeroDivisionError, ValueError, OverflowError):
+            with np.errstate(all="ignore"):
+                J[:, j] = (np.asarray(f(up), dtype=float) - np.asarray(f(down), dtype=float)) / (
+                    2 * h
+                )
+        except (ArithmeticError, ValueError, TypeError):  # TypeError: a complex value
             return None
     return J if np.all(np.isfinite(J)) else None
 
