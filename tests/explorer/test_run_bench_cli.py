@@ -221,7 +221,7 @@ def test_rows_are_chosen_by_simulation_time_not_wall_time(tmp_path, capsys):
 @pytest.mark.parametrize(
     "args, fragment",
     [
-        (["--t-end", "inf"], "positive finite time"),
+        (["--t-end", "inf"], "--every"),
         (["--samples", "0"], "--samples"),
         (["--every", "-1"], "--every"),
     ],

@@ -1,0 +1,284 @@
+"""Bad scenes and hostile expressions: a clear message naming what to fix, quickly.
+
+Each case of issue 11's list is here: a file that is not text, TOML nested hundreds deep,
+wrong types in [drawing], expressions that blow up when expanded, and physically
+meaningless starts (a zero mass, r = 0, a kinetic energy that vanishes at the start).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from systems.deadline import Abandoned, TimeLimitExceeded, abandon, time_limit
+from systems.mechanics import DerivationError, derive
+from systems.scene import SceneError, load_scene, parse_scene
+
+OSCILLATOR = """
+title = "Oscillator"
+[system]
+coordinates = ["x"]
+parameters = {{ m = {m}, k = 1.0 }}
+kinetic = "{kinetic}"
+potential = "{potential}"
+[initial]
+x = {x}
+x_dot = 0.5
+"""
+
+KEPLER = """
+title = "Kepler"
+[system]
+coordinates = ["r", "theta"]
+parameters = {{ m = 1.0, k = 1.0 }}
+kinetic = "m*(r_dot**2 + r**2*theta_dot**2)/2"
+potential = "-k/r"
+[initial]
+r = {r}
+theta_dot = 1.2
+"""
+
+
+def oscillator(m=1.0, kinetic="m*x_dot**2/2", potential="k*x**2/2", x=1.0) -> str:
+    return OSCILLATOR.format(m=m, kinetic=kinetic, potential=potential, x=x)
+
+
+def refused(text: str, *words: str) -> str:
+    with pytest.raises(SceneError) as info:
+        parse_scene(text, source="bad.toml")
+    message = str(info.value)
+    assert message.startswith("bad.toml"), message
+    for word in words:
+        assert word in message, message
+    return message
+
+
+# -- files and TOML ----------------------------------------------------------------------
+
+
+def test_a_binary_file_is_not_a_scene(tmp_path):
+    path = tmp_path / "noise.toml"
+    path.write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(SceneError, match="not a text file"):
+        load_scene(path)
+
+
+def test_nul_bytes_are_refused(tmp_path):
+    path = tmp_path / "nul.toml"
+    path.write_text(oscillator() + "\x00\x00")
+    with pytest.raises(SceneError, match="NUL"):
+        load_scene(path)
+
+
+@pytest.mark.parametrize("depth", [9, 600, 100_000])
+def test_deep_toml_nesting_is_refused_at_once(depth):
+    start = time.perf_counter()
+    refused(oscillator() + "\n[view]\nx = " + "[" * depth + "]" * depth + "\n", "nested")
+    assert time.perf_counter() - start < 1.0
+
+
+def test_brackets_inside_strings_do_not_count_as_nesting():
+    text = oscillator(potential="k*x**2/2 + 0*(((((((((x)))))))))").replace(
+        'title = "Oscillator"', 'title = "[[[[[[[[[[[[[[ {{{{{{{{{{{"  # ]]]]]]]]]]]]]]]]]'
+    )
+    assert parse_scene(text).title.startswith("[[[[")
+
+
+def test_a_huge_scene_is_refused(tmp_path):
+    refused(oscillator() + "#" + "x" * 1_000_001, "characters")
+    path = tmp_path / "huge.toml"
+    path.write_text("#" * 5_000_000)
+    with pytest.raises(SceneError, match="bytes"):
+        load_scene(path)
+
+
+@pytest.mark.parametrize(
+    "drawing, field",
+    [
+        ('points = { a = ["x", "0"] }\nlinks = [[["a"], "a"]]', "drawing.links[0]"),
+        ('points = { a = ["x", "0"] }\nlinks = "a"', "drawing.links"),
+        ('points = { a = ["x", "0"] }\nlinks = [["a", 5]]', "drawing.links[0]"),
+        ('points = { a = ["x"] }', "drawing.points.a"),
+        ("points = 5", "drawing.points"),
+        ('points = { a = ["x", "0"] }\ntrace = "a"', "drawing.trace"),
+    ],
+)
+def test_drawing_with_wrong_types(drawing, field):
+    refused(oscillator() + "\n[drawing]\n" + drawing + "\n", field)
+
+
+# -- expressions that are small as written and huge expanded ------------------------------
+
+
+@pytest.mark.parametrize(
+    "potential",
+    [
+        "(" + " + ".join(f"x**{k}" for k in range(1, 41)) + ")**20",
+        "**".join(["x"] * 50),
+        "(1 + x + x**2 + x**3)**100 * (2 + x)**90",
+    ],
+)
+def test_expanding_potentials_derive_quickly(potential, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
+    scene = parse_scene(oscillator(potential=potential, x=0.1))
+    start = time.perf_counter()
+    try:
+        derive(scene)
+    except DerivationError:
+        pass  # refused with a message is as good as derived
+    assert time.perf_counter() - start < 10.0
+
+
+def test_a_derivation_past_its_time_is_stopped_with_a_message(monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVE_SECONDS", "0.01")
+    start = time.perf_counter()
+    with pytest.raises(DerivationError, match="PHASE_EXPLORER_DERIVE_SECONDS"):
+        derive(load_scene("double_pendulum"))
+    assert time.perf_counter() - start < 2.0
+
+
+# -- the time limit itself ------------------------------------------------------------------
+
+
+def spin(seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
+
+
+def test_time_limit_stops_pure_python_work():
+    start = time.perf_counter()
+    with pytest.raises(TimeLimitExceeded, match="spinning"):
+        with time_limit(0.1, "spinning"):
+            spin(5.0)
+    assert time.perf_counter() - start < 1.0
+
+
+def test_time_limit_is_not_swallowed_by_except_exception():
+    def stubborn():
+        end = time.perf_counter() + 5.0
+        while time.perf_counter() < end:
+            try:
+                spin(0.01)
+            except Exception:  # noqa: BLE001 - what sympy does in places
+                pass
+
+    start = time.perf_counter()
+    with pytest.raises(TimeLimitExceeded):
+        with time_limit(0.1, "stubborn"):
+            stubborn()
+    assert time.perf_counter() - start < 1.0
+
+
+def test_time_limit_works_in_a_thread_and_leaves_nothing_pending():
+    outcome = []
+
+    def work():
+        try:
+            with time_limit(0.1, "in a thread"):
+                spin(5.0)
+        except TimeLimitExceeded:
+            outcome.append("stopped")
+        for _ in range(3):  # nothing raised after the block
+            with time_limit(0.2, "quick"):
+                spin(0.05)
+        spin(0.5)
+        outcome.append("went on")
+
+    thread = threading.Thread(target=work)
+    thread.start()
+    thread.join(5.0)
+    assert outcome == ["stopped", "went on"]
+
+
+def test_abandon_ends_a_thread_at_once():
+    state = []
+
+    def work():
+        try:
+            spin(30.0)
+        except Abandoned:
+            state.append("abandoned")
+
+    thread = threading.Thread(target=work)
+    thread.start()
+    time.sleep(0.05)
+    start = time.perf_counter()
+    abandon(thread)
+    thread.join(2.0)
+    assert state == ["abandoned"] and time.perf_counter() - start < 1.0
+
+
+# -- physically meaningless starts ----------------------------------------------------------
+
+
+def _compiled(text: str):
+    from systems.compiled import compile_system
+
+    return compile_system(derive(parse_scene(text, source="bad.toml")), ["rhs", "hamiltonian"])
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (oscillator(m=0.0), ["zero parameters: m", "mass matrix", "singular"]),
+        (oscillator(m=-1.0), ["not positive definite", "negative"]),
+        (KEPLER.format(r=0.0), ["r = 0", "singular"]),
+        (KEPLER.format(r=1e-300), ["r = 1e-300", "singular"]),
+        (oscillator(kinetic="x**2*x_dot**2/2", x=0.0), ["mass matrix", "singular"]),
+        (oscillator(potential="sqrt(-k)*x"), ["dp_x/dt is not a number"]),
+        (oscillator(potential="k/x", x=0.0), ["dp_x/dt is infinite"]),
+    ],
+)
+def test_a_singular_start_is_refused_before_integration(text, words):
+    from systems.start_check import SingularStart, check_start
+
+    compiled = _compiled(text)
+    with pytest.raises(SingularStart) as info:
+        check_start(compiled)
+    message = str(info.value)
+    assert message.startswith("bad.toml: initial:"), message
+    for word in words:
+        assert word in message, message
+
+
+def test_a_regular_start_passes_and_gives_the_state():
+    import numpy as np
+
+    from systems.start_check import check_start
+
+    y0 = check_start(_compiled(oscillator(m=2.0)))
+    np.testing.assert_allclose(y0, [1.0, 1.0])
+
+
+def test_an_indefinite_but_regular_lagrangian_is_allowed():
+    from systems.start_check import check_start
+
+    text = """
+title = "Indefinite"
+[system]
+coordinates = ["x", "y"]
+lagrangian = "x_dot*y_dot - x*y"
+[initial]
+x = 1.0
+"""
+    check_start(_compiled(text))
+
+
+def test_equilibria_of_a_quartic_kinetic_term_have_no_frequency():
+    from systems.textbook import search_equilibria
+
+    text = """
+title = "Quartic"
+[system]
+coordinates = ["x"]
+hamiltonian = "p_x**4/4 + x**2/2"
+[initial]
+x = 1.0
+"""
+    search = search_equilibria(derive(parse_scene(text)))
+    (equilibrium,) = search.equilibria
+    assert equilibrium.stable and equilibrium.frequencies == []
