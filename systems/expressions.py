@@ -236,6 +236,35 @@ _BINARY = {
     ast.Mult: lambda a, b: a * b,
     ast.Div: lambda a, b: a / b,
 }
+_ADDITIVE = (ast.Add, ast.Sub)
+_MULTIPLICATIVE = (ast.Mult, ast.Div)
+_INVERSE = {
+    None: lambda a: a,
+    ast.Add: lambda a: a,
+    ast.Sub: lambda a: -a,
+    ast.Mult: lambda a: a,
+    ast.Div: lambda a: sympy.Pow(a, -1),
+}
+
+
+def _chain(node: ast.BinOp) -> list[tuple[type | None, ast.AST, ast.AST]]:
+    """The operands of a chain such as ``a + b - c + d`` or ``a*b/c``, left to right.
+
+    Python's ``ast`` nests ``a + b + c`` to the left, so a flat sum of 300 terms is a tree
+    300 deep; taken as one chain (of + and -, or of * and /), its depth is 1, and a long
+    sum written out by hand is not mistaken for deep nesting. Returns (operator before the
+    operand, None for the first; operand; the node to point at in a message).
+    """
+    family = _ADDITIVE if isinstance(node.op, _ADDITIVE) else _MULTIPLICATIVE
+    items = []
+    while isinstance(node, ast.BinOp) and isinstance(node.op, family):
+        items.append((type(node.op), node.right, node))
+        node = node.left
+    items.append((None, node, node))
+    items.reverse()
+    return items
+
+
 _FLOAT_BINARY = {
     ast.Add: lambda a, b: a + b,
     ast.Sub: lambda a, b: a - b,
@@ -334,7 +363,15 @@ class _Builder:
             case ast.UnaryOp(op=ast.USub() | ast.UAdd() as op, operand=operand):
                 inner = self.value(operand, depth + 1)
                 return None if inner is None else (-inner if isinstance(op, ast.USub) else inner)
-            case ast.BinOp(op=ast.Pow() | ast.Add() | ast.Sub() | ast.Mult() | ast.Div() as op):
+            case ast.BinOp(op=ast.Add() | ast.Sub() | ast.Mult() | ast.Div()):
+                total = None
+                values = [(op, self.value(operand, depth + 1)) for op, operand, _ in _chain(node)]
+                if any(v is None for _, v in values):
+                    return None
+                for op, v in values:
+                    total = v if op is None else _FLOAT_BINARY[op](total, v)
+                return total
+            case ast.BinOp(op=ast.Pow() as op):
                 a = self.value(node.left, depth + 1)
                 b = self.value(node.right, depth + 1)
                 if a is None or b is None:
@@ -365,11 +402,14 @@ class _Builder:
                 raise self.fail("only + and - may stand before a term", node)
             case ast.BinOp(op=ast.Pow(), left=left, right=right):
                 return self.power(self.build(left, depth + 1), self.build(right, depth + 1), node)
-            case ast.BinOp(op=op, left=left, right=right) if type(op) in _BINARY:
-                a, b = self.build(left, depth + 1), self.build(right, depth + 1)
-                if isinstance(op, ast.Div) and b == 0:
-                    raise self.fail("division by zero", node)
-                result = _BINARY[type(op)](a, b)
+            case ast.BinOp(op=op) if type(op) in _BINARY:
+                parts = []
+                for kind, operand, at in _chain(node):
+                    part = self.build(operand, depth + 1)
+                    if kind is ast.Div and part == 0:
+                        raise self.fail("division by zero", at)
+                    parts.append(_INVERSE[kind](part))
+                result = sympy.Add(*parts) if type(op) in _ADDITIVE else sympy.Mul(*parts)
                 self.check_size(result, node)
                 return result
             case ast.BinOp(op=op):

@@ -79,3 +79,29 @@ def test_good_name():
 def test_moderate_exact_rationals_stay_exact():
     value = parse_expression("(2/3)**100*x", NAMES)
     assert value == sympy.Rational(2, 3) ** 100 * NAMES["x"]
+
+
+def test_long_flat_sums_and_products_are_not_deep():
+    """A 300-term sum nests 300 deep in Python's ast; it is one level here (issue 12)."""
+
+    names = [f"q{i}" for i in range(301)]
+    symbols = {name: sympy.Symbol(name, real=True) for name in names}
+    text = " + ".join(f"(q{i + 1} - q{i})**2/2 - q{i}**4/4" for i in range(300))
+    start = time.perf_counter()
+    expr = parse_expression(text, symbols)
+    assert time.perf_counter() - start < 2.0
+    assert len(expr.args) == 600
+    product = parse_expression("*".join(names[:200]) + "/q0", symbols)
+    assert product == sympy.Mul(*[symbols[n] for n in names[1:200]])
+    with pytest.raises(ExpressionError, match="division by zero"):
+        parse_expression("q1*q2/(q3 - q3)*q4", symbols)
+
+
+def test_deep_nesting_is_still_refused_quickly():
+
+    x = {"x": sympy.Symbol("x", real=True)}
+    for text in ("(" * 61 + "x" + ")" * 61, "-" * 5000 + "x", "x" + "**x" * 3000):
+        start = time.perf_counter()
+        with pytest.raises(ExpressionError, match="nested too deeply|too long"):
+            parse_expression(text, x)
+        assert time.perf_counter() - start < 1.0
