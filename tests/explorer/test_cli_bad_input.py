@@ -164,36 +164,45 @@ VALUES = st.recursive(
     ),
     max_leaves=6,
 )
-SYSTEM = st.fixed_dictionaries(
-    {"coordinates": st.sampled_from([["x"], ["x", "y"], "x", [], [1], ["x", "x"], ["t"]])},
-    optional={
-        "parameters": st.sampled_from(
-            [{"m": 1.0, "k": 2.0}, {"m": 0.0}, {"m": "k"}, [], {"w": "nan"}]
-        )
-        | VALUES,
-        "kinetic": EXPRESSIONS | VALUES,
-        "potential": EXPRESSIONS,
-        "lagrangian": EXPRESSIONS,
-        "hamiltonian": EXPRESSIONS,
-        "junk": VALUES,
+BASE = {
+    "title": "Fuzz",
+    "system": {
+        "coordinates": ["x", "y"],
+        "parameters": {"m": 1.0, "k": 2.0},
+        "kinetic": "m*(x_dot**2 + y_dot**2)/2",
+        "potential": "k*(x**2 + y**2)/2 + x*y**2",
     },
+    "effects": {"dissipation": "x_dot**2/10", "forces": {"x": "cos(t)"}},
+    "initial": {"x": 0.1, "y_dot": 0.2},
+    "drawing": {"points": {"bob": ["x", "y"]}, "links": [["origin", "bob"]], "trace": ["bob"]},
+    "view": {"t_end": 5.0, "phase": ["x", "p_x"], "ranges": {"x": [-1.0, 1.0]}},
+}
+PATHS = st.sampled_from(
+    [(table, key) for table, content in BASE.items() if isinstance(content, dict)
+     for key in [*content, "junk"]] + [("title", None), ("system", None), ("view", None)]
+)  # fmt: skip
+MUTATIONS = st.lists(
+    st.tuples(PATHS, st.sampled_from(["set", "delete"]), VALUES | EXPRESSIONS), max_size=3
 )
 
 
-def _table(keys: list[str], values=VALUES, size: int = 3):
-    return st.dictionaries(st.sampled_from(keys), values, max_size=size)
+def mutated(mutations) -> dict:
+    """``BASE`` with some entries replaced by random values or deleted."""
+    import copy
 
-
-DOCUMENTS = st.fixed_dictionaries(
-    {"system": SYSTEM},
-    optional={
-        "title": LEAVES,
-        "initial": _table(["x", "x_dot", "p_x", "y", "q"], LEAVES),
-        "effects": _table(["dissipation", "forces", "disabled", "z"], size=2),
-        "drawing": _table(["points", "links", "trace"]),
-        "view": _table(["t_end", "phase", "ranges", "section", "zoom"], size=2),
-    },
-)
+    document = copy.deepcopy(BASE)
+    for (table, key), action, value in mutations:
+        if key is None:
+            if action == "delete":
+                document.pop(table, None)
+            else:
+                document[table] = value
+        elif isinstance(document.get(table), dict):
+            if action == "delete":
+                document[table].pop(key, None)
+            else:
+                document[table][key] = value
+    return document
 
 
 def _toml(document: dict) -> str:
@@ -216,9 +225,9 @@ FUZZ = settings(
 
 
 @FUZZ
-@given(document=DOCUMENTS, cut=st.integers(0, 400))
-def test_random_scenes_derive_or_are_refused(tmp_path_factory, document, cut):
-    text = _toml(document)
+@given(mutations=MUTATIONS, cut=st.integers(0, 400))
+def test_random_scenes_derive_or_are_refused(tmp_path_factory, mutations, cut):
+    text = _toml(mutated(mutations))
     if cut % 5 == 0:  # a file cut short, as an interrupted save would leave it
         text = text[: cut % max(len(text), 1)]
     path = write(tmp_path_factory.mktemp("fuzz"), text)
@@ -228,12 +237,32 @@ def test_random_scenes_derive_or_are_refused(tmp_path_factory, document, cut):
     assert time.perf_counter() - start < 30.0
 
 
-NUMBERS = st.sampled_from(["0", "-1", "1e-300", "1e-15", "0.01", "1", "1e300", "inf", "nan", "x"])
+NUMBERS = st.sampled_from(["0", "-1", "1e-300", "1e-15", "0.01", "0.5", "1", "1e300", "inf", "nan"])
+OPTION_VALUES = {
+    "--dt": NUMBERS,
+    "--tol": NUMBERS,
+    "--t-end": NUMBERS,
+    "--every": NUMBERS,
+    "--samples": st.sampled_from(["0", "1", "7", "100000", "-5"]),
+    "--max-steps": st.sampled_from(["0", "1", "1000", "200000", "-1"]),
+    "--energy-tolerance": NUMBERS | st.just("off"),
+    "--method": st.sampled_from(
+        [
+            "dop853",
+            "leapfrog",
+            "radau",
+            "gauss_legendre6",
+            "yoshida8",
+            "logh_leapfrog",
+            "rk4",
+            "euler",
+            "no such method",
+        ]
+    ),
+}
 OPTIONS = st.lists(
-    st.tuples(
-        st.sampled_from(["--dt", "--tol", "--t-end", "--samples", "--every", "--max-steps",
-                         "--energy-tolerance", "--method"]),
-        NUMBERS | st.sampled_from(["dop853", "leapfrog", "radau", "gauss_legendre6", "no", "off"]),
+    st.sampled_from(sorted(OPTION_VALUES)).flatmap(
+        lambda flag: st.tuples(st.just(flag), OPTION_VALUES[flag])
     ),
     max_size=4,
 )  # fmt: skip
