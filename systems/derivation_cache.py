@@ -5,8 +5,9 @@ opening was the symbolic derivation itself (about a second for the double pendul
 derivation is a pure function of the scene's text and of the code that derives it, so the
 key is a hash of both: the scene as TOML (its title, system, effects, parameters, initial
 state and drawing) and the source of the modules that parse and derive, with sympy's
-version. Editing any of them simply misses the cache. A file that cannot be read is
-ignored and written anew.
+version. Editing any of them simply misses the cache. Every file carries a checksum of its
+contents and of that code version (``systems.cache_integrity.write_checked``); one that
+does not verify or load is deleted, reported in one line on stderr, and derived anew.
 
 ``remembered`` keeps smaller facts computed from a derivation the same way (the method
 choice, the printed kernel source), keyed also by the code that computes them: on a
@@ -28,23 +29,27 @@ import sympy
 import systems.expressions
 import systems.mechanics
 import systems.scene
+from systems.cache_integrity import (
+    MAGIC,
+    cache_root,
+    discard,
+    read_checked,
+    usable_directory,
+    write_checked,
+)
 
 
 @cache
 def _code_version() -> str:
-    digest = hashlib.sha256(sympy.__version__.encode())
+    digest = hashlib.sha256(MAGIC + sympy.__version__.encode())  # MAGIC: the file format
     for module in (systems.expressions, systems.scene, systems.mechanics):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()
 
 
 def _path(scene) -> Path:
-    from systems.codegen import cache_dir
-
     key = hashlib.sha256((_code_version() + scene.to_toml()).encode()).hexdigest()[:32]
-    folder = cache_dir().parent / "derivations"
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder / f"{key}.pickle"
+    return usable_directory(cache_root() / "derivations") / f"{key}.pickle"
 
 
 def enabled() -> bool:
@@ -56,28 +61,28 @@ def load(scene):
     if not enabled():
         return None
     path = _path(scene)
+    data = read_checked(path, _code_version())
+    if data is None:
+        return None
     try:
-        with path.open("rb") as handle:
-            mechanics = pickle.load(handle)
-    except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError, TypeError):
+        mechanics = pickle.loads(data)
+        if not isinstance(mechanics, systems.mechanics.Mechanics):
+            raise TypeError(f"a pickled {type(mechanics).__name__}, not a derivation")
+        return dataclasses.replace(mechanics, scene=scene, _cache={})
+    except Exception as exc:  # noqa: BLE001 - whatever a damaged entry raises, derive anew
+        discard(path, f"failed to load: {type(exc).__name__}")
         return None
-    if not isinstance(mechanics, systems.mechanics.Mechanics):
-        return None
-    return dataclasses.replace(mechanics, scene=scene, _cache={})
 
 
 def store(mechanics) -> None:
     """Write ``mechanics`` for its scene; failures only mean a later miss."""
     if not enabled():
         return
-    path = _path(mechanics.scene)
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
     try:
-        with tmp.open("wb") as handle:
-            pickle.dump(dataclasses.replace(mechanics, _cache={}), handle)
-        os.replace(tmp, path)
-    except (OSError, pickle.PicklingError, TypeError, AttributeError):
-        tmp.unlink(missing_ok=True)
+        data = pickle.dumps(dataclasses.replace(mechanics, _cache={}))
+    except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        return
+    write_checked(_path(mechanics.scene), data, _code_version())
 
 
 def code_hash(*modules) -> str:
@@ -93,22 +98,17 @@ def remembered(scene, tag: str, compute: Callable[[], str]) -> str:
 
     ``tag`` must change whenever the answer could (include ``code_hash`` of the modules
     that compute it). Without the cache (``PHASE_EXPLORER_DERIVATION_CACHE=0``) this is
-    ``compute()``.
+    ``compute()``. The stored text is checked against its checksum (of the text and the
+    tag) before it is returned; one that does not verify is computed again.
     """
     if not enabled():
         return compute()
     base = _path(scene)
     name = hashlib.sha256(tag.encode()).hexdigest()[:16]
     path = base.with_name(f"{base.stem}-{name}.txt")
-    try:
-        return path.read_text()
-    except OSError:
-        pass
+    data = read_checked(path, tag)
+    if data is not None:
+        return data.decode()  # verified: the UTF-8 that was written
     text = compute()
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError:
-        tmp.unlink(missing_ok=True)
+    write_checked(path, text.encode(), tag)
     return text

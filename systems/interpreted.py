@@ -81,7 +81,8 @@ def _execute(source: str, name: str, path: str) -> ModuleType:
 def scalar_twin(native: ModuleType) -> ModuleType:
     """The generated module ``native`` executed as plain Python (``njit`` is the identity)."""
     path = native.__file__
-    source = Path(path).read_text()
+    # the source that was verified and run (systems.codegen), never the file read again
+    source = getattr(native, "__phase_explorer_source__", None) or Path(path).read_text()
     if NUMBA_IMPORT not in source:
         raise RuntimeError(f"{path} does not import numba as systems.codegen writes it")
     source = source.replace(NUMBA_IMPORT, SCALAR_PRELUDE, 1)

@@ -25,6 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+from systems.cache_integrity import verify_numba_caches
+from systems.codegen import cache_dir
+
 ROOT = Path(__file__).resolve().parent.parent
 CHILD_TIMEOUT = 300.0
 
@@ -93,6 +96,7 @@ class _NativeBuilder:
         )
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+        env["PHASE_EXPLORER_CACHE"] = str(cache_dir().parent)  # this process's, or its stand-in
         try:
             child = subprocess.Popen(
                 [sys.executable, "-m", "systems.native_build"],
@@ -106,12 +110,15 @@ class _NativeBuilder:
             return  # no child: numba compiles in this process instead
         self._child = child
         try:
-            child.communicate(payload, timeout=CHILD_TIMEOUT)
+            _, stderr = child.communicate(payload, timeout=CHILD_TIMEOUT)
         except subprocess.TimeoutExpired:
             child.kill()
-            child.communicate()
+            _, stderr = child.communicate()
         finally:
             self._child = None
+        for line in stderr.decode(errors="replace").splitlines():
+            if line.startswith("phase-explorer: "):  # a cache entry the child rebuilt
+                print(line, file=sys.stderr, flush=True)
 
     def stop_child(self) -> None:
         child = self._child
@@ -126,8 +133,10 @@ atexit.register(_builder.stop_child)
 def cached(compiled, method: str) -> bool:
     """True if numba's on-disk cache holds machine code for ``method``'s loop of this scene.
 
-    Reads the cache index of the loop's dispatcher (numba's ``IndexDataCacheFile``); any
-    surprise in numba's internals counts as not cached, which only costs a child process.
+    Reads the cache index of the loop's dispatcher (numba's ``IndexDataCacheFile``) after
+    checking the checksums of all the module's cache entries (a damaged one is deleted and
+    reported, and the child compiles it again); any surprise in numba's internals counts
+    as not cached, which only costs a child process.
     """
     from systems.integrators import get_stepper
 
@@ -136,7 +145,8 @@ def cached(compiled, method: str) -> bool:
         return True  # scipy's solvers: only the right-hand side is numba's, and it is small
     native = compiled.native().kernels
     try:
-        return bool(getattr(native, loop)._cache._cache_file._load_index())
+        sound = verify_numba_caches(native)
+        return sound and bool(getattr(native, loop)._cache._cache_file._load_index())
     except Exception:  # noqa: BLE001 - private numba API; fall back to compiling in a child
         return False
 

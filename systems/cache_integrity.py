@@ -1,0 +1,261 @@
+"""Cache files that heal: checksummed entries, guarded numba caches, a usable directory.
+
+Everything the caches keep (derivations, remembered facts, generated kernel modules,
+numba's machine code) is rebuilt from the scene and the code when missing, so a damaged
+entry is never an error: it is deleted, rebuilt, and reported in one line on stderr.
+
+- ``write_checked`` / ``read_checked``: a file whose first line holds the sha256 of the
+  code version and the body that follow it; an entry that does not verify is deleted.
+- ``guard_numba_caches``: numba's per-function cache (an index ``.nbi`` and data files
+  ``.nbc`` in its ``__pycache__``; the index holds numba's version and the stamp of the
+  source file) gets a checksum file ``.nbsum`` written after each save and checked before
+  each load; an entry that does not verify or fails to load is deleted and compiled again.
+- ``cache_root`` / ``usable_directory``: a cache directory that cannot be created or
+  written (read-only, or a file in its place) is replaced for the session by a temporary
+  one, with one warning line.
+"""
+
+from __future__ import annotations
+
+import atexit
+import glob
+import hashlib
+import os
+import shutil
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from types import ModuleType
+
+MAGIC = b"phase-explorer-cache 1 sha256="
+"""Start of the first line of a checksummed file; the hex digest follows."""
+
+_fallbacks: dict[Path, Path] = {}
+_temporary: list[Path] = []
+_fallback_lock = threading.Lock()  # the native-build thread may hit the same directory
+
+
+def report(message: str) -> None:
+    """Print one ``phase-explorer: ...`` line on stderr."""
+    print(f"phase-explorer: {message}", file=sys.stderr, flush=True)
+
+
+def _digest(version: str, body: bytes) -> bytes:
+    digest = hashlib.sha256(hashlib.sha256(version.encode()).digest())
+    digest.update(body)
+    return digest.hexdigest().encode()
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it into place.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be written; ``path`` is then left as it was.
+    """
+    handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as file:
+            file.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_checked(path: Path, body: bytes, version: str) -> bool:
+    """Store ``body`` at ``path`` under a checksum of ``version`` and ``body``.
+
+    Returns False if the file could not be written (a cache only misses later).
+    """
+    try:
+        write_atomic(path, MAGIC + _digest(version, body) + b"\n" + body)
+    except OSError:
+        return False
+    return True
+
+
+def read_checked(path: Path, version: str) -> bytes | None:
+    """The body stored at ``path`` by ``write_checked`` with the same ``version``.
+
+    Returns None if there is no such file. A file that cannot be read or does not verify
+    (cut, edited, random, written by other code) is deleted, reported on stderr, and
+    None returned, so the caller rebuilds it.
+    """
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        discard(path, exc.strerror or type(exc).__name__)
+        return None
+    header, _, body = data.partition(b"\n")
+    if header != MAGIC + _digest(version, body):
+        discard(path, "checksum mismatch")
+        return None
+    return body
+
+
+def discard(path: Path, reason: str) -> None:
+    """Delete the damaged cache entry ``path`` and say so in one line on stderr."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass  # left in place: it is verified, and rejected, again next time
+    report(f"cache entry {path} was damaged ({reason}); rebuilding it")
+
+
+# -- numba's on-disk cache ------------------------------------------------------------------
+
+
+class HealingCache:
+    """numba's cache of one function, with checksums and a rebuild for damaged entries.
+
+    Wraps the dispatcher's ``FunctionCache`` (every other attribute is the wrapped
+    cache's). ``save_overload`` records a sha256 of the function's index and data files
+    in a ``.nbsum`` file beside the index; ``load_overload`` first checks it and deletes
+    an entry that does not match, or that then fails to load, so numba compiles the
+    function again.
+    """
+
+    def __init__(self, cache, index: str):
+        self._inner = cache
+        self._index = Path(index)
+        self._sums = Path(index[: -len(".nbi")] + ".nbsum")
+
+    def __getattr__(self, name: str):
+        return getattr(self._inner, name)
+
+    def load_overload(self, sig, target_context):
+        """numba's compile result for ``sig`` from disk, or None to have it compiled."""
+        problem = self.verify()
+        if problem is None:
+            try:
+                return self._inner.load_overload(sig, target_context)
+            except Exception as exc:  # noqa: BLE001 - any failure to load means damage
+                problem = f"failed to load: {type(exc).__name__}"
+        self.discard(problem)
+        return None
+
+    def save_overload(self, sig, data) -> None:
+        """Save as numba does, then record the checksums of the function's files."""
+        try:
+            self._inner.save_overload(sig, data)
+            write_atomic(self._sums, self._checksum())
+        except OSError:
+            self.discard("")  # a full disk or read-only folder: only a later miss
+
+    def verify(self) -> str | None:
+        """None if the entry is absent or matches its checksums, else why not ("" when it
+        merely has no checksum file: written by an older version, or interrupted)."""
+        if not self._index.exists():
+            return None
+        try:
+            recorded = self._sums.read_bytes()
+        except FileNotFoundError:
+            return ""
+        except OSError as exc:
+            return exc.strerror or type(exc).__name__
+        return None if recorded == self._checksum() else "checksum mismatch"
+
+    def discard(self, reason: str) -> None:
+        """Delete the function's index, data and checksum files; report a non-empty reason."""
+        for path in [self._index, self._sums, *self._data_files()]:
+            try:
+                path.unlink(missing_ok=True)
+            except OSError:
+                pass
+        if reason:
+            report(f"cache entry {self._index} was damaged ({reason}); rebuilding it")
+
+    def _data_files(self) -> list[Path]:
+        stem = self._index.name[: -len(".nbi")]
+        return sorted(self._index.parent.glob(f"{glob.escape(stem)}.*.nbc"))
+
+    def _checksum(self) -> bytes:
+        """sha256 over the names and contents of the index and data files on disk."""
+        digest = hashlib.sha256()
+        for path in [self._index, *self._data_files()]:
+            digest.update(f"{path.name}\n".encode())
+            try:
+                digest.update(hashlib.sha256(path.read_bytes()).digest())
+            except OSError:
+                digest.update(b"missing")
+        return digest.hexdigest().encode() + b"\n"
+
+
+def guard_numba_caches(module: ModuleType) -> list[HealingCache]:
+    """Put a ``HealingCache`` around the cache of every cached numba function of ``module``.
+
+    Returns the guards (an unknown numba whose caches lack the expected index file is
+    left unguarded: it then only loses the healing).
+    """
+    guards = []
+    for value in vars(module).values():
+        cache = getattr(value, "_cache", None)
+        index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
+        if isinstance(cache, HealingCache):
+            guards.append(cache)
+        elif isinstance(index, str) and index.endswith(".nbi"):
+            value._cache = HealingCache(cache, index)
+            guards.append(value._cache)
+    return guards
+
+
+def verify_numba_caches(module: ModuleType) -> bool:
+    """Check every guarded numba cache entry of ``module``, discarding damaged ones.
+
+    Returns True if none was damaged (absent entries are fine).
+    """
+    sound = True
+    for guard in guard_numba_caches(module):
+        problem = guard.verify()
+        if problem is not None:
+            guard.discard(problem)
+            sound = False
+    return sound
+
+
+# -- the cache directory --------------------------------------------------------------------
+
+
+def cache_root() -> Path:
+    """The cache's top directory: ``PHASE_EXPLORER_CACHE``, else
+    ``~/.cache/phase-explorer``, or a temporary stand-in if that is not usable."""
+    root = os.environ.get("PHASE_EXPLORER_CACHE")
+    return usable_directory(Path(root) if root else Path.home() / ".cache" / "phase-explorer")
+
+
+def usable_directory(path: Path) -> Path:
+    """``path``, created if need be, or, if it cannot be written, a temporary directory.
+
+    The replacement lasts for the session (it is removed at exit) and is announced once
+    with a warning line on stderr.
+    """
+    if path in _fallbacks:
+        return _fallbacks[path]
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        return fall_back(path, "a file is in its place")
+    except OSError as exc:
+        return fall_back(path, exc.strerror or type(exc).__name__)
+    if not os.access(path, os.W_OK | os.X_OK):
+        return fall_back(path, "read-only")
+    return path
+
+
+def fall_back(path: Path, reason: str) -> Path:
+    """Use a temporary directory instead of ``path`` from now on; warn once."""
+    with _fallback_lock:
+        if path not in _fallbacks:
+            if not _temporary:
+                _temporary.append(Path(tempfile.mkdtemp(prefix="phase-explorer-cache-")))
+                atexit.register(shutil.rmtree, _temporary[0], ignore_errors=True)
+            fallback = _temporary[0] / path.name
+            fallback.mkdir(exist_ok=True)
+            _fallbacks[path] = fallback
+            report(f"warning: cache directory {path} is not usable ({reason}); using {fallback}")
+        return _fallbacks[path]

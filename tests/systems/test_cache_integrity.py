@@ -1,0 +1,279 @@
+"""A damaged cache entry is deleted, rebuilt and reported in one line on stderr; an
+unusable cache directory is replaced by a temporary one (issue 11, deliverable 6).
+
+Every case ends in the right answer, the harmonic oscillator's x(5) = cos 5, from the
+same ``run`` command users type, and (where a cache remains) in a rebuilt cache that the
+next run uses without complaint. Each test starts from a copy of one cache filled once.
+"""
+
+import json
+import math
+import os
+import pickle
+import random
+import shutil
+import stat
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from explorer.cli import main
+from systems import cache_integrity, codegen, derivation_cache
+from systems.cache_integrity import HealingCache, read_checked, write_checked
+
+RUN = ["run", "harmonic_oscillator", "--t-end", "5", "--method", "yoshida8"]  # default step
+
+
+def _isolate(monkeypatch, root: Path) -> None:
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(root))
+    monkeypatch.setattr(codegen, "_loaded", {})
+    monkeypatch.setattr(cache_integrity, "_fallbacks", {})
+    monkeypatch.setattr(cache_integrity, "_temporary", [])
+
+
+@pytest.fixture(scope="module")
+def pristine(tmp_path_factory) -> Path:
+    """A cache filled by one run (derivation, remembered facts, kernels, numba's files)."""
+    root = tmp_path_factory.mktemp("pristine") / "cache"
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        _isolate(monkeypatch, root)
+        assert main([*RUN, "--json"]) == 0
+    return root
+
+
+@pytest.fixture
+def cache(pristine, tmp_path, monkeypatch) -> Path:
+    root = tmp_path / "cache"
+    shutil.copytree(pristine, root)  # copy2 keeps mtimes, part of numba's source stamp
+    _isolate(monkeypatch, root)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    return root
+
+
+def run_once(capsys) -> list[str]:
+    """Run as a new process would (kernels loaded from disk); check the answer; return
+    the ``phase-explorer:`` lines printed on stderr."""
+    codegen._loaded.clear()
+    code = main([*RUN, "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["status"] == "ok"
+    assert report["final"]["q"]["x"] == pytest.approx(math.cos(5.0), abs=1e-8)
+    return [line for line in err.splitlines() if line.startswith("phase-explorer:")]
+
+
+def assert_healed(capsys, named: str) -> None:
+    """One line naming the damaged entry, then a run that finds the cache sound."""
+    lines = run_once(capsys)
+    assert len(lines) == 1 and named in lines[0] and "rebuil" in lines[0], lines
+    assert run_once(capsys) == []
+
+
+# -- kinds of damage --------------------------------------------------------------------
+
+
+def truncate(path: Path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def randomise(path: Path) -> None:
+    path.write_bytes(random.Random(11).randbytes(max(path.stat().st_size, 64)))
+
+
+def empty(path: Path) -> None:
+    path.write_bytes(b"")
+
+
+def flip_a_byte(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def drop_last_line(path: Path) -> None:
+    lines = path.read_bytes().rstrip(b"\n").split(b"\n")
+    path.write_bytes(b"\n".join(lines[:-1]) + b"\n")
+
+
+def numba_file(cache: Path, function: str, suffix: str) -> Path:
+    [path] = (cache / "kernels" / "__pycache__").glob(f"*.{function}-*.py*{suffix}")
+    return path
+
+
+def stored_text(cache: Path, containing: bytes) -> Path:
+    [path] = [p for p in (cache / "derivations").glob("*.txt") if containing in p.read_bytes()]
+    return path
+
+
+# -- numba's files ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("function", "suffix", "damage"),
+    [
+        ("compose_run", ".nbi", truncate),
+        ("compose_run", ".1.nbc", randomise),
+        ("rhs", ".1.nbc", flip_a_byte),
+        ("compose_work", ".nbi", empty),
+    ],
+)
+def test_damaged_numba_files_are_rebuilt(cache, capsys, function, suffix, damage):
+    damage(numba_file(cache, function, suffix))
+    assert_healed(capsys, f".{function}-")
+
+
+def test_a_numba_entry_that_verifies_but_fails_to_load_is_rebuilt(cache, capsys):
+    index = numba_file(cache, "compose_run", ".nbi")
+    truncate(index)
+    guard = HealingCache(None, str(index))
+    guard._sums.write_bytes(guard._checksum())  # damaged before its checksum was taken
+    lines = run_once(capsys)
+    assert len(lines) == 1 and "compose_run" in lines[0] and "failed to load" in lines[0]
+    assert run_once(capsys) == []
+
+
+def test_numba_entries_without_checksums_are_rebuilt_silently(cache, capsys):
+    for sums in (cache / "kernels" / "__pycache__").glob("*.nbsum"):
+        sums.unlink()  # as written before checksums, or interrupted before its checksum
+    randomise(numba_file(cache, "compose_run", ".nbi"))
+    assert run_once(capsys) == []
+    assert numba_file(cache, "compose_run", ".nbsum").exists()
+    assert run_once(capsys) == []
+
+
+def test_the_native_build_child_heals_and_its_line_reaches_this_process(cache, capsys):
+    from explorer.commands.run_cmd import prepare
+    from systems import native_build
+    from systems.compiled import compile_system
+    from systems.simulation import compile_natively, stream
+
+    _, mechanics, _, _, compiled = prepare("harmonic_oscillator", "yoshida8")
+    twin = compile_system(mechanics, compiled.wanted, interpreted_start=True)
+    truncate(numba_file(cache, "compose_run", ".nbi"))
+    job = native_build._Job(twin, "yoshida8", ("H",), None)
+    native_build._NativeBuilder()._run_child(job)  # the child, not this process, loads it
+    lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("phase-explorer")]
+    assert len(lines) == 1 and ".compose_run-" in lines[0], lines
+    compile_natively(twin, "yoshida8", ("H",))
+    final = list(stream(twin, method="yoshida8", t_end=5.0))[-1]
+    assert final.y[-1, 0] == pytest.approx(math.cos(5.0), abs=1e-8)
+    assert "phase-explorer" not in capsys.readouterr().err
+
+
+# -- the generated module and the remembered texts --------------------------------------
+
+
+def test_an_edited_kernel_module_is_rewritten_never_run(cache, capsys):
+    [module] = (cache / "kernels").glob("pe_kernels_*.py")
+    source = module.read_text()
+    assert source.count("out[0] = v_k*v_x") == 1  # grad_potential, the force yoshida8 uses
+    module.write_text(source.replace("out[0] = v_k*v_x", "out[0] = 0.0"))  # would freeze p
+    assert_healed(capsys, module.name)
+    assert module.read_text() == source
+
+
+@pytest.mark.parametrize("damage", [drop_last_line, empty, truncate, randomise])
+def test_a_damaged_stored_kernel_source_is_rebuilt(cache, capsys, damage):
+    path = stored_text(cache, b"def grad_potential(")
+    damage(path)
+    assert_healed(capsys, path.name)
+
+
+def test_a_junk_method_choice_is_rebuilt(cache, capsys):
+    path = stored_text(cache, b"yoshida8\n")
+    path.write_text("junk")
+    assert_healed(capsys, path.name)
+    assert b"yoshida8\n" in path.read_bytes()
+
+
+class _Boom:
+    def __reduce__(self):
+        return (_explode, ())
+
+
+def _explode():
+    raise RuntimeError("a pickle that raises while loading")
+
+
+def _checked_pickle(path: Path, obj) -> None:
+    write_checked(path, pickle.dumps(obj), derivation_cache._code_version())
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        randomise,
+        truncate,
+        lambda path: path.write_bytes(pickle.dumps({"not": "a derivation"})),
+        lambda path: _checked_pickle(path, {"not": "a derivation"}),
+        lambda path: _checked_pickle(path, _Boom()),
+    ],
+    ids=["random", "truncated", "other-object", "checked-other-object", "raises-on-load"],
+)
+def test_bad_derivation_pickles_are_rebuilt(cache, capsys, damage):
+    [path] = (cache / "derivations").glob("*.pickle")
+    damage(path)
+    assert_healed(capsys, path.name)
+
+
+def test_checked_files_reject_any_change_and_other_code(tmp_path, capsys):
+    path = tmp_path / "entry"
+    assert read_checked(path, "v1") is None  # a miss says nothing
+    assert write_checked(path, b"body\nlines\n", "v1")
+    assert read_checked(path, "v1") == b"body\nlines\n"
+    assert capsys.readouterr().err == ""
+    assert read_checked(path, "v2") is None  # written by other code
+    assert not path.exists()
+    write_checked(path, b"body\nlines\n", "v1")
+    drop_last_line(path)
+    assert read_checked(path, "v1") is None and not path.exists()
+    assert capsys.readouterr().err.count("phase-explorer: cache entry") == 2
+
+
+# -- unusable directories ---------------------------------------------------------------
+
+
+def _read_only(root: Path, monkeypatch, how: str) -> None:
+    if how == "chmod":
+        for folder, _, _ in os.walk(root):
+            os.chmod(folder, stat.S_IRUSR | stat.S_IXUSR)
+        if os.geteuid() == 0 and os.access(root, os.W_OK):
+            pytest.skip("root writes through chmod")  # (not when it lacks CAP_DAC_OVERRIDE)
+    else:  # as access(2) answers for a read-only mount
+        access = os.access
+        monkeypatch.setattr(
+            os, "access", lambda path, mode: access(path, mode) and Path(path) != root
+        )
+
+
+@pytest.mark.parametrize("how", ["chmod", "read-only-mount"])
+def test_a_read_only_cache_directory_falls_back(cache, capsys, monkeypatch, how):
+    before = sorted(p.name for p in cache.rglob("*"))
+    try:
+        _read_only(cache, monkeypatch, how)
+        lines = run_once(capsys)
+        assert run_once(capsys) == []  # warned once per session
+    finally:
+        for folder, _, _ in os.walk(cache):
+            os.chmod(folder, stat.S_IRWXU)
+    assert len(lines) == 1 and "warning" in lines[0] and str(cache) in lines[0], lines
+    assert sorted(p.name for p in cache.rglob("*")) == before
+    [fallback] = cache_integrity._temporary
+    assert fallback.parent == Path(tempfile.tempdir)
+    assert list((fallback / cache.name / "kernels").glob("pe_kernels_*.py"))
+
+
+def test_a_file_in_place_of_the_cache_directory_falls_back(tmp_path, capsys, monkeypatch):
+    root = tmp_path / "cache"
+    root.write_text("not a directory")
+    _isolate(monkeypatch, root)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    lines = run_once(capsys)
+    assert len(lines) == 1 and "warning" in lines[0] and "a file is in its place" in lines[0]
+    assert root.read_text() == "not a directory"
+    [fallback] = cache_integrity._temporary
+    assert list((fallback / "cache" / "derivations").glob("*.pickle"))
