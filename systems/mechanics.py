@@ -132,6 +132,12 @@ class Mechanics:
                     "no accelerations in terms of velocities; use Hamilton's equations",
                     source=self.scene.source,
                 )
+            if _is_diagonal(self.mass_matrix):
+                solution = [
+                    f / m for f, m in zip(self.forcing, self.mass_matrix.diagonal(), strict=True)
+                ]
+                self._cache["accelerations"] = tuple(_tidy(e) for e in solution)
+                return self._cache["accelerations"]
             if self.n > SYMBOLIC_INVERSE_LIMIT:
                 raise DerivationError(
                     f"symbolic accelerations are only formed for up to "
@@ -354,8 +360,8 @@ class _Context:
 
     def legendre_quadratic(self, M, a, L0):
         p = sympy.Matrix(self.p)
-        if self.n == 1:
-            inverse = sympy.Matrix([[1 / M[0, 0]]])
+        if _is_diagonal(M):  # any size: particles in Cartesian coordinates, lattices
+            inverse = sympy.diag(*[1 / M[i, i] for i in range(self.n)])
         elif self.n <= SYMBOLIC_INVERSE_LIMIT:
             det = _tidy(M.det(method="berkowitz"))
             inverse = M.adjugate() / det
@@ -404,11 +410,16 @@ class _Context:
         L = momenta = M = F = None
         zero_momentum = dict.fromkeys(p, sympy.S.Zero)
         quadratic = _degree_at_most(H, p, 2)
-        W = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(H, p[i], p[j]))
-        invertible = quadratic and self.n <= SYMBOLIC_INVERSE_LIMIT and self._regular(W)
+        # from dH/dp (small), not H (the whole system) differentiated n**2 times
+        W = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(velocities[i], p[j]))
+        small = self.n <= SYMBOLIC_INVERSE_LIMIT or _is_diagonal(W)
+        invertible = quadratic and small and self._regular(W)
         if invertible:
             b = sympy.Matrix([v.xreplace(zero_momentum) for v in velocities])
-            Winv = sympy.Matrix([[1 / W[0, 0]]]) if self.n == 1 else W.inv(method="ADJ")
+            if _is_diagonal(W):
+                Winv = sympy.diag(*[1 / W[i, i] for i in range(self.n)])
+            else:
+                Winv = W.inv(method="ADJ")
             momenta_vec = Winv * (sympy.Matrix(qd) - b)
             momenta = tuple(_tidy(e) for e in momenta_vec)
             to_momenta = dict(zip(p, momenta, strict=True))
@@ -646,6 +657,13 @@ def _homogeneous_part(expr: sympy.Expr, gens, degree: int) -> sympy.Expr:
     if degree == 2:
         return (expr + f_minus) / 2 - f_zero
     raise ValueError(f"degree {degree}: only 1 and 2")
+
+
+def _is_diagonal(matrix: sympy.Matrix) -> bool:
+    """True if every entry off the diagonal is identically zero (as written, no
+    simplification): then the inverse is taken entry by entry, for any size."""
+    n = matrix.rows
+    return all(matrix[i, j] == 0 for i in range(n) for j in range(n) if i != j)
 
 
 def _det(matrix: list[list[complex]]) -> complex:

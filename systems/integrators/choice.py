@@ -22,6 +22,8 @@ low orders reach only at many times the cost.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import sympy
 
@@ -81,10 +83,22 @@ def stiffness_ratio(mechanics) -> float:
     unstable or stalls there, and an L-stable implicit method is the right tool.
     Returns 1.0 when the ratio cannot be formed (no motion, a singular start).
     """
-    return _ratio(_eigenvalues(mechanics))
+    return _ratio(_eigenvalues(mechanics), _scene_t_end(mechanics))
 
 
-def _ratio(eigenvalues: np.ndarray) -> float:
+def _scene_t_end(mechanics) -> float:
+    """The length of the scene's run ([view] t_end; 10 when it gives none)."""
+    return float(mechanics.scene.view.get("t_end", 10.0))
+
+
+def _ratio(eigenvalues: np.ndarray, t_end: float = math.inf) -> float:
+    """Fastest over slowest rate that matters over a run of length ``t_end``.
+
+    A rate slower than one cycle per run does not limit any step, and symmetries
+    (translations, a conserved momentum) give zero eigenvalues that finite differences
+    return as small nonzero ones (a Jordan block's by the square root of round-off): so
+    the slowest rate counted is at least 2 pi / t_end.
+    """
     rates = np.abs(eigenvalues)
     if rates.size == 0:
         return 1.0
@@ -92,7 +106,8 @@ def _ratio(eigenvalues: np.ndarray) -> float:
     slow_rates = rates[rates > 1e-9 * max(fast, 1e-300)]
     if fast == 0.0 or slow_rates.size == 0:
         return 1.0
-    return float(fast / slow_rates.min())
+    floor = 2.0 * math.pi / t_end if math.isfinite(t_end) and t_end > 0 else 0.0
+    return float(fast / max(slow_rates.min(), floor))
 
 
 def singular_terms(expr) -> list[sympy.Expr]:
@@ -180,7 +195,7 @@ def _remembered_choice(mechanics) -> tuple[str, str]:
 def _choose(mechanics) -> tuple[str, str]:
     c = mechanics.classification
     eigenvalues = _eigenvalues(mechanics)
-    ratio = _ratio(eigenvalues)
+    ratio = _ratio(eigenvalues, _scene_t_end(mechanics))
     if ratio > STIFF_RATIO:
         fast = eigenvalues[np.abs(eigenvalues) > 0.5 * np.abs(eigenvalues).max()]
         oscillatory = np.all(np.abs(fast.real) <= 0.01 * np.abs(fast))
