@@ -25,11 +25,10 @@ def run(args: argparse.Namespace) -> int:
     with user_errors():
         scene = load_scene(args.scene)
         mechanics = derive(scene)
-        report = derivation_report(mechanics)
-    if args.json:
-        print(json.dumps(report, indent=2))
-    else:
-        print(readable(mechanics))
+        if args.json:  # the report searches the equilibria too: only when it is printed
+            print(json.dumps(derivation_report(mechanics), indent=2))
+        else:
+            print(readable(mechanics))
     return 0
 
 
