@@ -103,10 +103,10 @@ def time_limit(seconds: float | None, what: str) -> Iterator[None]:
         yield
         return
     limit = _Limit(ident, seconds)
-    _active[ident] = 1
-    limit.timer.start()
     late = None
-    try:
+    try:  # armed inside the try: an exception landing during start still finishes it
+        _active[ident] = 1
+        limit.timer.start()
         yield
     except TimeUp:
         late = TimeLimitExceeded(what, seconds)
