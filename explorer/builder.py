@@ -5,6 +5,13 @@ The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``; a w
 ``Built`` value or a ``BuildFailure`` with the field and position of the problem. Requests
 are numbered: a request overtaken by a newer one is skipped, and only the newest result
 is delivered, so typing fast never shows a stale system.
+
+``BuildService.stop`` does not wait for a build: it raises ``systems.deadline.Abandoned``
+in the builder thread (sympy is pure Python, so a derivation ends at its next bytecode),
+kills the forked children in which the equilibrium search runs ``sympy.solve`` (the
+thread waits for them in ``select``, where no exception can reach it), ends numba's
+compile in ``systems.native_build`` (its thread and its child process), and returns
+within ``STOP_SECONDS``.
 """
 
 from __future__ import annotations
@@ -14,6 +21,12 @@ import time
 from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+from explorer.worker import keep_until_finished
+from systems.deadline import Abandoned, abandon
+
+STOP_SECONDS = 0.8
+"""How long ``BuildService.stop`` may take: closing the window must take under a second."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +102,89 @@ FIRST_FRAME_WAIT = 1.0
 """Seconds the builder waits for the window's first frame before describing a system."""
 
 
+def _remaining(deadline: float) -> float:
+    return max(0.0, deadline - time.monotonic())
+
+
+def stop_native_build(deadline: float) -> bool:
+    """End the numba compile of ``systems.native_build``: its thread and its child process.
+
+    While the thread waits for its child it is abandoned (so that when the killed child's
+    pipes close it stops, instead of compiling in this process) and the child is killed
+    and reaped. Numba's own work in this process (loading the compiled code, tens of ms)
+    is waited for, never interrupted: an import or an initialisation of numba cut short
+    breaks numba for the rest of the process. Returns True if neither thread nor child is
+    left by ``deadline`` (a ``time.monotonic()`` value).
+    """
+    from systems import native_build
+
+    # native_build has no public stop: its thread and child are read where it keeps them
+    builder = native_build._builder
+    thread: threading.Thread | None = builder._thread
+    child = builder._child
+    while thread is not None and thread.is_alive():
+        child = builder._child or child
+        if child is not None:
+            abandon(thread)
+            builder.stop_child()
+            _reap(child, deadline)
+            thread.join(_remaining(deadline))
+            break
+        if _remaining(deadline) <= 0:
+            break
+        thread.join(min(0.02, _remaining(deadline)))  # it may be about to start a child
+    if child is not None:
+        _reap(child, deadline)
+    thread_over = thread is None or not thread.is_alive()
+    return thread_over and (child is None or child.poll() is not None)
+
+
+def end_forked_children(deadline: float) -> bool:
+    """Kill and reap this process's ``multiprocessing`` children; True if none is left.
+
+    They are the bounded ``sympy.solve`` runs of the equilibrium search
+    (``systems.textbook._numeric.run_bounded``), of the builder and of the Textbook dock;
+    a killed one makes its ``run_bounded`` return None at once (no exact solutions), so
+    the thread waiting for it goes on.
+    """
+    import multiprocessing
+
+    children = multiprocessing.active_children()
+    for child in children:
+        child.kill()
+    for child in children:
+        child.join(max(0.05, _remaining(deadline)))
+    return not any(child.is_alive() for child in children)
+
+
+def end_left_limits(ident: int) -> None:
+    """Stop the ``systems.deadline`` time limits a thread that has ended left armed.
+
+    ``time_limit`` starts its watcher thread before it enters its ``try``; ``Abandoned``
+    landing while ``Thread.start`` waits for the watcher to run skips the ``finally`` that
+    would stop it. Left alone, the watcher would raise ``TimeUp`` into that thread id (a
+    new thread may have it by then) every half second from its limit on, and the id
+    would stay marked as inside a limit, so a new thread with it would run unlimited.
+    A stopgap until ``systems.deadline`` arms the watcher inside its ``try``.
+    """
+    from systems import deadline
+
+    for thread in threading.enumerate():
+        limit = getattr(getattr(thread, "_target", None), "__self__", None)
+        if isinstance(limit, deadline._Limit) and limit.ident == ident:
+            limit.finish()
+    deadline._active.pop(ident, None)
+
+
+def _reap(child, deadline: float) -> None:
+    if child.poll() is None:
+        child.kill()
+    try:
+        child.wait(max(0.1, _remaining(deadline)))  # reaped: no zombie left behind
+    except Exception:  # noqa: BLE001 - TimeoutExpired: the caller sees poll() is None
+        pass
+
+
 def failure_from(exc: Exception, request: int) -> BuildFailure:
     return BuildFailure(
         request=request,
@@ -126,6 +222,7 @@ class _BuildWorker(QObject):
         super().__init__()
         self.latest = 0
         self._lock = threading.Lock()
+        self._ident: int | None = None  # the builder thread's, while a build runs
         self.first_frame = threading.Event()
 
     @Slot(object)
@@ -133,6 +230,30 @@ class _BuildWorker(QObject):
         request, source = job
         if request < self.latest:
             return  # overtaken by a newer request while waiting
+        try:
+            with self._lock:
+                self._ident = threading.get_ident()
+            try:
+                self._build(request, source)
+            finally:
+                with self._lock:
+                    self._ident = None
+        except Abandoned:
+            pass  # the window closed: nobody waits for this build any more
+
+    def abandon(self) -> int | None:
+        """End the build in progress at its next bytecode; returns the thread's ident if
+        one was running.
+
+        Under the lock, so ``Abandoned`` can only land inside ``build``'s try block.
+        """
+        with self._lock:
+            ident, self._ident = self._ident, None
+            if ident is not None:
+                abandon(ident)
+            return ident
+
+    def _build(self, request: int, source) -> None:
         from systems.expressions import ExpressionError
         from systems.mechanics import DerivationError
         from systems.scene import SceneError
@@ -188,6 +309,8 @@ class BuildService(QObject):
     def __init__(self, parent: QObject | None = None):
         super().__init__(parent)
         self._counter = 0
+        self._stopped = False
+        self._warm_thread: threading.Thread | None = None
         self._thread = QThread()
         self._thread.setObjectName("scene-builder")
         self._worker = _BuildWorker()
@@ -209,10 +332,16 @@ class BuildService(QObject):
         from systems.integrators.warmup import warm_in_background
 
         self._worker.first_frame.set()
-        warm_in_background()
+        if not self._stopped:
+            self._warm_thread = warm_in_background()
 
     def request(self, source) -> int:
-        """Build ``source`` (TOML text or a ``Scene``); returns the request number."""
+        """Build ``source`` (TOML text or a ``Scene``); returns the request number.
+
+        After ``stop`` nothing is built and 0 is returned.
+        """
+        if self._stopped:
+            return 0
         self._counter += 1
         self._worker.latest = self._counter
         self._requested.emit((self._counter, source))
@@ -241,10 +370,31 @@ class BuildService(QObject):
         if request == self._counter:
             self.equilibria_found.emit(request, lines)
 
-    def stop(self) -> None:
-        """End the thread (after the build in progress, if any); no results after this."""
+    def stop(self, timeout: float = STOP_SECONDS) -> bool:
+        """End the builder thread and numba's background compile; no results after this.
+
+        The build in progress is abandoned, not waited for. Returns True if every thread
+        and child process of the builder has ended within ``timeout`` seconds; a thread
+        that has not (stuck in C code) is kept referenced until it ends.
+        """
+        deadline = time.monotonic() + timeout
+        self._stopped = True
         self._counter += 1  # any result still on its way is now stale
         self._worker.latest = self._counter
+        self._worker.first_frame.set()  # a builder waiting for the first frame goes on
+        abandoned = self._worker.abandon()
+        stopped = end_forked_children(deadline)
         if self._thread.isRunning():
             self._thread.quit()
-            self._thread.wait()
+            # the native build must wait for this thread: it may still submit a compile
+            if not self._thread.wait(round(1000 * _remaining(deadline))):
+                keep_until_finished(self._thread)
+                stopped = False
+        if abandoned is not None and not self._thread.isRunning():
+            end_left_limits(abandoned)
+        stopped = stop_native_build(deadline) and stopped
+        warm = self._warm_thread  # numba's warm-up is short and must not be interrupted
+        if warm is not None:
+            warm.join(_remaining(deadline))
+            stopped = stopped and not warm.is_alive()
+        return stopped

@@ -5,6 +5,12 @@ value arrives (compiled off the GUI thread); the window starts a ``SimulationWor
 it in a ``QThread`` and appends each emitted frame to the ``TrajectoryStore``. One
 ``QTimer`` redraws the visible panels whose data changed, at display rate. A hidden panel
 is neither redrawn nor are its diagnostics computed by the worker.
+
+Nothing the user does ends in a traceback the window does not show: a file that cannot be
+opened is reported (and the running system kept), a parameter value that would make the
+equations singular is refused in the editor, and any other exception escaping a slot or a
+thread is shown in the status bar with its traceback behind "Details…". Closing returns
+within ``CLOSE_SECONDS``: builds are abandoned, not waited for.
 """
 
 from __future__ import annotations
@@ -15,20 +21,23 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
     QDockWidget,
     QFileDialog,
     QLabel,
     QMainWindow,
+    QMessageBox,
     QProgressBar,
+    QPushButton,
     QWidget,
 )
 
 from explorer.builder import BuildService, Built
 from explorer.controls import ControlsPanel
 from explorer.editor.editor_panel import SystemEditorPanel
+from explorer.error_report import ErrorReporter
 from explorer.gui_gc import GuiThreadCollector
 from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
@@ -39,6 +48,9 @@ from explorer.worker import RunSettings, SimulationWorker, WorkerThread
 REDRAW_MS = 25
 PARAMETER_DEBOUNCE_MS = 80
 POINCARE_T_END = 5000.0
+CLOSE_SECONDS = 0.8
+"""The time closing may take, shared by everything it stops (the requirement is 1 s)."""
+MESSAGE_MS = 20000
 
 
 class MainWindow(QMainWindow):
@@ -71,6 +83,12 @@ class MainWindow(QMainWindow):
         self.redraws = 0
         self.panel_refreshes = 0  # redraws of the phase view (for the speed benchmark)
         self._closed = False
+        self._opening = 0  # the build request of a file being opened, until it reports
+        self._stop_shown: tuple | None = None
+        self.error_details = ""  # the traceback of the last unexpected error
+        self.error_reporter = ErrorReporter(self)
+        self.error_reporter.reported.connect(self._on_error_reporter_reported)
+        self.error_reporter.install()
 
         self.builder = BuildService(self)
         self.builder.built.connect(self._on_builder_built)
@@ -121,6 +139,8 @@ class MainWindow(QMainWindow):
         self.editor.scene_edited.connect(self._on_editor_scene_edited)
         self.editor.catalogue_selected.connect(self._on_editor_catalogue_selected)
         self.editor.parameters_changed.connect(self._on_editor_parameters_changed)
+        self.editor.parameter_refused.connect(self._on_editor_parameter_refused)
+        self.editor.parameter_check = self.parameter_refusal
         self.phase_view.launch_requested.connect(self._on_phase_launch_requested)
         self.phase_view.launch_refused.connect(self._on_phase_launch_refused)
         self.phase_view.mode_changed.connect(self._on_phase_mode_changed)
@@ -147,6 +167,9 @@ class MainWindow(QMainWindow):
         from explorer.textbook import install as install_textbook
 
         self.textbook = install_textbook(self)
+        # Qt runs the filter installed last first: this one shuts down before the
+        # Textbook's waits for its computations (which end sooner once the builder stops)
+        self.installEventFilter(self)
 
     # -- construction helpers ---------------------------------------------------------------
 
@@ -190,6 +213,11 @@ class MainWindow(QMainWindow):
             widget.setMinimumWidth(120)
             bar.addPermanentWidget(widget)
         bar.addPermanentWidget(self.busy_bar)
+        self.details_button = QPushButton("Details…")
+        self.details_button.setToolTip("The traceback of the last unexpected error")
+        self.details_button.setVisible(False)
+        self.details_button.clicked.connect(self.show_error_details)
+        bar.addPermanentWidget(self.details_button)
 
     def _action(self, menu, text: str, slot, shortcut=None, tip: str = "") -> QAction:
         action = QAction(text, self)
@@ -253,24 +281,34 @@ class MainWindow(QMainWindow):
     # -- opening systems ----------------------------------------------------------------------
 
     def open_scene(self, scene) -> int:
-        """Open a catalogue name, a path or a ``Scene``: shown in the editor, built, run."""
-        from systems.scene import Scene, load_scene
+        """Open a catalogue name, a path or a ``Scene``: shown in the editor, built, run.
+
+        Returns the build request, or 0 if the file could not be read. A file that cannot
+        be read or built is reported in the window (status bar and editor), never raised,
+        and the system running before keeps running, with the editor showing it again.
+        """
+        from systems.scene import Scene, SceneError, load_scene
 
         if not isinstance(scene, Scene):
-            scene = load_scene(scene)
+            try:
+                scene = load_scene(scene)
+            except SceneError as exc:
+                self._refuse_opening(str(exc))
+                return 0
+            except (OSError, ValueError, RecursionError, MemoryError) as exc:
+                self._refuse_opening(f"{scene}: the file cannot be read: {exc}")
+                return 0
         self.editor.show_scene(scene)
-        return self.builder.request(scene)
+        self._opening = self.builder.request(scene)
+        return self._opening
+
+    def _refuse_opening(self, message: str) -> None:
+        """Say that a file was not opened; the running system and the editor stay."""
+        self.editor.show_failure_message(f"not opened: {message}")
+        self.statusBar().showMessage(f"not opened: {message}", MESSAGE_MS)
 
     def _on_editor_catalogue_selected(self, name: str) -> None:
-        from systems.scene import SceneError, load_scene
-
-        try:
-            scene = load_scene(name)
-        except SceneError as exc:
-            self.editor.show_failure_message(str(exc))
-            return
-        self.editor.show_scene(scene)
-        self.builder.request(scene)
+        self.open_scene(name)
 
     def _on_editor_scene_edited(self, text: str) -> None:
         self.builder.request(text)
@@ -285,12 +323,20 @@ class MainWindow(QMainWindow):
         self.editor.show_derivation(text)
 
     def _on_builder_build_failed(self, failure) -> None:
+        if failure.request == self._opening and self.built is not None:
+            # an opened file that does not build: back to the system that is running
+            self._opening = 0
+            self.editor.restore_previous()
+            self._refuse_opening(failure.message)
+            return
+        self._opening = 0
         self.editor.show_failure(failure)
-        self.statusBar().showMessage(failure.message, 8000)
+        self.statusBar().showMessage(failure.message, MESSAGE_MS)
 
     def _on_builder_built(self, built: Built) -> None:
         if self._closed:
             return
+        self._opening = 0
         self.built = built
         self.editor.show_built(built)
         from systems.integrators import STEPPERS
@@ -302,7 +348,32 @@ class MainWindow(QMainWindow):
             self.workprecision_view.set_system(built.compiled)
         self.system_started.emit(built)
 
+    def parameter_refusal(self, values: dict) -> str | None:
+        """Why the running system cannot take these parameter values, or None if it can.
+
+        The editor asks before sending them on: a value that is not finite, or that makes
+        the equations singular at the start (a zero length or mass), is refused there.
+        """
+        from systems.start_check import SingularStart, check_start
+
+        if self.compiled is None:
+            return None
+        known = {k: v for k, v in values.items() if k in self.compiled.parameter_names}
+        bad = [k for k, v in known.items() if not math.isfinite(v)]
+        if bad:
+            return f"{', '.join(bad)}: a parameter value must be a finite number"
+        try:
+            check_start(self.compiled.with_parameters(known))
+        except SingularStart as exc:
+            return exc.reason
+        return None
+
+    def _on_editor_parameter_refused(self, message: str) -> None:
+        self.statusBar().showMessage(message, MESSAGE_MS)
+
     def _on_editor_parameters_changed(self, values: dict) -> None:
+        if self.statusBar().currentMessage() == self.editor.last_refusal:
+            self.statusBar().clearMessage()  # an accepted value answers the refusal
         # a dragged slider sends many values: restart once it rests for a moment
         self._pending_parameters = values
         self.parameter_timer.start()
@@ -384,9 +455,12 @@ class MainWindow(QMainWindow):
         self._rate_window.clear()
         self.method_label.setText("")
 
-    def _stop_worker(self) -> None:
+    def _stop_worker(self, closing_within: float | None = None) -> None:
         if self.runner is not None:
-            self.runner.stop()
+            if closing_within is None:
+                self.runner.stop()
+            else:
+                self.runner.stop(closing_within, abandon=True)
             self.runner = None
 
     @property
@@ -412,7 +486,28 @@ class MainWindow(QMainWindow):
         self.frame_received.emit()
 
     def _on_worker_failed(self, message: str) -> None:
-        self.statusBar().showMessage(f"integration failed: {message}", 10000)
+        self.statusBar().showMessage(f"integration failed: {message}", MESSAGE_MS)
+
+    def _on_error_reporter_reported(self, summary: str, details: str) -> None:
+        if self._closed:
+            return
+        self.error_details = details
+        self.details_button.setVisible(True)
+        self.statusBar().showMessage(f"unexpected error: {summary}", MESSAGE_MS)
+
+    def show_error_details(self) -> QMessageBox:
+        """The last unexpected error's traceback, in a (non-modal) message box."""
+        box = QMessageBox(self)
+        box.setIcon(QMessageBox.Icon.Warning)
+        box.setWindowTitle("Unexpected error")
+        box.setText(
+            "Something went wrong that the program did not expect; the system that was "
+            "running keeps running. The traceback below helps to report it."
+        )
+        box.setDetailedText(self.error_details)
+        box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        box.open()
+        return box
 
     def _on_phase_launch_requested(self, state) -> None:
         if self.worker is None:
@@ -540,15 +635,18 @@ class MainWindow(QMainWindow):
         method = main.method or (self.built.method if self.built else "")
         self.method_label.setText(f"method: {method}")
         self.controls.show_setting_in_use(main.setting, main.setting_value)
-        if main.status not in ("running", "ok"):
-            self.statusBar().showMessage(f"stopped: {main.status}: {main.message}")
+        stop = (self._generation, main.status) if main.status not in ("running", "ok") else None
+        if stop is not None and stop != self._stop_shown:
+            # once, not at every redraw: it would hide every later message
+            self.statusBar().showMessage(f"stopped: {main.status}: {main.message}", MESSAGE_MS)
+        self._stop_shown = stop
 
     # -- files ---------------------------------------------------------------------------------
 
     def _on_open_triggered(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open scene", "", "Scenes (*.toml)")
         if path:
-            self._on_editor_catalogue_selected(path)
+            self.open_scene(path)
 
     def _on_save_triggered(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Save scene as", "", "Scenes (*.toml)")
@@ -608,20 +706,39 @@ class MainWindow(QMainWindow):
 
     # -- closing -------------------------------------------------------------------------------
 
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt override
+        if watched is self and event.type() == QEvent.Type.Close:
+            self.shutdown()
+        return super().eventFilter(watched, event)
+
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt override
         self.shutdown()
         super().closeEvent(event)
 
     def shutdown(self) -> None:
-        """Stop the redraw timer, the builder and the worker threads (in that order, so
-        a build finishing meanwhile cannot start a new worker)."""
+        """Stop the timers, the builder and the worker threads within ``CLOSE_SECONDS``.
+
+        After ``_closed`` is set a build finishing meanwhile cannot start a new worker. The
+        worker is told to abort first, so that it finishes its frame while the builder
+        abandons its build and kills the child processes (numba's compile, sympy's bounded
+        solves); the Textbook's computations, which it waits for, then end sooner too.
+        """
+        if self._closed:
+            return
+        from explorer.builder import end_forked_children
+
+        deadline = time.monotonic() + CLOSE_SECONDS
         self._closed = True
-        self.textbook.shutdown()
         self.redraw_timer.stop()
         self.parameter_timer.stop()
         self.editor.shutdown()
-        self.builder.stop()
-        self._stop_worker()
+        if self.worker is not None:
+            self.worker.abort()
+        self.builder.stop(max(0.0, deadline - time.monotonic()))
+        self.textbook.shutdown()
+        self._stop_worker(max(0.05, deadline - time.monotonic()))
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()
+        end_forked_children(deadline)  # one the Textbook started meanwhile
         self.collector.stop()
+        self.error_reporter.uninstall()

@@ -26,7 +26,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
 
+from systems.deadline import Abandoned, abandon
+
 FRAME_SECONDS = 0.03
+ABANDON_AFTER = 0.25
+"""Seconds ``WorkerThread.stop`` waits for the loop to see its abort before abandoning it."""
+STOP_SECONDS = 5.0
+"""How long ``WorkerThread.stop`` waits by default (closing the window passes less)."""
 PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled", "budget")
 
 
@@ -114,6 +120,8 @@ class SimulationWorker(QObject):
         self._settings = settings
         self._runs = runs
         self._lock = threading.Lock()
+        self._ident_lock = threading.Lock()
+        self._ident: int | None = None  # the worker thread's, while ``work`` runs
         self._wake = threading.Event()
         self._abort = False
         self._paused = False
@@ -170,45 +178,66 @@ class SimulationWorker(QObject):
         self._abort = True
         self._wake.set()
 
+    def abandon(self) -> bool:
+        """Raise ``Abandoned`` in the loop at its next bytecode (a block that will not end:
+        a long interpreted step); True if the loop was running."""
+        with self._ident_lock:
+            if self._ident is None:
+                return False
+            abandon(self._ident)
+            self._ident = None
+            return True
+
     # -- the loop, in the worker thread ------------------------------------------------------
 
     def work(self) -> None:
         """Run until aborted; emits ``blocks_ready`` once per frame with new blocks."""
         try:
-            if self._runs is None:
-                self._runs = default_runs()
-            while not self._abort:
-                self._take_changes()
-                if self._paused:
-                    with self._lock:
-                        stepping = self._steps_requested > 0
-                        self._steps_requested = max(0, self._steps_requested - 1)
-                    if not stepping:
-                        self._idle(0.05)
-                        continue
-                    for track in self._tracks.values():
-                        track.target = None  # a single step always moves
-                active = [track for track in self._tracks.values() if not track.done]
-                if not active:
-                    self._idle(0.05)
-                    continue
-                start = time.perf_counter()
-                settings = self._settings
-                blocks = []
-                for track in active:
-                    if self._abort:
-                        break
-                    blocks.extend(self._advance(track, settings, len(active)))
-                elapsed = time.perf_counter() - start
-                if blocks and not self._abort:
-                    self.frames += 1
-                    self.blocks_ready.emit(Frame(self.generation, tuple(blocks), elapsed))
-                if math.isfinite(settings.speed):
-                    self._idle(settings.frame_seconds - elapsed)
+            with self._ident_lock:
+                self._ident = threading.get_ident()
+            try:
+                self._loop()
+            finally:
+                with self._ident_lock:
+                    self._ident = None
+        except Abandoned:
+            pass  # stopped from outside: nobody wants these blocks any more
         except Exception as exc:  # noqa: BLE001 - reported to the GUI, never lost
             self.failed.emit(f"{type(exc).__name__}: {exc}")
         finally:
             self.finished.emit()
+
+    def _loop(self) -> None:
+        if self._runs is None:
+            self._runs = default_runs()
+        while not self._abort:
+            self._take_changes()
+            if self._paused:
+                with self._lock:
+                    stepping = self._steps_requested > 0
+                    self._steps_requested = max(0, self._steps_requested - 1)
+                if not stepping:
+                    self._idle(0.05)
+                    continue
+                for track in self._tracks.values():
+                    track.target = None  # a single step always moves
+            active = [track for track in self._tracks.values() if not track.done]
+            if not active:
+                self._idle(0.05)
+                continue
+            start = time.perf_counter()
+            settings = self._settings
+            blocks = []
+            for track in active:
+                if self._abort:
+                    break
+                blocks.extend(self._advance(track, settings, len(active)))
+            elapsed = time.perf_counter() - start
+            if blocks and not self._abort:
+                self.frames += 1
+                self.blocks_ready.emit(Frame(self.generation, tuple(blocks), elapsed))
+            if math.isfinite(settings.speed):
+                self._idle(settings.frame_seconds - elapsed)
 
     def _idle(self, seconds: float) -> None:
         if seconds > 0 and not self._abort:
@@ -262,6 +291,17 @@ class SimulationWorker(QObject):
             track.done = True
 
 
+_orphans: list[QThread] = []
+"""Threads that did not end in time: kept referenced, since a ``QThread`` destroyed while
+running aborts the process."""
+
+
+def keep_until_finished(thread: QThread) -> None:
+    """Hold a reference to a thread that did not stop in time, until it has ended."""
+    _orphans[:] = [t for t in _orphans if t.isRunning()]
+    _orphans.append(thread)
+
+
 class WorkerThread:
     """A ``SimulationWorker`` moved to its own ``QThread``; ``stop`` ends both cleanly."""
 
@@ -276,16 +316,29 @@ class WorkerThread:
     def start(self) -> None:
         self.thread.start()
 
-    def stop(self) -> None:
-        """Abort the loop and wait for the thread to end.
+    def stop(self, timeout: float = STOP_SECONDS, *, abandon: bool = False) -> bool:
+        """Abort the loop and wait up to ``timeout`` seconds for the thread to end.
 
-        The wait has no time limit on purpose: a ``QThread`` destroyed while running
-        aborts the process. The loop checks for abort between blocks of about 30 ms, and a
-        block in progress (compiled code) finishes within its wall-time budget.
+        The loop checks for abort between blocks of about 30 ms. With ``abandon`` (the
+        window closing), a loop that has not seen it after ``ABANDON_AFTER`` seconds (a
+        slow interpreted step) is abandoned; otherwise (a restart) it is only waited for,
+        since it may be in numba's first compile of a method, which must not be cut
+        short. A thread still running at the end is kept referenced until it ends (a
+        ``QThread`` destroyed while running aborts the process); its frames carry an old
+        generation and are ignored. Returns whether it ended.
         """
         self.worker.abort()
         self.thread.quit()
-        self.thread.wait()
+        if abandon:
+            grace = min(ABANDON_AFTER, timeout)
+            if self.thread.wait(round(1000 * grace)):
+                return True
+            self.worker.abandon()
+            timeout -= grace
+        if self.thread.wait(round(1000 * max(0.0, timeout))):
+            return True
+        keep_until_finished(self.thread)
+        return False
 
     @property
     def running(self) -> bool:

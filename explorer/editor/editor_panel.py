@@ -4,11 +4,16 @@ Edits are debounced (``DEBOUNCE_MS``) and sent as the tables of a scene document
 builder, which derives and compiles in the background; errors come back with their field
 and position and are shown under that field, leaving the typed text as it was. Every
 debounced edit is a step of the undo history.
+
+A parameter value goes out (``parameters_changed``) only once ``parameter_check`` (set by
+the window) finds nothing wrong with it; a refused value is put back in the table and the
+reason shown under it.
 """
 
 from __future__ import annotations
 
 import html
+from collections.abc import Callable
 
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QFont
@@ -93,11 +98,19 @@ class SystemEditorPanel(QWidget):
     scene_edited(dict)        debounced: the tables of the edited scene, to build
     catalogue_selected(str)   a catalogue scene name was chosen
     parameters_changed(dict)  a parameter value moved (no re-derivation needed)
+    parameter_refused(str)    a typed or dragged value was refused and put back; why
+
+    Attributes
+    ----------
+    parameter_check : callable or None
+        ``check(values) -> reason or None``, asked before ``parameters_changed`` goes out
+        with ``values`` (name -> float); a reason refuses them.
     """
 
     scene_edited = Signal(dict)
     catalogue_selected = Signal(str)
     parameters_changed = Signal(dict)
+    parameter_refused = Signal(str)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -106,6 +119,10 @@ class SystemEditorPanel(QWidget):
         self._index = -1
         self._filling = False
         self._built_scene = None
+        self._previous: tuple | None = None
+        self._refusal_shown = False
+        self.last_refusal = ""  # the message of the last refused parameter value
+        self.parameter_check: Callable[[dict], str | None] | None = None
         self.debounce = QTimer(self)
         self.debounce.setSingleShot(True)
         self.debounce.setInterval(DEBOUNCE_MS)
@@ -146,6 +163,7 @@ class SystemEditorPanel(QWidget):
         self.parameter_table = ParameterTableView()
         self.parameter_table.setMinimumHeight(110)
         self.parameter_table.values_changed.connect(self._on_parameter_values_changed)
+        self.parameter_table.value_refused.connect(self._on_parameter_value_refused)
         self.parameter_table.structure_changed.connect(self._on_field_edited)
         self.parameter_error = QLabel()
         self.parameter_error.setWordWrap(True)
@@ -188,9 +206,13 @@ class SystemEditorPanel(QWidget):
         initial_layout.addWidget(self.initial_table)
         initial_layout.addWidget(self.initial_error)
 
-        self.general_error = QLabel()
+        self.general_error = QLabel()  # at the top: a refused file or build is seen at once
         self.general_error.setWordWrap(True)
         self.general_error.setVisible(False)
+        self.general_error.setStyleSheet(
+            "QLabel { background: #fff3f3; border: 1px solid #d62728; border-radius: 4px;"
+            " padding: 4px; }"
+        )
         self.undo_button = QPushButton("Undo")
         self.undo_button.clicked.connect(self.undo)
         self.redo_button = QPushButton("Redo")
@@ -219,19 +241,20 @@ class SystemEditorPanel(QWidget):
 
         content = QWidget()
         layout = QVBoxLayout(content)
+        layout.addWidget(self.general_error)
         layout.addWidget(QLabel("<b>Catalogue</b>"))
         layout.addWidget(self.catalogue)
         layout.addWidget(system_box)
         layout.addWidget(parameters_box)
         layout.addWidget(self.effects_box)
         layout.addWidget(initial_box)
-        layout.addWidget(self.general_error)
         layout.addLayout(history)
         layout.addWidget(QLabel("<b>Classification</b>"))
         layout.addWidget(self.classification_card)
         scroll = QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setWidget(content)
+        self._scroll = scroll
         derivation = QWidget()
         derivation_layout = QVBoxLayout(derivation)
         self.derivation_card = QLabel()
@@ -273,7 +296,19 @@ class SystemEditorPanel(QWidget):
     # -- filling the fields ---------------------------------------------------------------------
 
     def show_scene(self, scene) -> None:
-        """Show a scene's fields and start a fresh undo history."""
+        """Show a scene's fields and start a fresh undo history.
+
+        What was shown before is kept until the next call, for ``restore_previous``.
+        """
+        self._previous = None
+        if self._history:
+            self._previous = (
+                self.snapshot(),
+                self._history,
+                self._index,
+                self.derived.toPlainText(),
+                self._built_scene.name if self._built_scene is not None else None,
+            )
         data = data_from_scene(scene)
         self._fill(data)
         self._history = [data]
@@ -283,6 +318,26 @@ class SystemEditorPanel(QWidget):
         for i in range(self.catalogue.count()):
             item = self.catalogue.item(i)
             item.setSelected(item.data(Qt.ItemDataRole.UserRole) == scene.name)
+
+    def restore_previous(self) -> bool:
+        """Show again what was shown before the last ``show_scene`` (a refused opening).
+
+        Returns False if there was nothing before (the first scene).
+        """
+        if self._previous is None:
+            return False
+        data, history, index, derived, name = self._previous
+        self._previous = None
+        self.debounce.stop()
+        self._fill(data)
+        self._history, self._index = history, index
+        self._update_history_buttons()
+        self.derived.setPlainText(derived)
+        self.state_label.setText("")
+        for i in range(self.catalogue.count()):
+            item = self.catalogue.item(i)
+            item.setSelected(item.data(Qt.ItemDataRole.UserRole) == name)
+        return True
 
     def _fill(self, data: dict) -> None:
         self._filling = True
@@ -426,6 +481,7 @@ class SystemEditorPanel(QWidget):
         for label in (self.parameter_error, self.initial_error, self.general_error):
             label.clear()
             label.setVisible(False)
+        self._refusal_shown = False
 
     def show_built(self, built) -> None:
         """A successful build: clear the errors, show the classification card."""
@@ -469,8 +525,12 @@ class SystemEditorPanel(QWidget):
         self.state_label.setText("not derived: see the error")
 
     def show_failure_message(self, message: str) -> None:
+        """Show ``message`` at the top of the System tab (an error that belongs to no field),
+        and bring it into view."""
         self.clear_errors()
         self._show_label(self.general_error, message)
+        self.tabs.setCurrentIndex(0)
+        self._scroll.verticalScrollBar().setValue(0)
 
     @staticmethod
     def _show_label(label: QLabel, text: str) -> None:
@@ -510,8 +570,32 @@ class SystemEditorPanel(QWidget):
         self._on_field_edited()
 
     def _on_parameter_values_changed(self, values: dict) -> None:
-        if not self._filling:
-            self.parameters_changed.emit(values)
+        if self._filling:
+            return
+        reason = self.parameter_check(values) if self.parameter_check is not None else None
+        if reason:
+            accepted = self.parameter_table.accepted_values()
+            changed = [k for k, v in values.items() if accepted.get(k) != v]
+            typed = ", ".join(f"{k} = {values[k]:g}" for k in changed) or "the values"
+            kept = ", ".join(f"{k} = {accepted[k]:g}" for k in changed if k in accepted)
+            self.parameter_table.revert()
+            self._refuse(f"{typed} refused{f' (kept {kept})' if kept else ''}: {reason}")
+            return
+        self.parameter_table.accept()
+        if self._refusal_shown:
+            self._refusal_shown = False
+            self.parameter_error.clear()
+            self.parameter_error.setVisible(False)
+        self.parameters_changed.emit(values)
+
+    def _on_parameter_value_refused(self, message: str) -> None:
+        self._refuse(message)
+
+    def _refuse(self, message: str) -> None:
+        self._show_label(self.parameter_error, message)
+        self._refusal_shown = True
+        self.last_refusal = message
+        self.parameter_refused.emit(message)
 
     def _on_debounce_timeout(self) -> None:
         data = self.snapshot()

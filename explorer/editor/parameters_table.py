@@ -1,12 +1,31 @@
-"""The parameters table: name, value, a slider over [min, max], and the range itself."""
+"""The parameters table: name, value, a slider over [min, max], and the range itself.
+
+Each value cell remembers the last value that was accepted. A typed value that is not a
+finite number is refused at once (the cell goes back to that value and ``value_refused``
+says why); the editor may refuse a finite one too (a zero length), with ``revert``.
+"""
 
 from __future__ import annotations
+
+import math
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QHeaderView, QSlider, QTableWidget, QTableWidgetItem, QWidget
 
 SLIDER_STEPS = 1000
 NAME, VALUE, SLIDER, LOW, HIGH = range(5)
+ACCEPTED = Qt.ItemDataRole.UserRole  # on a value cell: the text of its last accepted value
+
+
+def parse_value(name: str, text: str) -> tuple[float | None, str]:
+    """A typed parameter value: ``(value, "")``, or ``(None, why it is refused)``."""
+    try:
+        value = float(text)
+    except ValueError:
+        return None, f"{name} = {text!r} refused: a parameter value must be a number"
+    if not math.isfinite(value):
+        return None, f"{name} = {text} refused: a parameter value must be a finite number"
+    return value, ""
 
 
 def default_range(value) -> tuple[float, float]:
@@ -26,10 +45,12 @@ class ParameterTableView(QTableWidget):
     -------
     values_changed(dict)    a value moved (slider or typed): name -> value; no rebuild needed
     structure_changed()     a name was edited, or a row added or removed: rebuild the system
+    value_refused(str)      a typed value was not a finite number and was put back; why
     """
 
     values_changed = Signal(dict)
     structure_changed = Signal()
+    value_refused = Signal(str)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(0, 5, parent)
@@ -71,7 +92,9 @@ class ParameterTableView(QTableWidget):
         self.insertRow(row)
         self.setItem(row, NAME, QTableWidgetItem(name))
         shown = f"{value:g}" if isinstance(value, int | float) else str(value)
-        self.setItem(row, VALUE, QTableWidgetItem(shown))
+        value_item = QTableWidgetItem(shown)
+        value_item.setData(ACCEPTED, shown)
+        self.setItem(row, VALUE, value_item)
         self.setItem(row, LOW, QTableWidgetItem(f"{lo:g}"))
         self.setItem(row, HIGH, QTableWidgetItem(f"{hi:g}"))
         slider = QSlider(Qt.Orientation.Horizontal)
@@ -84,11 +107,17 @@ class ParameterTableView(QTableWidget):
         self._place_slider(row)
 
     def _number(self, row: int, column: int) -> float | None:
+        """The cell's finite number, or None (empty, not a number, nan or infinite)."""
         item = self.item(row, column)
         try:
-            return float(item.text()) if item is not None else None
+            value = float(item.text()) if item is not None else None
         except ValueError:
             return None
+        return value if value is not None and math.isfinite(value) else None
+
+    def _name(self, row: int) -> str:
+        item = self.item(row, NAME)
+        return item.text().strip() if item is not None else ""
 
     def _place_slider(self, row: int) -> None:
         slider = self.cellWidget(row, SLIDER)
@@ -118,13 +147,43 @@ class ParameterTableView(QTableWidget):
         return result
 
     def values(self) -> dict[str, float]:
-        """Parameter values that are valid numbers."""
+        """Parameter values that are valid (finite) numbers."""
         result = {}
         for row in range(self.rowCount()):
             value = self._number(row, VALUE)
             if value is not None:
-                result[self.item(row, NAME).text().strip()] = value
+                result[self._name(row)] = value
         return result
+
+    def accepted_values(self) -> dict[str, float]:
+        """The last accepted value of each row (what the running system uses)."""
+        result = {}
+        for row in range(self.rowCount()):
+            item = self.item(row, VALUE)
+            value, _ = parse_value("", str(item.data(ACCEPTED))) if item else (None, "")
+            if value is not None:
+                result[self._name(row)] = value
+        return result
+
+    def accept(self) -> None:
+        """The values shown are in force: remember them as the ones to go back to."""
+        for row in range(self.rowCount()):
+            item = self.item(row, VALUE)
+            if item is not None and self._number(row, VALUE) is not None:
+                item.setData(ACCEPTED, item.text())
+
+    def revert(self) -> None:
+        """Put every value back to its last accepted one (no signal), sliders too."""
+        self._filling = True
+        try:
+            for row in range(self.rowCount()):
+                item = self.item(row, VALUE)
+                accepted = item.data(ACCEPTED) if item is not None else None
+                if accepted is not None and item.text() != accepted:
+                    item.setText(str(accepted))
+                self._place_slider(row)
+        finally:
+            self._filling = False
 
     def set_value(self, name: str, value: float) -> None:
         """Set a value as if typed (emits ``values_changed``)."""
@@ -161,8 +220,16 @@ class ParameterTableView(QTableWidget):
         if item.column() == NAME:
             self.structure_changed.emit()
         elif item.column() == VALUE:
+            _, refusal = parse_value(self._name(item.row()), item.text().strip())
+            if refusal:
+                accepted = item.data(ACCEPTED)
+                self._filling = True
+                item.setText("" if accepted is None else str(accepted))
+                self._filling = False
+                self._place_slider(item.row())
+                self.value_refused.emit(refusal)
+                return
             self._place_slider(item.row())
-            if self._number(item.row(), VALUE) is not None:
-                self.values_changed.emit(self.values())
+            self.values_changed.emit(self.values())
         else:
             self._place_slider(item.row())
