@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import threading
 import time
@@ -77,6 +78,17 @@ def _timed_close(win) -> float:
     seconds = time.perf_counter() - start
     print(f"closing took {seconds:.3f} s")  # shown with -s, for the record
     return seconds
+
+
+@pytest.fixture(autouse=True)
+def _collect_on_the_gui_thread(qtbot):
+    """After each test (and its window's teardown), free the cyclic garbage its window
+    left here, on the GUI thread: collected later in a worker thread of another test,
+    a parentless pyqtgraph menu would be destroyed there and deadlock against the GUI
+    thread (see explorer/gui_gc.py)."""
+    yield
+    qtbot.wait(10)  # deleteLater of the windows closed in teardown
+    gc.collect()
 
 
 @pytest.fixture
@@ -283,7 +295,9 @@ def test_close_during_a_derivation_abandons_it(qtbot, monkeypatch, tmp_path, ope
     monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")  # a derivation that runs
     before = {t.ident for t in threading.enumerate()}
     win = open_window()
-    qtbot.waitUntil(lambda: win.compiled is not None, timeout=60000)
+    # the builder is done with the pendulum (its equilibria, the last thing it sends)
+    card = win.editor.classification_card
+    qtbot.waitUntil(lambda: "Equilibria" in card.text(), timeout=60000)
     _numba_warm(qtbot)
     path = tmp_path / "triple.toml"
     path.write_text(TRIPLE_PENDULUM, encoding="utf-8")
@@ -329,7 +343,8 @@ def test_close_during_a_native_compile_kills_the_child(qtbot, open_window):
 
     before = {t.ident for t in threading.enumerate()}
     win = open_window()
-    qtbot.waitUntil(lambda: win.compiled is not None, timeout=60000)
+    wait_for_points(qtbot, win, 5)
+    _numba_warm(qtbot)
     # a double pendulum no test compiled before: numba compiles it in a child (~10 s)
     unique = f"{time.time_ns() % 10**9}e-15"
     text = _scene_text("double_pendulum").replace(
@@ -339,8 +354,7 @@ def test_close_during_a_native_compile_kills_the_child(qtbot, open_window):
     qtbot.waitUntil(lambda: win.built.request == request, timeout=60000)
     qtbot.waitUntil(lambda: native_build._builder._child is not None, timeout=20000)
     child = native_build._builder._child
-    _numba_warm(qtbot)
-    wait_for_points(qtbot, win, 5)
+    qtbot.wait(200)  # the child is well into its compile, the new system running
     assert child.poll() is None, "the child should still be compiling"
     seconds = _timed_close(win)
     assert seconds < CLOSE_BOUND, f"closing took {seconds:.2f} s"
