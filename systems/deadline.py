@@ -112,13 +112,18 @@ def time_limit(seconds: float | None, what: str) -> Iterator[None]:
     except TimeUp:
         late = TimeLimitExceeded(what, seconds)
     finally:
-        while True:  # the timer may fire while this clean-up runs: finish regardless
+        abandoned = False
+        while True:  # the timer (or an abandon) may land while this clean-up runs
             try:
                 limit.finish()
                 _active.pop(ident, None)
                 break
             except TimeUp:
                 continue
+            except Abandoned:
+                abandoned = True
+        if abandoned:
+            raise Abandoned
     if late is not None:
         raise late
 
