@@ -81,6 +81,66 @@ def _parse_in_child(text, point, connection):
     connection.send(("done", result, seconds, value))
 
 
+def _serve(requests, replies) -> None:
+    """The parsing process: parses each (text, point) it receives, until the pipe closes."""
+    while True:
+        try:
+            text, point = requests.recv()
+        except EOFError:
+            return
+        _parse_in_child(text, point, replies)
+
+
+class _Parser:
+    """One forked process that parses request after request: forking once per example
+    cost most of these tests' time. A parse that overruns ``GUARD`` or kills the process
+    fails the test, and the next parse gets a fresh process."""
+
+    def __init__(self):
+        self._child = None
+
+    def _start(self) -> None:
+        child_requests, self._send = _FORK.Pipe(duplex=False)  # (receiving, sending) ends
+        self._replies, child_replies = _FORK.Pipe(duplex=False)
+        self._child = _FORK.Process(
+            target=_serve, args=(child_requests, child_replies), daemon=True
+        )
+        self._child.start()
+        child_requests.close()
+        child_replies.close()
+
+    def stop(self) -> None:
+        if self._child is not None:
+            self._child.kill()
+            self._child.join()
+            self._send.close()
+            self._replies.close()
+            self._child = None
+
+    def parse(self, text: str, point):
+        """The child's message for one parse, or None if it overran ``GUARD``."""
+        if self._child is None or not self._child.is_alive():
+            self.stop()
+            self._start()
+        self._send.send((text, point))
+        try:
+            message = self._replies.recv() if self._replies.poll(GUARD) else None
+        except EOFError:
+            message = ("crashed", f"the parsing process died (exit code {self._child.exitcode})")
+        if message is None or message[0] == "crashed":
+            self.stop()  # hung or dead: the next parse starts afresh
+        return message
+
+
+_PARSER = _Parser()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _parser_process():
+    yield
+    _PARSER.stop()
+
+
 def parse_timed(text: str, point: dict[str, float] | None = None):
     """(expression or ExpressionError, CPU seconds spent parsing, value at ``point``).
 
@@ -90,19 +150,7 @@ def parse_timed(text: str, point: dict[str, float] | None = None):
     measured because the machine is shared: wall time would count other processes' work.
     The value at ``point`` (complex, evaluated to 30 digits) is None without a point.
     """
-    receiver, sender = _FORK.Pipe(duplex=False)
-    child = _FORK.Process(target=_parse_in_child, args=(text, point, sender), daemon=True)
-    child.start()
-    sender.close()
-    try:
-        ready = receiver.poll(GUARD)
-        message = receiver.recv() if ready else None
-    except EOFError:
-        message = ("crashed", f"the parsing process died (exit code {child.exitcode})")
-    finally:
-        child.kill()
-        child.join()
-        receiver.close()
+    message = _PARSER.parse(text, point)
     if message is None:
         raise Hung(f"parse_expression({text[:80]!r}) still running after {GUARD} s")
     if message[0] == "crashed":
