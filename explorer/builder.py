@@ -197,14 +197,14 @@ def failure_from(exc: Exception, request: int) -> BuildFailure:
 
 def describe(mechanics) -> str:
     """The derivation laid out for a person (as ``derive`` prints it)."""
-    from explorer.commands.derive_cmd import readable
+    from systems.report import readable
 
     return readable(mechanics, equilibria=False)  # they arrive apart (equilibria_found)
 
 
 def equilibria_lines(mechanics) -> list[str]:
     """One sentence per equilibrium (virtual work), or why there are none."""
-    from explorer.commands.derive_cmd import equilibria_sentences
+    from systems.report import equilibria_sentences
 
     lines, note = equilibria_sentences(mechanics, digits=4)
     if not lines:

@@ -1,4 +1,5 @@
 """Headless physics for Phase Explorer: parsing, derivation, compilation, integration.
 
-This package never imports Qt or ``explorer`` (checked by ``tests/systems/test_layering.py``).
+This package never imports Qt or ``explorer`` (import-linter's contracts in
+``pyproject.toml``, run by ``make test``).
 """

@@ -18,8 +18,8 @@ Tabs (each a ``TextbookTabView`` that computes when shown after a change):
 - ``EnergyTheoremView``: dH/dt against −∂L/∂t + Σ q̇ Q, and H against T + V.
 
 Computations run in ``TaskRunner`` (a private two-thread ``QThreadPool``, newest job
-per tab wins, cancelled and waited for when the window closes); ``compute`` holds them,
-free of Qt.
+per tab wins, cancelled and waited for when the window closes); the computations
+themselves are Qt-free, in ``systems.textbook.jobs``.
 """
 
 from __future__ import annotations

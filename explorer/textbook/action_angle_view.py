@@ -6,7 +6,6 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
-from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
     BLUE,
@@ -21,16 +20,17 @@ from explorer.textbook.plots import (
     pen,
 )
 from systems.display import pretty_name
+from systems.textbook import jobs
 
 
-def action_angle_job(compiled, cancel=compute.NEVER) -> compute.ActionAngleResult:
+def action_angle_job(compiled, cancel=jobs.NEVER) -> jobs.ActionAngleResult:
     """Equilibria (for the well and the separatrix), then J and T over the energies."""
-    reason = compute.action_angle_reason(compiled)
+    reason = jobs.action_angle_reason(compiled)
     if reason:
         raise ValueError(reason)
-    found = compute.equilibria(compiled, cancel)
+    found = jobs.equilibria(compiled, cancel)
     cancel.check()
-    return compute.action_angle_data(compiled, found.search, cancel=cancel)
+    return jobs.action_angle_data(compiled, found.search, cancel=cancel)
 
 
 class ActionAngleView(TextbookTabView):
@@ -40,7 +40,7 @@ class ActionAngleView(TextbookTabView):
 
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
-        self.result: compute.ActionAngleResult | None = None
+        self.result: jobs.ActionAngleResult | None = None
         self.summary = note_label("")
         self.action_plot = make_plot("Action J(E)", "E", "J = ∮ p dq", corner="top-left")
         self.period_plot = make_plot("Period T(E) = dJ/dE", "E", "T")
@@ -60,7 +60,7 @@ class ActionAngleView(TextbookTabView):
         self.summary.setText("Integrating J(E) and T(E)…")
 
     def _start(self) -> None:
-        reason = compute.action_angle_reason(self.compiled)
+        reason = jobs.action_angle_reason(self.compiled)
         if reason:
             self._show_reason(reason)
             return
@@ -80,7 +80,7 @@ class ActionAngleView(TextbookTabView):
             "one-degree systems with periodic motion, such as the simple pendulum."
         )
 
-    def _on_table_done(self, result: compute.ActionAngleResult, generation: int) -> None:
+    def _on_table_done(self, result: jobs.ActionAngleResult, generation: int) -> None:
         if generation != self.generation:
             return
         self.result = result

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QSplitter, QVBoxLayout, QWidget
 
-from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
     BLUE,
@@ -19,9 +18,10 @@ from explorer.textbook.plots import (
     pen,
     spin_box,
 )
+from systems.textbook import jobs
 
 
-def explanation(result: compute.EnergyResult) -> str:
+def explanation(result: jobs.EnergyResult) -> str:
     """The energy theorem in words for this kind of system."""
     words = []
     if result.explicit_time:
@@ -69,7 +69,7 @@ class EnergyTheoremView(TextbookTabView):
 
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
-        self.result: compute.EnergyResult | None = None
+        self.result: jobs.EnergyResult | None = None
         self.duration = spin_box(0.1, 10000.0, 20.0, 5.0, decimals=2)
         self.duration.valueChanged.connect(self._on_duration_changed)
         controls = QHBoxLayout()
@@ -116,14 +116,14 @@ class EnergyTheoremView(TextbookTabView):
         generation = self.generation
         self.runner.submit(
             self.key,
-            compute.energy,
+            jobs.energy,
             self.compiled,
             self.duration.value(),
             on_done=lambda result: self._on_balance_done(result, generation),
             on_failed=lambda message: self.summary.setText(f"Not available: {message}"),
         )
 
-    def _on_balance_done(self, result: compute.EnergyResult, generation: int) -> None:
+    def _on_balance_done(self, result: jobs.EnergyResult, generation: int) -> None:
         if generation != self.generation:
             return
         self.result = result

@@ -16,10 +16,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import GREEN, RED, note_label
 from systems.display import pretty_name
+from systems.textbook import jobs
 
 KIND_TEXT = {
     "minimum": "stable (minimum of U)",
@@ -84,7 +84,7 @@ class EquilibriaView(TextbookTabView):
     Signals
     -------
     equilibria_found(object)
-        An ``compute.EquilibriaResult``; None when a new system is being searched.
+        A ``jobs.EquilibriaResult``; None when a new system is being searched.
     """
 
     title = "Equilibria"
@@ -92,7 +92,7 @@ class EquilibriaView(TextbookTabView):
 
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
-        self.result: compute.EquilibriaResult | None = None
+        self.result: jobs.EquilibriaResult | None = None
         self.status = note_label("Open a system to find where it can rest.")
         self.table = QTableWidget(0, 0)
         self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
@@ -118,7 +118,7 @@ class EquilibriaView(TextbookTabView):
         generation = self.generation
         self.runner.submit(
             self.key,
-            compute.equilibria,
+            jobs.equilibria,
             self.compiled,
             on_done=lambda result: self._on_search_done(result, generation),
             on_failed=self._on_search_failed,
@@ -127,7 +127,7 @@ class EquilibriaView(TextbookTabView):
     def _on_search_failed(self, message: str) -> None:
         self.status.setText(f"The search failed: {message}")
 
-    def _on_search_done(self, result: compute.EquilibriaResult, generation: int) -> None:
+    def _on_search_done(self, result: jobs.EquilibriaResult, generation: int) -> None:
         if generation != self.generation:
             return
         self.result = result
@@ -155,7 +155,7 @@ class EquilibriaView(TextbookTabView):
         self.status.setText(" ".join(lines))
         self.equilibria_found.emit(result)
 
-    def _fill(self, result: compute.EquilibriaResult) -> None:
+    def _fill(self, result: jobs.EquilibriaResult) -> None:
         search, names = result.search, result.names
         shown = [name for name in names if name not in search.free] or list(names)
         exact = any(self._symbolic(e) for e in search.equilibria)
@@ -212,12 +212,12 @@ class EquilibriaView(TextbookTabView):
         return False
 
     def _closed_form(self, text: str) -> str:
-        from explorer.textbook.plots import readable
         from systems.display import for_display
         from systems.expressions import ExpressionError
+        from systems.report import one_line
 
         try:
-            return readable(for_display(self._parse(text), self.compiled.mechanics.scene))
+            return one_line(for_display(self._parse(text), self.compiled.mechanics.scene))
         except (ExpressionError, TypeError, ValueError, AttributeError):
             return text
 
@@ -237,7 +237,7 @@ class EquilibriumMarkers:
         self.item = pg.ScatterPlotItem(hoverable=True, tip=self._tip, pxMode=True)
         self.item.setZValue(20)
         plot.addItem(self.item, ignoreBounds=True)
-        self.result: compute.EquilibriaResult | None = None
+        self.result: jobs.EquilibriaResult | None = None
         self.index = 0
         self.visible = True
 
@@ -245,7 +245,7 @@ class EquilibriumMarkers:
     def _tip(x: float, y: float, data) -> str:
         return str(data)
 
-    def show_result(self, result: compute.EquilibriaResult | None) -> None:
+    def show_result(self, result: jobs.EquilibriaResult | None) -> None:
         self.result = result
         self.update()
 

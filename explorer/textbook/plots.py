@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import re
-
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QDoubleSpinBox, QLabel
@@ -98,17 +96,6 @@ def note_label(text: str = "") -> QLabel:
 def sub(name: str, index: str) -> str:
     """``name<sub>index</sub>``."""
     return f"{name}<sub>{index}</sub>"
-
-
-def readable(expression) -> str:
-    """A sympy expression as one line for people: ``p_θ²/(2·m·r²) − k/r``."""
-    import sympy
-
-    text = sympy.sstr(expression)
-    for power, glyph in (("**2", "²"), ("**3", "³"), ("**4", "⁴")):
-        text = text.replace(power, glyph)
-    text = re.sub(r"\bpi\b", "π", text)
-    return text.replace("**", "^").replace("*", "·").replace("-", "−")
 
 
 def headroom(plot: pg.PlotItem, low: float, high: float, top: float = 0.5) -> None:

@@ -16,7 +16,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
     BLUE,
@@ -32,6 +31,7 @@ from explorer.textbook.plots import (
     spin_box,
 )
 from systems.display import pretty_name
+from systems.textbook import jobs
 
 NATURE_TEXT = {
     "minimum": "<b style='color:#2ca02c'>minimum</b>: every varied path has a larger action "
@@ -57,8 +57,8 @@ class PrincipleView(TextbookTabView):
 
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
-        self.result: compute.PrincipleResult | None = None
-        self.boundary: compute.TwoPointResult | None = None
+        self.result: jobs.PrincipleResult | None = None
+        self.boundary: jobs.TwoPointResult | None = None
         self.start_time = spin_box(0.0, 1000.0, 0.0, 0.5)
         self.duration = spin_box(0.05, 1000.0, 1.0, 0.25)
         self.coordinate = QComboBox()
@@ -156,7 +156,7 @@ class PrincipleView(TextbookTabView):
         index = max(self.coordinate.currentIndex(), 0)
         self.runner.submit(
             self.key,
-            compute.principle,
+            jobs.principle,
             self.compiled,
             self.duration.value(),
             self.mode.value(),
@@ -172,7 +172,7 @@ class PrincipleView(TextbookTabView):
 
     # -- the action curve -------------------------------------------------------------------
 
-    def _on_principle_done(self, result: compute.PrincipleResult, generation: int) -> None:
+    def _on_principle_done(self, result: jobs.PrincipleResult, generation: int) -> None:
         if generation != self.generation:
             return
         self.result = result
@@ -283,7 +283,7 @@ class PrincipleView(TextbookTabView):
         self.boundary_note.setText("Solving the two-point problem…")
         self.runner.submit(
             self.key + ".two_point",
-            compute.two_point,
+            jobs.two_point,
             self.compiled,
             qa,
             qb,
@@ -293,7 +293,7 @@ class PrincipleView(TextbookTabView):
             on_failed=lambda message: self.boundary_note.setText(f"Two-point problem: {message}"),
         )
 
-    def _on_two_point_done(self, result: compute.TwoPointResult, generation: int) -> None:
+    def _on_two_point_done(self, result: jobs.TwoPointResult, generation: int) -> None:
         if generation != self.generation:
             return
         self.boundary = result

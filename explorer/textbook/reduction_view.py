@@ -17,7 +17,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.textbook import compute
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
     BLUE,
@@ -31,6 +30,7 @@ from explorer.textbook.plots import (
     pen,
 )
 from systems.display import pretty_name
+from systems.textbook import jobs
 
 SLIDER_STEPS = 1000
 
@@ -42,9 +42,9 @@ class ReductionView(TextbookTabView):
 
     def __init__(self, runner, parent: QWidget | None = None):
         super().__init__(runner, parent)
-        self.setup: compute.ReductionSetup | None = None
+        self.setup: jobs.ReductionSetup | None = None
         self.items: dict = {}
-        self.curves: compute.ReductionCurves | None = None
+        self.curves: jobs.ReductionCurves | None = None
         self.sliders: list[QSlider] = []
         self.slider_labels: list[QLabel] = []
         self.slider_ranges: list[tuple[float, float]] = []
@@ -164,7 +164,7 @@ class ReductionView(TextbookTabView):
         )
         if exact:
             p_c = np.asarray(self.setup.p_cyclic, dtype=float)
-        curves = compute.reduction_curves(self.setup, compute.parameters_of(self.compiled), p_c)
+        curves = jobs.reduction_curves(self.setup, jobs.parameters_of(self.compiled), p_c)
         self._show(curves)
 
     def _build_items(self, q_name: str) -> None:
@@ -204,7 +204,7 @@ class ReductionView(TextbookTabView):
         }
         self._legend_labels["orbit"] = _legend_label(portrait, self.items["orbit"])
 
-    def _show(self, curves: compute.ReductionCurves) -> None:
+    def _show(self, curves: jobs.ReductionCurves) -> None:
         self.curves = curves
         setup = self.setup
         reduction = setup.reduction
@@ -268,7 +268,7 @@ class ReductionView(TextbookTabView):
         curves = self.curves
         if curves is None or curves.minimum is None or len(self.setup.rest_index) != 1:
             return curves.minimum if curves is not None else None
-        V = self.setup.reduction.effective_potential_function(compute.parameters_of(self.compiled))
+        V = self.setup.reduction.effective_potential_function(jobs.parameters_of(self.compiled))
         step = float(curves.q[1] - curves.q[0])
         with np.errstate(all="ignore"):
             found = scipy.optimize.minimize_scalar(
@@ -280,12 +280,12 @@ class ReductionView(TextbookTabView):
         return float(found.x) if found.success else curves.minimum
 
 
-def _setup_with_curves(compiled, cancel=compute.NEVER):
-    setup = compute.reduction_setup(compiled, cancel)
+def _setup_with_curves(compiled, cancel=jobs.NEVER):
+    setup = jobs.reduction_setup(compiled, cancel)
     if setup.reduction is None:
         return setup, None
     cancel.check()
-    curves = compute.reduction_curves(setup, compute.parameters_of(compiled), setup.p_cyclic)
+    curves = jobs.reduction_curves(setup, jobs.parameters_of(compiled), setup.p_cyclic)
     return setup, curves
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
-from explorer.textbook.compute import Cancel, Cancelled
+from systems.textbook.jobs import Cancel, Cancelled
 
 THREADS = 2
 

@@ -186,14 +186,14 @@ def test_markers_follow_the_phase_pair(qtbot):
     import pyqtgraph as pg
 
     from explorer.builder import build
-    from explorer.textbook import compute
     from explorer.textbook.equilibria_view import EquilibriumMarkers
     from systems.scene import load_scene
+    from systems.textbook import jobs
 
     widget = pg.PlotWidget()
     qtbot.addWidget(widget)
     markers = EquilibriumMarkers(widget.getPlotItem())
-    result = compute.equilibria(build(load_scene("double_pendulum")).compiled)
+    result = jobs.equilibria(build(load_scene("double_pendulum")).compiled)
     markers.show_result(result)
     stable = [s["pos"] for s in markers.spots() if s["symbol"] == "o"]
     assert (0.0, 0.0) in stable and len(markers.spots()) == 4 * 3  # with the ±2π copies
