@@ -2,6 +2,11 @@
 
 The format is documented for users in ``docs/scenes.md``. Every expression is checked by
 the whitelist parser when the scene is read, so a scene that loads will derive.
+
+A file is read strictly: any problem is a ``SceneError``. The editor reads what the user
+is typing with ``drop_unfit=True``: a drawing or a ``[view]`` setting that does not fit
+the system (typically names left over after the coordinates changed) is then left out and
+reported in ``Scene.warnings`` instead of refusing the whole system.
 """
 
 from __future__ import annotations
@@ -42,6 +47,32 @@ class SceneError(ValueError):
 
 
 @dataclass(frozen=True)
+class SceneWarning:
+    """A part of a scene that did not fit the system and was left out (``drop_unfit``).
+
+    ``field`` names it (``"drawing.points.bob.x"``, ``"view.phase"``), ``reason`` says
+    what is wrong and ``position`` is the 1-based column in an expression, or None.
+    """
+
+    field: str
+    reason: str
+    position: int | None = None
+    source: str = "<text>"
+
+    @property
+    def part(self) -> str:
+        """What was left out: ``"drawing"``, or the ``[view]`` key such as ``"view.phase"``."""
+        if self.field.startswith("drawing"):
+            return "drawing"
+        return ".".join(self.field.split(".")[:2])
+
+    def __str__(self) -> str:
+        at = f" (at position {self.position})" if self.position else ""
+        left_out = "the drawing" if self.part == "drawing" else self.part
+        return f"{self.source}: {self.field}: {self.reason}{at}; {left_out} left out"
+
+
+@dataclass(frozen=True)
 class Drawing:
     """Cartesian points of the mechanism, as expression text in q, t and parameters."""
 
@@ -68,7 +99,9 @@ class Scene:
 
     Exactly one of (``kinetic`` and ``potential``), ``lagrangian`` or ``hamiltonian`` is
     given. Expressions are kept as text (what the user typed); ``symbols`` and
-    ``expression`` give their sympy form.
+    ``expression`` give their sympy form. ``warnings`` lists what was left out when the
+    scene was read with ``drop_unfit=True`` (empty otherwise); it takes no part in
+    comparisons.
     """
 
     title: str
@@ -87,6 +120,7 @@ class Scene:
     description: str = ""
     source: str = "<text>"
     name: str = ""
+    warnings: tuple[SceneWarning, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -183,13 +217,42 @@ class Scene:
 # -- reading ---------------------------------------------------------------------------
 
 
-def parse_scene(text: str, source: str = "<text>", name: str = "") -> Scene:
+def parse_scene(
+    text: str, source: str = "<text>", name: str = "", *, drop_unfit: bool = False
+) -> Scene:
     """Read a scene from TOML text.
+
+    Parameters
+    ----------
+    text
+        The scene document.
+    source
+        Where it came from (a path, ``"<editor>"``), named in every message.
+    name
+        The scene's short name (a file's stem).
+    drop_unfit
+        Leave out a drawing or ``[view]`` setting that does not fit the system and list it
+        in ``Scene.warnings``, instead of raising (see ``scene_from_dict``).
 
     Raises
     ------
     SceneError
         Naming ``source``, the field and, for expressions, the position.
+    """
+    return scene_from_dict(
+        read_document(text, source), source=source, name=name, drop_unfit=drop_unfit
+    )
+
+
+def read_document(text: str, source: str = "<text>") -> dict[str, Any]:
+    """The tables of a scene document, decoded from TOML but not checked as a scene.
+
+    The size and nesting limits of ``parse_scene`` apply.
+
+    Raises
+    ------
+    SceneError
+        If the text is too long, nested too deeply or not valid TOML.
     """
     if len(text) > MAX_SCENE_CHARACTERS:
         raise SceneError(
@@ -204,12 +267,11 @@ def parse_scene(text: str, source: str = "<text>", name: str = "") -> Scene:
             source=source,
         )
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", source=source) from None
     except RecursionError:
         raise SceneError("arrays or tables are nested too deeply", source=source) from None
-    return scene_from_dict(data, source=source, name=name)
 
 
 MAX_SCENE_CHARACTERS = 1_000_000
@@ -254,9 +316,33 @@ def _nesting(text: str) -> int:
     return deepest
 
 
-def scene_from_dict(data: Mapping[str, Any], source: str = "<text>", name: str = "") -> Scene:
-    """Build a scene from the tables of a TOML document (already decoded)."""
+def scene_from_dict(
+    data: Mapping[str, Any], source: str = "<text>", name: str = "", *, drop_unfit: bool = False
+) -> Scene:
+    """Build a scene from the tables of a TOML document (already decoded).
+
+    Parameters
+    ----------
+    data
+        The tables, as ``tomllib`` gives them; not modified.
+    source, name
+        As for ``parse_scene``.
+    drop_unfit
+        False (files, the command line): any problem raises ``SceneError``. True (the
+        editor): a ``[drawing]`` with any problem (an expression naming a coordinate that
+        no longer exists, a link to an unknown point, a wrong type) is left out whole, and
+        a ``[view]`` key that is wrong (a phase pair, section or angle that is not a
+        coordinate of the system; a range entry of an unknown name is left out alone) is
+        left out; each is listed in ``Scene.warnings`` and the system is built without it.
+        Problems of the system itself, the effects and the initial state still raise.
+
+    Raises
+    ------
+    SceneError
+        Naming ``source``, the field and, for expressions, the position.
+    """
     reader = _Reader(data, source)
+    warnings: list[SceneWarning] = []
     system = reader.table(data, "system", required=True)
     reader.check_keys(
         system,
@@ -268,8 +354,18 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<text>", name: str =
     effects = reader.table(data, "effects")
     reader.check_keys(effects, "effects", {"dissipation", "forces", "disabled"})
     forces_table = reader.table(effects, "forces", prefix="effects.")
-    drawing = reader.drawing(reader.table(data, "drawing"))
     top = {"title", "description", "system", "effects", "initial", "drawing", "view"}
+    if drop_unfit:
+        problems: list[SceneError] = []
+        drawing = reader.drawing(_table_or_problem(reader, data, "drawing", problems), problems)
+        view = dict(_table_or_problem(reader, data, "view", problems))
+        warnings += [_left_out(problem) for problem in problems]
+        checked = drawing  # its expressions are checked too, so all is reported at once
+        if any((problem.field or "").startswith("drawing") for problem in problems):
+            drawing = None
+    else:
+        drawing = reader.drawing(reader.table(data, "drawing"))
+        view = dict(reader.table(data, "view"))
     reader.check_keys(data, "", top)
     texts = {}
     for key in ("kinetic", "potential", "lagrangian", "hamiltonian"):
@@ -291,14 +387,67 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<text>", name: str =
             for k, v in reader.table(data, "initial").items()
         ),
         drawing=drawing,
-        view=dict(reader.table(data, "view")),
+        view=view,
         source=source,
         name=name,
         **texts,
     )
-    scene = _build(kwargs, source)
-    scene._expressions  # noqa: B018 - parse every expression now, so errors surface on load
+    if not drop_unfit:
+        scene = _build(kwargs, source)
+        scene._expressions  # noqa: B018 - parse every expression now, so errors surface on load
+        return scene
+    while True:
+        try:
+            scene = _build(kwargs, source)
+            break
+        except SceneError as exc:
+            if not _drop_view_part(view, exc.field):
+                raise
+            warnings.append(_left_out(exc))
+    drawing_problems = _drawing_problems(scene, checked)
+    warnings += [_left_out(problem) for problem in drawing_problems]
+    if warnings:
+        left_out = {"drawing": None} if drawing_problems else {}
+        scene = dataclasses.replace(scene, warnings=tuple(warnings), **left_out)
+    scene._expressions  # noqa: B018 - the system's errors are the user's to fix: they raise
     return scene
+
+
+def _table_or_problem(reader, data: Mapping, key: str, problems: list) -> Mapping[str, Any]:
+    """``reader.table(data, key)``, or an empty table with the problem recorded."""
+    try:
+        return reader.table(data, key)
+    except SceneError as exc:
+        problems.append(exc)
+        return {}
+
+
+def _left_out(problem: SceneError) -> SceneWarning:
+    return SceneWarning(problem.field or "", problem.reason, problem.position, problem.source)
+
+
+def _drop_view_part(view: dict, field: str | None) -> bool:
+    """Remove from ``view`` the part ``field`` names (a key, or one entry of ``ranges``).
+
+    Returns False if ``field`` is not in the view (the problem is elsewhere). Nested tables
+    are copied, never changed in place: they may belong to the caller's document.
+    """
+    if not field or not field.startswith("view."):
+        return False
+    parts = field[len("view.") :].split(".", 1)
+    key = parts[0]
+    if key not in view:
+        return False
+    ranges = view.get("ranges")
+    if key == "ranges" and len(parts) == 2 and isinstance(ranges, Mapping) and parts[1] in ranges:
+        kept = {k: v for k, v in ranges.items() if k != parts[1]}
+        if kept:
+            view["ranges"] = kept
+        else:
+            del view["ranges"]
+        return True
+    del view[key]
+    return True
 
 
 def _build(kwargs: dict, source: str) -> Scene:
@@ -311,7 +460,22 @@ def _build(kwargs: dict, source: str) -> Scene:
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a catalogue scene by name (``"simple_pendulum"``) or a ``.toml`` file by path."""
+    """Load a catalogue scene by name (``"simple_pendulum"``) or a ``.toml`` file by path.
+
+    Read strictly (see ``scene_from_dict``).
+    """
+    path = scene_path(name_or_path)
+    return parse_scene(read_scene_file(path), source=str(path), name=path.stem)
+
+
+def scene_path(name_or_path: str | Path) -> Path:
+    """The file of a catalogue scene name, or ``name_or_path`` itself if it is a path.
+
+    Raises
+    ------
+    SceneError
+        If it is neither a ``.toml`` path, an existing file, nor a catalogue name.
+    """
     path = Path(name_or_path)
     if path.suffix != ".toml" and not path.exists():
         candidate = SCENES_DIR / f"{name_or_path}.toml"
@@ -322,6 +486,21 @@ def load_scene(name_or_path: str | Path) -> Scene:
                 source=str(name_or_path),
             )
         path = candidate
+    return path
+
+
+def read_scene_file(path: str | Path) -> str:
+    """The text of a scene file, checked to be UTF-8 text of a sensible size (not parsed).
+
+    For the window's File > Open, which shows the text in the editor
+    (``SystemEditorPanel.show_document``) whether or not it is a valid scene yet.
+
+    Raises
+    ------
+    SceneError
+        If the file cannot be read, is too large, or is not UTF-8 text.
+    """
+    path = Path(path)
     try:
         size = path.stat().st_size
         if size > 4 * MAX_SCENE_CHARACTERS:
@@ -343,7 +522,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
         ) from None
     if "\x00" in text:
         raise SceneError("not a text file: it contains NUL bytes", source=str(path))
-    return parse_scene(text, source=str(path), name=path.stem)
+    return text
 
 
 def catalogue() -> list[CatalogueEntry]:
@@ -439,45 +618,79 @@ class _Reader:
             raise self.fail(field, "must be a finite number")
         return float(value)
 
-    def drawing(self, table: Mapping[str, Any]) -> Drawing | None:
+    def drawing(
+        self, table: Mapping[str, Any], problems: list[SceneError] | None = None
+    ) -> Drawing | None:
+        """The ``[drawing]`` table, or None if there is none.
+
+        With ``problems`` (a list), every problem found is appended to it instead of the
+        first being raised, and the parts in error are skipped.
+        """
+
+        def fail(field: str, reason: str) -> None:
+            if problems is None:
+                raise self.fail(field, reason)
+            problems.append(self.fail(field, reason))
+
         if not table:
             return None
-        self.check_keys(table, "drawing", {"points", "links", "trace"})
+        try:
+            self.check_keys(table, "drawing", {"points", "links", "trace"})
+        except SceneError as exc:
+            if problems is None:
+                raise
+            problems.append(exc)
         points = []
         raw_points = table.get("points", {})
         if not isinstance(raw_points, Mapping):
-            raise self.fail("drawing.points", 'must be a table: name = ["x", "y"]')
+            fail("drawing.points", 'must be a table: name = ["x", "y"]')
+            raw_points = {}
         for name, xy in raw_points.items():
             field = f"drawing.points.{name}"
             if not isinstance(xy, list) or len(xy) != 2:
-                raise self.fail(field, "must be a list of two expressions [x, y]")
-            points.append((name, self.text(xy[0], field), self.text(xy[1], field)))
+                fail(field, "must be a list of two expressions [x, y]")
+                continue
+            if not all(isinstance(v, str | int | float) and not isinstance(v, bool) for v in xy):
+                fail(field, "must be a string (an expression in quotes)")
+                continue
+            points.append((name, str(xy[0]), str(xy[1])))
         known = {name for name, _, _ in points} | {"origin"}
         links = []
         links_raw = table.get("links", [])
         if not isinstance(links_raw, list):
-            raise self.fail("drawing.links", 'must be a list of pairs, e.g. [["origin", "bob"]]')
+            fail("drawing.links", 'must be a list of pairs, e.g. [["origin", "bob"]]')
+            links_raw = []
         for i, link in enumerate(links_raw):
             field = f"drawing.links[{i}]"
             if not isinstance(link, list) or len(link) != 2:
-                raise self.fail(field, 'must be a pair of point names, e.g. ["origin", "bob"]')
-            for end in link:
-                if not isinstance(end, str):
-                    raise self.fail(field, f"point names are strings, not {end!r}")
-                if end not in known:
-                    raise self.fail(field, f"unknown point {end!r}")
+                fail(field, 'must be a pair of point names, e.g. ["origin", "bob"]')
+                continue
+            wrong = [end for end in link if not isinstance(end, str)]
+            if wrong:
+                fail(field, f"point names are strings, not {wrong[0]!r}")
+                continue
+            unknown = [end for end in link if end not in known]
+            if unknown:
+                fail(field, f"unknown point {unknown[0]!r}")
+                continue
             links.append((link[0], link[1]))
-        trace = self.string_list(table.get("trace", []), "drawing.trace")
-        for name in trace:
+        trace_raw = table.get("trace", [])
+        if not isinstance(trace_raw, list) or not all(isinstance(v, str) for v in trace_raw):
+            fail("drawing.trace", "must be a list of strings")
+            trace_raw = []
+        trace = []
+        for name in trace_raw:
             if name not in known:
-                raise self.fail("drawing.trace", f"unknown point {name!r}")
+                fail("drawing.trace", f"unknown point {name!r}")
+            else:
+                trace.append(name)
         return Drawing(tuple(points), tuple(links), tuple(trace))
 
 
 # -- validation and parsing ----------------------------------------------------------------
 
 
-VIEW_KEYS = {"t_end", "phase", "ranges", "section"}
+VIEW_KEYS = {"t_end", "phase", "ranges", "section", "angles"}
 
 
 def _validate_view(scene: Scene, fail) -> None:
@@ -518,6 +731,22 @@ def _validate_view(scene: Scene, fail) -> None:
             raise fail("view.section.coordinate", f"{section['coordinate']!r} is not a coordinate")
         if "value" in section and not _finite(section["value"]):
             raise fail("view.section.value", f"must be a finite number, not {section['value']!r}")
+    if "angles" in view:
+        angles = view["angles"]
+        if not isinstance(angles, list) or not all(isinstance(a, str) for a in angles):
+            raise fail(
+                "view.angles",
+                f'must be a list of coordinate names, e.g. ["{scene.coordinates[0]}"], '
+                f"not {angles!r}",
+            )
+        for angle in angles:
+            if angle not in scene.coordinates:
+                raise fail(
+                    "view.angles",
+                    f"{angle!r} is not a coordinate (coordinates: {', '.join(scene.coordinates)})",
+                )
+            if angles.count(angle) > 1:
+                raise fail("view.angles", f"{angle!r} is listed twice")
 
 
 def _finite(value: Any) -> bool:
@@ -591,18 +820,34 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
             fields.append((f"drawing.points.{name}.y", y, ("q", "t", "params")))
     result = {}
     for field_name, text, groups in fields:
-        if text is None:
-            continue
-        allowed = scene.allowed(*groups)
-        try:
-            result[field_name] = parse_expression(text, allowed, field=field_name)
-        except ExpressionError as exc:
-            hint = _misplaced_name_hint(scene, exc, groups, field_name)
-            reason = exc.reason if hint is None else hint
-            raise SceneError(
-                reason, source=scene.source, field=field_name, position=exc.position
-            ) from None
+        if text is not None:
+            result[field_name] = _parse_field(scene, field_name, text, groups)
     return result
+
+
+def _drawing_problems(scene: Scene, drawing: Drawing | None) -> list[SceneError]:
+    """Every expression of ``drawing`` that does not parse in ``scene``, one error each
+    (none raised)."""
+    problems = []
+    for name, x, y in drawing.points if drawing else ():
+        for axis, text in (("x", x), ("y", y)):
+            try:
+                _parse_field(scene, f"drawing.points.{name}.{axis}", text, ("q", "t", "params"))
+            except SceneError as exc:
+                problems.append(exc)
+    return problems
+
+
+def _parse_field(scene: Scene, field_name: str, text: str, groups) -> sympy.Expr:
+    allowed = scene.allowed(*groups)
+    try:
+        return parse_expression(text, allowed, field=field_name)
+    except ExpressionError as exc:
+        hint = _misplaced_name_hint(scene, exc, groups, field_name)
+        reason = exc.reason if hint is None else hint
+        raise SceneError(
+            reason, source=scene.source, field=field_name, position=exc.position
+        ) from None
 
 
 def _misplaced_name_hint(scene, exc, groups, field_name) -> str | None:
@@ -661,8 +906,43 @@ def _to_toml(scene: Scene) -> str:
     return "\n".join(lines) + "\n"
 
 
+def document_toml(data: Mapping[str, Any]) -> str:
+    """The tables of a scene document as TOML text, whether or not they make a valid scene.
+
+    The layout is that of ``Scene.to_toml``: the top-level keys (``title``,
+    ``description``), then ``[system]``, ``[effects]``, ``[initial]``, ``[drawing]`` and
+    ``[view]`` (and any other table, in its order), one key a line, nested arrays and
+    tables written inline; an empty table other than ``[system]`` is left out. Reading
+    the text with ``read_document`` gives the same tables back (an empty table aside).
+
+    Raises
+    ------
+    TypeError
+        For a value TOML cannot hold (None, an object).
+    """
+    order = ["system", "effects", "initial", "drawing", "view"]
+    tables = [key for key in order if isinstance(data.get(key), Mapping)]
+    tables += [k for k, v in data.items() if isinstance(v, Mapping) and k not in tables]
+    top = sorted(
+        (k for k in data if k not in tables), key=lambda k: (k != "title", k != "description")
+    )
+    lines = [f"{_key(k)} = {_value(data[k])}" for k in top]
+    for key in tables:
+        table = data[key]
+        if not table and key != "system":
+            continue
+        if lines:
+            lines.append("")
+        lines.append(f"[{_key(key)}]")
+        lines += [f"{_key(k)} = {_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
 def _str(text: str) -> str:
     escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+    escaped = "".join(
+        f"\\u{ord(c):04x}" if (ord(c) < 32 and c != "\t") or ord(c) == 127 else c for c in escaped
+    )
     return f'"{escaped}"'
 
 

@@ -1,7 +1,9 @@
+import dataclasses
+
 import pytest
 
-from systems.scene import SceneError, parse_scene
-from tests.systems.scenes import DRIVEN_DAMPED, PENDULUM, PLANETARY, scene
+from systems.scene import SceneError, document_toml, parse_scene, read_document, scene_from_dict
+from tests.systems.scenes import DRIVEN_DAMPED, OSCILLATOR, PENDULUM, PLANETARY, scene
 
 
 def test_reads_fields():
@@ -99,3 +101,188 @@ def test_view_is_checked_when_the_scene_loads(view, field, words):
     message = str(info.value)
     assert message.startswith(f"pendulum.toml: {field}: ")
     assert words in message
+
+
+# -- what does not fit the system: left out with drop_unfit, an error otherwise ----------
+
+
+def _renamed_pendulum() -> str:
+    """The pendulum with theta renamed to phi in the system only: drawing and view left."""
+    system = PENDULUM.replace('["theta"]', '["phi"]').replace("theta = 1.0", "phi = 1.0")
+    system = system.replace("theta_dot", "phi_dot")
+    system = system.replace('potential = "-m*g*l*cos(theta)"', 'potential = "-m*g*l*cos(phi)"')
+    assert 'points = { bob = ["l*sin(theta)", "-l*cos(theta)"] }' in system
+    return system + (
+        '\n[view]\nt_end = 12.0\nphase = ["theta", "p_theta"]\n'
+        "ranges = { theta = [-3.0, 3.0], x = [-1.0, 1.0] }\n"
+        'angles = ["theta"]\n'
+    )
+
+
+def test_unfit_drawing_and_view_are_errors_when_read_strictly():
+    with pytest.raises(SceneError) as info:
+        parse_scene(_renamed_pendulum(), source="renamed.toml")
+    assert str(info.value).startswith("renamed.toml: view.phase: ")
+
+
+def test_unfit_drawing_and_view_are_left_out_with_warnings():
+    s = parse_scene(_renamed_pendulum(), source="<editor>", drop_unfit=True)
+    assert s.coordinates == ("phi",)
+    assert s.drawing is None
+    # the view keeps what fits: t_end and the drawing area's x range
+    assert dict(s.view) == {"t_end": 12.0, "ranges": {"x": [-1.0, 1.0]}}
+    fields = [w.field for w in s.warnings]
+    assert fields == [
+        "view.phase",
+        "view.ranges.theta",
+        "view.angles",
+        "drawing.points.bob.x",
+        "drawing.points.bob.y",
+    ]
+    bob_x = s.warnings[3]
+    assert bob_x.part == "drawing" and bob_x.position == 7
+    assert "unknown name 'theta'" in bob_x.reason
+    assert str(bob_x).startswith("<editor>: drawing.points.bob.x: unknown name 'theta'")
+    assert str(bob_x).endswith("the drawing left out")
+    assert s.warnings[0].part == "view.phase"
+    # the scene derives what is left: every expression was parsed
+    assert set(s._expressions) == {"system.kinetic", "system.potential"}
+
+
+def test_drop_unfit_never_changes_the_callers_tables():
+    import tomllib
+
+    data = tomllib.loads(_renamed_pendulum())
+    before = repr(data)
+    scene_from_dict(data, source="<editor>", drop_unfit=True)
+    assert repr(data) == before
+
+
+def test_a_fitting_scene_has_no_warnings_and_equals_the_strict_one():
+    strict = parse_scene(PENDULUM, source="p.toml")
+    lenient = parse_scene(PENDULUM, source="p.toml", drop_unfit=True)
+    assert lenient.warnings == () and lenient == strict
+    assert lenient.drawing == strict.drawing
+
+
+def test_warnings_take_no_part_in_equality():
+    s = parse_scene(_renamed_pendulum(), source="<editor>", drop_unfit=True)
+    assert s == dataclasses.replace(s, warnings=())
+
+
+@pytest.mark.parametrize(
+    "drawing, field",
+    [
+        ('points = { a = ["x", "0"] }\nlinks = [["origin", "b"]]', "drawing.links[0]"),
+        ('points = { a = ["x"] }', "drawing.points.a"),
+        ("points = 5", "drawing.points"),
+        ('points = { a = ["x", "0"] }\ntrace = ["b"]', "drawing.trace"),
+        ('points = { a = ["x +", "0"] }', "drawing.points.a.x"),
+        ('points = { a = ["x_dot", "0"] }', "drawing.points.a.x"),
+    ],
+)
+def test_any_drawing_problem_leaves_the_drawing_out(drawing, field):
+    text = OSCILLATOR + "\n[drawing]\n" + drawing + "\n"
+    with pytest.raises(SceneError):
+        parse_scene(text)
+    s = parse_scene(text, drop_unfit=True)
+    assert s.drawing is None
+    assert [w.field for w in s.warnings] == [field]
+
+
+def test_every_drawing_problem_is_reported_at_once():
+    text = OSCILLATOR + (
+        '\n[drawing]\npoints = { a = ["q", "w"], b = ["x", "0"] }\n'
+        'links = [["origin", "c"], ["a", "b"], ["b", "d"]]\ntrace = ["e"]\n'
+    )
+    s = parse_scene(text, drop_unfit=True)
+    assert [w.field for w in s.warnings] == [
+        "drawing.links[0]",
+        "drawing.links[2]",
+        "drawing.trace",
+        "drawing.points.a.x",
+        "drawing.points.a.y",
+    ]
+
+
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        (('potential = "-m*g*l*cos(theta)"', 'potential = "-m*g*l*cos(phi)"'), "system.potential"),
+        (("theta = 1.0", "phi = 1.0"), "initial.phi"),
+        (('coordinates = ["theta"]', 'coordinates = ["theta", "m"]'), "system.parameters"),
+    ],
+)
+def test_problems_of_the_system_still_raise_with_drop_unfit(change, field):
+    text = PENDULUM.replace(*change)
+    with pytest.raises(SceneError) as info:
+        parse_scene(text, source="<editor>", drop_unfit=True)
+    assert info.value.field == field
+
+
+def test_a_view_that_is_not_a_table_is_left_out():
+    s = scene_from_dict({**_tables(PENDULUM), "view": 5}, drop_unfit=True)
+    assert dict(s.view) == {} and [w.field for w in s.warnings] == ["view"]
+    assert s.drawing is not None
+
+
+# -- [view] angles ---------------------------------------------------------------------
+
+
+def test_view_angles_names_coordinates():
+    s = scene(PLANETARY + '\n[view]\nangles = ["theta"]\n')
+    assert s.view.get("angles") == ["theta"]
+    assert parse_scene(s.to_toml(), source="test.toml") == s
+
+
+@pytest.mark.parametrize(
+    "angles, words",
+    [
+        ('["phi"]', "'phi' is not a coordinate (coordinates: r, theta)"),
+        ('["theta", "theta"]', "listed twice"),
+        ('"theta"', "must be a list of coordinate names"),
+        ("[1]", "must be a list of coordinate names"),
+    ],
+)
+def test_view_angles_are_checked(angles, words):
+    with pytest.raises(SceneError) as info:
+        parse_scene(PLANETARY + f"\n[view]\nangles = {angles}\n", source="k.toml")
+    assert str(info.value).startswith("k.toml: view.angles: ")
+    assert words in str(info.value)
+
+
+# -- documents: the tables as typed, valid or not ----------------------------------------------
+
+
+def _tables(text: str) -> dict:
+    return read_document(text)
+
+
+def test_document_toml_reads_back_to_the_same_tables():
+    data = {
+        "title": 'A "quoted" title\\ with a backslash',
+        "system": {
+            "coordinates": ["x", "2y"],
+            "parameters": {"m": 1.0, "n": 3, "w": "2/3"},
+            "kinetic": "m*(x_dot**2 +",
+        },
+        "initial": {"x": 0.97000436, "x_dot": "sqrt(2)"},
+        "drawing": {"points": {"a": ["x", "0"]}, "links": [["origin", "a", "b"]]},
+        "view": {"t_end": 5.0, "ranges": {"x": [-1.0, 1.0]}, "flag": True},
+    }
+    text = document_toml(data)
+    assert read_document(text) == data
+    # an unfinished document is written all the same; reading it as a scene says why not
+    with pytest.raises(SceneError, match="system.coordinates"):
+        parse_scene(text)
+
+
+def test_document_toml_escapes_control_characters():
+    data = {"title": "tab\there, bell\x07, line\nbreak", "system": {}}
+    assert read_document(document_toml(data)) == data
+
+
+def test_document_toml_of_a_scene_document_is_the_scene():
+    for text in (PENDULUM, PLANETARY, DRIVEN_DAMPED):
+        s = scene(text)
+        assert parse_scene(document_toml(_tables(text)), source="test.toml") == s
