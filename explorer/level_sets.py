@@ -2,12 +2,17 @@
 
 H is evaluated on a grid with the compiled Hamiltonian (one batched call); saddle points
 are found from the grid's small-gradient cells, refined with Newton's method on finite
-differences of H, and kept when the Hessian determinant is negative. The separatrix is
-the level set through a saddle.
+differences of H, and kept when the Hessian determinant is negative (centres, where it is
+positive, are kept apart). The separatrix is the level set through a saddle.
+
+``fit_window`` chooses the phase plane's ranges before anything is integrated: it grows a
+first guess until the closed level sets that matter (the main orbit's energy, the
+separatrix) and the equilibria lie inside, so the view fits them at once.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,11 +67,24 @@ def _gradient(compiled, x: np.ndarray, step: np.ndarray) -> np.ndarray:
 
 def find_saddles(compiled, grid: EnergyGrid, limit: int = 8) -> list[Saddle]:
     """Saddle points of H inside the grid (1-degree systems only)."""
+    return find_stationary(compiled, grid, limit)[0]
+
+
+def find_stationary(
+    compiled, grid: EnergyGrid, limit: int = 8
+) -> tuple[list[Saddle], list[tuple[float, float]]]:
+    """Saddles and centres (extrema) of H inside the grid (1-degree systems only).
+
+    Returns
+    -------
+    saddles : list of Saddle
+    centres : list of (q, p)
+    """
     if compiled.n != 1:
-        return []
+        return [], []
     values = grid.values
     if not np.isfinite(values).any():
-        return []
+        return [], []
     dq = grid.qs[1] - grid.qs[0]
     dp = grid.ps[1] - grid.ps[0]
     with np.errstate(all="ignore"):
@@ -88,6 +106,7 @@ def find_saddles(compiled, grid: EnergyGrid, limit: int = 8) -> list[Saddle]:
     order = np.argsort(magnitude[tuple(candidates.T)])
     step = np.array([dq, dp]) * 1e-3
     saddles: list[Saddle] = []
+    centres: list[tuple[float, float]] = []
     for i, j in candidates[order][: 4 * limit]:
         x0 = np.array([grid.qs[i], grid.ps[j]])
         with np.errstate(all="ignore"):
@@ -108,14 +127,19 @@ def find_saddles(compiled, grid: EnergyGrid, limit: int = 8) -> list[Saddle]:
                  - _gradient(compiled, solution.x - [0, step[1]], step)) / (2 * step[1]),
             ]
         )  # fmt: skip
-        if not np.linalg.det(hess) < 0:
+        det = np.linalg.det(hess)
+        if det > 0 and np.isfinite(det):
+            if not any(abs(c[0] - q) < 2 * dq and abs(c[1] - p) < 2 * dp for c in centres):
+                centres.append((float(q), float(p)))
+            continue
+        if not det < 0:
             continue
         if any(abs(s.q - q) < 2 * dq and abs(s.p - p) < 2 * dp for s in saddles):
             continue
         saddles.append(Saddle(float(q), float(p), _h(compiled, q, p)))
         if len(saddles) >= limit:
             break
-    return saddles
+    return saddles, centres
 
 
 def spread_levels(grid: EnergyGrid, count: int = 12) -> np.ndarray:
@@ -147,3 +171,84 @@ def contour(grid: EnergyGrid, level: float) -> tuple[np.ndarray, np.ndarray]:
     if not xs:
         return np.array([]), np.array([])
     return np.concatenate(xs), np.concatenate(ys)
+
+
+def level_mask(grid: EnergyGrid, level: float) -> np.ndarray:
+    """Grid nodes next to the level set ``H = level``: shape (len(qs), len(ps)), bool."""
+    with np.errstate(invalid="ignore"):
+        above = grid.values > level
+    finite = np.isfinite(grid.values)
+    mask = np.zeros(grid.values.shape, dtype=bool)
+    across_q = (above[1:] != above[:-1]) & finite[1:] & finite[:-1]
+    across_p = (above[:, 1:] != above[:, :-1]) & finite[:, 1:] & finite[:, :-1]
+    mask[1:] |= across_q
+    mask[:-1] |= across_q
+    mask[:, 1:] |= across_p
+    mask[:, :-1] |= across_p
+    return mask
+
+
+def fit_window(
+    features: Callable[[tuple, tuple], tuple[np.ndarray, np.ndarray, list[np.ndarray]]],
+    q_range: tuple[float, float],
+    p_range: tuple[float, float],
+    *,
+    q_fixed: bool = False,
+    p_fixed: bool = False,
+    rounds: int = 4,
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The smallest box around the bounded features, searched by growing a first guess.
+
+    ``features(q_range, p_range) -> (qs, ps, masks)`` marks on a grid the nodes each
+    feature (a level set, a region) occupies. While a feature touches a side that may
+    move, that side moves out by the current span (the window doubles), at most
+    ``rounds`` times; features still touching a movable side then are unbounded and left
+    out (the data will grow the view as an orbit goes there).
+
+    Parameters
+    ----------
+    features : callable
+        ``(q_range, p_range) -> (qs (a,), ps (b,), list of bool arrays (a, b))``.
+    q_range, p_range : (float, float)
+        The first guess.
+    q_fixed, p_fixed : bool
+        Sides that never move (an angle's (-pi, pi], a declared range).
+
+    Returns
+    -------
+    ((q_lo, q_hi), (p_lo, p_hi)) or None
+        The bounding box of the bounded features' nodes; None if there are none.
+    """
+    q_range, p_range = tuple(map(float, q_range)), tuple(map(float, p_range))
+    for round_ in range(rounds + 1):
+        qs, ps, masks = features(q_range, p_range)
+        touched: list[set[str]] = []
+        for mask in masks:
+            sides = set()
+            if not q_fixed:
+                sides |= {"q-"} if mask[0].any() else set()
+                sides |= {"q+"} if mask[-1].any() else set()
+            if not p_fixed:
+                sides |= {"p-"} if mask[:, 0].any() else set()
+                sides |= {"p+"} if mask[:, -1].any() else set()
+            touched.append(sides)
+        every = set().union(*touched) if touched else set()
+        if not every or round_ == rounds:
+            break
+        q_span, p_span = q_range[1] - q_range[0], p_range[1] - p_range[0]
+        q_range = (
+            q_range[0] - q_span * ("q-" in every),
+            q_range[1] + q_span * ("q+" in every),
+        )
+        p_range = (
+            p_range[0] - p_span * ("p-" in every),
+            p_range[1] + p_span * ("p+" in every),
+        )
+    bounded = [mask for mask, sides in zip(masks, touched, strict=True) if not sides]
+    if not bounded:
+        return None
+    union = np.logical_or.reduce(bounded)
+    rows, cols = np.flatnonzero(union.any(axis=1)), np.flatnonzero(union.any(axis=0))
+    if not len(rows) or not len(cols):
+        return None
+    return (float(qs[rows[0]]), float(qs[rows[-1]])), (float(ps[cols[0]]), float(ps[cols[-1]]))

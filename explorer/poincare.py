@@ -4,6 +4,10 @@ The crossings themselves come from the engine (``stream(..., section=...)`` loca
 inside each step by cubic Hermite interpolation). A click on the section at energy E
 solves H(q, p) = E for the missing momentum p_j > 0; H of a natural system is quadratic
 in p_j, so three evaluations of H give the quadratic and its roots.
+
+Without ``[view] section`` the cut is an angle if there is one (a cyclic angle first: it
+keeps turning, so every orbit crosses it), else the first coordinate, at 0. A cut on an
+angle is crossed at ``value + 2 pi j`` (``systems.simulation`` finds those crossings).
 """
 
 from __future__ import annotations
@@ -22,10 +26,23 @@ class Section:
     shown: int
 
     @classmethod
-    def from_scene(cls, scene) -> Section:
+    def from_scene(
+        cls, scene, angles: tuple[str, ...] = (), cyclic: tuple[str, ...] = ()
+    ) -> Section:
+        """The scene's ``[view] section``, or a default cut (see the module).
+
+        Parameters
+        ----------
+        scene : systems.scene.Scene
+            Of two (or more) coordinates.
+        angles, cyclic : tuple of str
+            The scene's angle coordinates and cyclic coordinates.
+        """
         n = len(scene.coordinates)
         table = dict(scene.view.get("section", {}) or {})
-        name = table.get("coordinate", scene.coordinates[0])
+        preferred = [q for q in scene.coordinates if q in angles and q in cyclic]
+        preferred += [q for q in scene.coordinates if q in angles]
+        name = table.get("coordinate", (preferred or list(scene.coordinates))[0])
         j = scene.coordinates.index(name) if name in scene.coordinates else 0
         shown = next(i for i in range(n) if i != j)
         return cls(j, float(table.get("value", 0.0)), shown)
@@ -50,16 +67,23 @@ def _quadratic_in_pj(compiled, section: Section, q_i, p_i):
 
 
 def forbidden(compiled, section: Section, energy: float, q_i, p_i) -> np.ndarray:
-    """True where no p_j reaches ``energy``: the energetically forbidden part of the plane."""
+    """True where no p_j reaches ``energy``: the energetically forbidden part of the plane.
+
+    Points where H is not finite (a singular line such as r = 0) are forbidden too: no
+    state can be put there.
+    """
     a, b, c = _quadratic_in_pj(compiled, section, q_i, p_i)
     with np.errstate(all="ignore"):
         minimum = np.where(a > 0, c - b * b / (4 * a), -np.inf)
-    return ~(minimum <= energy)
+    finite = np.isfinite(a) & np.isfinite(b) & np.isfinite(c)
+    return ~(finite & (minimum <= energy))
 
 
 def state_on_section(compiled, section: Section, energy: float, q_i: float, p_i: float):
     """The state on the section at (q_i, p_i) with H = ``energy`` and p_j > 0, or None."""
     a, b, c = (float(v[0]) for v in _quadratic_in_pj(compiled, section, q_i, p_i))
+    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
+        return None
     disc = b * b - 4 * a * (c - energy)
     if a <= 0 or disc < 0:
         return None

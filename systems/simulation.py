@@ -24,7 +24,7 @@ import numpy as np
 
 from systems.integrators import STEPPERS, choose_method, get_stepper
 from systems.integrators.codes import CLOCK_SIZE, Clock, Status
-from systems.integrators.events import locate_crossings
+from systems.integrators.events import locate_crossings, periodic_brackets
 from systems.integrators.registry import Stepper, make_runner
 from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
@@ -146,7 +146,9 @@ class Run:
     diagnostics : sequence of {"H", "qdot", "points"}
     section : (index, value, direction), optional
         Record crossings of ``y[index] = value`` (direction +1 upward, -1 downward,
-        0 both) in ``Block.events_t``/``events_y``.
+        0 both) in ``Block.events_t``/``events_y``. On an angle coordinate
+        (``systems.angles.angle_coordinates``) every ``value + 2 pi j`` is crossed: the
+        compiled loop then records every step and the crossings are found here.
     energy_tolerance : float or None
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
         this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8). None: never.
@@ -195,6 +197,7 @@ class Run:
         self.compiled, self.stepper, self.method = compiled, stepper, method
         self.diagnostics, self.max_points = tuple(diagnostics), max_points
         self.section = section
+        self.section_period: float | None = None
         self.t_end = t_end
         self.max_steps = max_steps
         self.y0 = compiled.initial_state(t0) if y0 is None else np.array(y0, dtype=float)
@@ -215,6 +218,9 @@ class Run:
             value = stepper.default_setting(compiled, t0, self.y0, t_end)
         self.setting_value = float(value)
         sec = None if section is None else np.array(section, dtype=float)
+        self.section_period = _section_period(compiled, section)
+        if self.section_period is not None:
+            sec = None  # the compiled loop knows one level only: crossings found in advance
         self.runner = make_runner(
             compiled, stepper, self.y0, t0, t_end, self.setting_value, sec, compensated
         )
@@ -250,6 +256,23 @@ class Run:
             "(--max-steps), shorten the run or use a larger step or tolerance"
         )
 
+    def _periodic_crossings(self, before, t: np.ndarray, y: np.ndarray):
+        """Crossings of the section on an angle among ``before`` and the steps (t, y)."""
+        index, value, direction = self.section
+        bt, by, levels = periodic_brackets(
+            np.concatenate([[before[0]], t]),
+            np.concatenate([before[1][None, :], y]),
+            int(index),
+            float(value),
+            float(direction),
+            self.section_period,
+        )
+        if not len(bt):
+            return None
+        return locate_crossings(
+            self.compiled, bt, by, int(index), levels, dense=self.stepper.family.name == "dop853"
+        )
+
     def advance(self, seconds: float = 0.03, until: float = math.inf) -> Block:
         """The next block: about ``seconds`` of computing, ending early after the first
         step that reaches ``until``."""
@@ -278,8 +301,11 @@ class Run:
                 return self.stop("budget", self._over_budget())
             nsteps = min(nsteps, self.max_steps - self.steps)
         start = time.perf_counter()
+        before = self.good
+        # a section on an angle needs every step: thinned to max_points after the search
+        points = nsteps + 2 if self.section_period is not None else self.max_points
         try:
-            out = self.runner.advance(nsteps, self.max_points, until)
+            out = self.runner.advance(nsteps, points, until)
         except ZeroDivisionError as exc:
             return self.stop(
                 "singular", _division(exc) + f"; the last good state is at t = {self.good[0]:.6g}"
@@ -295,6 +321,10 @@ class Run:
         elif self.max_steps is not None and self.steps >= self.max_steps:
             status, message = "budget", self._over_budget()
         t, y = out.t, out.y
+        events = None
+        if self.section_period is not None and len(t):
+            events = self._periodic_crossings(before, t, y)
+            t, y = _thin(t, y, self.max_points)
         diag = _diagnostics(self.compiled, self.diagnostics, t, y)
         if self.watch_energy and status in ("running", "ok", "budget") and len(t):
             H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
@@ -310,11 +340,10 @@ class Run:
             status, message = _diagnose(
                 self.compiled, self.runner, t[-1], y[-1], self.f0, status, message
             )
-        events = None
-        if self.section is not None and len(out.events[0]):
+        if self.section is not None and self.section_period is None and len(out.events[0]):
             events = locate_crossings(
                 self.compiled, out.events[0], out.events[1], int(self.section[0]),
-                float(self.section[1]), dense=self.stepper.family.adaptive,
+                float(self.section[1]), dense=self.stepper.family.name == "dop853",
             )  # fmt: skip
         block = self._block(t, y, status, message, diag, events)
         if len(t):
@@ -324,6 +353,28 @@ class Run:
             target = seconds / max(rate, 1e-12)
             self.nsteps = int(min(max(target, self.nsteps / 4, 1), self.nsteps * 8, 1e9))
         return block
+
+
+def _section_period(compiled, section) -> float | None:
+    """2 pi when the section cuts an angle coordinate of ``compiled``, else None."""
+    if section is None:
+        return None
+    index = int(section[0])
+    mechanics = getattr(compiled, "mechanics", None)
+    if mechanics is None or not 0 <= index < compiled.n:
+        return None  # a momentum is never an angle
+    from systems.angles import TWO_PI, angle_coordinates
+
+    name = mechanics.scene.coordinates[index]
+    return TWO_PI if name in angle_coordinates(mechanics) else None
+
+
+def _thin(t: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """At most ``max_points`` rows, evenly spaced in index, the last always kept."""
+    if len(t) <= max_points:
+        return t, y
+    index = np.unique(np.linspace(0, len(t) - 1, max(max_points, 2)).round().astype(int))
+    return t[index], y[index]
 
 
 def stream(compiled, *, block_seconds: float = 0.03, **options) -> Iterator[Block]:

@@ -1,4 +1,12 @@
-"""Configuration view: the mechanism animated from the scene's drawing, and the path in (q1, q2)."""
+"""Configuration view: the mechanism animated from the scene's drawing, and the path in (q1, q2).
+
+The mechanism's plot has its aspect locked (a circle stays round) and keeps a box in view:
+the drawing's reach at the start (or ``[view] ranges`` x and y), grown whenever a point or
+trace leaves it. The box is set on both axes at once and again whenever the plot changes
+shape (a dock resized, an export at another size), so the whole mechanism stays visible;
+panning or zooming by hand stops that until the next system. The path plot wraps angle
+coordinates to (-pi, pi] like the phase view.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +15,16 @@ import pyqtgraph as pg
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.labels import coordinate_label
-from explorer.panels.curves import RangeKeeper, TrailCurve, style_plot
+from explorer.panels.curves import (
+    ANGLE_RANGE,
+    RangeKeeper,
+    TrailCurve,
+    WrappedSeries,
+    set_title,
+    style_plot,
+)
 from explorer.trajectories import backfill_points
+from systems.angles import angle_flags, wrap
 
 ROD_PEN = pg.mkPen("#333333", width=3)
 TRACE_POINTS = 4000
@@ -58,6 +74,11 @@ class ConfigurationView(QWidget):
         self._head: pg.ScatterPlotItem | None = None
         self._message = pg.TextItem("", color="#555", anchor=(0.5, 0.5))
         self._trace_from = 0
+        self.fit = RangeKeeper(self.mechanism, margin=0.1)
+        self.mechanism.getViewBox().sigResized.connect(self._on_mechanism_resized)
+        self._path_series: WrappedSeries | None = None
+        self._path_angles = np.zeros(2, dtype=bool)
+        self._store = None
 
     def set_system(self, compiled) -> None:
         """Show a newly compiled system (its drawing and coordinates)."""
@@ -66,7 +87,7 @@ class ConfigurationView(QWidget):
         self.mechanism.clear()
         self._traces.clear()
         drawing = scene.drawing
-        self.mechanism.setTitle(f"{scene.title}: configuration")
+        set_title(self.mechanism, f"{scene.title}: configuration")
         if drawing is None or not drawing.points:
             self._message.setText("This scene has no [drawing] table.")
             self.mechanism.addItem(self._message)
@@ -85,56 +106,83 @@ class ConfigurationView(QWidget):
         if self.path_plot is not None:
             self.layout_widget.removeItem(self.path_plot)
             self.path_plot = None
-            self._path = None
+        self._path = None
+        self._head = None
+        self._path_series = None
+        self._store = None
         if compiled.n >= 2:
-            q1, q2 = scene.coordinates[:2]
-            self.path_plot = self.layout_widget.addPlot(row=1, col=0)
-            self.path_plot.setTitle(f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
-            self.path_plot.setLabel("bottom", coordinate_label(q1))
-            self.path_plot.setLabel("left", coordinate_label(q2))
-            style_plot(self.path_plot)
-            self._path = TrailCurve(
-                self.path_plot, pg.mkPen("#1f77b4", width=1.2), ranges=RangeKeeper(self.path_plot)
-            )
-            self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
-            self.path_plot.addItem(self._head)
+            self._add_path_plot(compiled)
         self._fit_range(compiled)
 
+    def _add_path_plot(self, compiled) -> None:
+        scene = compiled.mechanics.scene
+        q1, q2 = scene.coordinates[:2]
+        self.path_plot = self.layout_widget.addPlot(row=1, col=0)
+        set_title(self.path_plot, f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
+        self.path_plot.setLabel("bottom", coordinate_label(q1))
+        self.path_plot.setLabel("left", coordinate_label(q2))
+        style_plot(self.path_plot)
+        keeper = RangeKeeper(self.path_plot)
+        self._path_angles = angle_flags(compiled.mechanics)[:2]
+        if self._path_angles.any():
+            self._path_series = WrappedSeries(self._path_angles)
+            keeper.reset(
+                ANGLE_RANGE if self._path_angles[0] else None,
+                ANGLE_RANGE if self._path_angles[1] else None,
+                fixed=tuple(a for a, f in zip("xy", self._path_angles, strict=True) if f),
+            )
+        self._path = TrailCurve(self.path_plot, pg.mkPen("#1f77b4", width=1.2), ranges=keeper)
+        self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
+        self.path_plot.addItem(self._head)
+
     def _fit_range(self, compiled) -> None:
+        """The first box to keep in view: declared x and y ranges (kept), else a square
+        around the origin that holds the drawing at the start (grown by the motion)."""
         scene = compiled.mechanics.scene
         if scene.drawing is None or not scene.drawing.points:
-            self.mechanism.setXRange(-1, 1)
-            self.mechanism.setYRange(-1, 1)
+            self.fit.reset((-1.0, 1.0), (-1.0, 1.0), fixed=("x", "y"))
             return
-        y0 = compiled.initial_state()
-        points = compiled.drawing(0.0, y0[None, :])[0]
-        reach = float(np.nanmax(np.abs(points))) if np.isfinite(points).any() else 1.0
-        reach = 1.15 * max(reach, 1e-3)
         ranges = dict(scene.view.get("ranges", {}) or {})
         if "x" in ranges and "y" in ranges and "x" not in scene.coordinates:
-            self.mechanism.setXRange(*ranges["x"], padding=0)
-            self.mechanism.setYRange(*ranges["y"], padding=0)
-        else:
-            self.mechanism.setXRange(-reach, reach, padding=0)
-            self.mechanism.setYRange(-reach, reach, padding=0)
+            self.fit.reset(tuple(ranges["x"]), tuple(ranges["y"]), fixed=("x", "y"))
+            return
+        y0 = compiled.initial_state()
+        with np.errstate(all="ignore"):
+            points = compiled.drawing(0.0, y0[None, :])[0]
+        finite = np.isfinite(points)
+        reach = float(np.abs(points[finite]).max()) if finite.any() else 1.0
+        reach = 1.15 * max(reach, 1e-3)
+        self.fit.reset((-reach, reach), (-reach, reach))
+
+    def _on_mechanism_resized(self) -> None:
+        # pyqtgraph keeps the requested box visible on resize only if both axes were set
+        # together; setting it again also restores it after a squeeze that hid part of it
+        if not self.fit.manual:
+            self.fit.apply()
 
     def _keep_in_view(self, points: np.ndarray) -> None:
-        """Grow the (square) view when the mechanism leaves it; never shrink it."""
-        finite = points[np.isfinite(points).all(axis=-1)]
-        if not len(finite):
-            return
-        reach = float(np.abs(finite).max())
-        (x0, x1), (y0, y1) = self.mechanism.viewRange()
-        half = min(abs(x0), abs(x1), abs(y0), abs(y1))
-        if reach > 0.98 * half:
-            self.mechanism.setXRange(-1.2 * reach, 1.2 * reach, padding=0)
-            self.mechanism.setYRange(-1.2 * reach, 1.2 * reach, padding=0)
+        """Grow the kept box when the mechanism leaves it; never shrink it.
+
+        Parameters
+        ----------
+        points : ndarray, shape (..., 2)
+        """
+        points = points.reshape(-1, 2)
+        self.fit.include(points[:, 0], points[:, 1])
 
     def refresh(self, store) -> None:
         """Draw the main trajectory's current configuration and traces."""
         trajectory = store.main
         if self.compiled is None or trajectory is None:
             return
+        if trajectory.y.data.shape[1] != 2 * self.compiled.n:
+            return  # a trajectory of another system: the store is about to be replaced
+        if store is not self._store:  # a restart: the path starts again
+            self._store = store
+            if self._path is not None:
+                self._path.reset()
+            if self._path_series is not None:
+                self._path_series.reset()
         scene = self.compiled.mechanics.scene
         drawing = scene.drawing
         total = len(trajectory.t)
@@ -161,8 +209,12 @@ class ConfigurationView(QWidget):
                 item.setData(window[:, k, 0], window[:, k, 1])
         if self._path is not None:
             y = trajectory.y.data
-            self._path.update(y[:, 0], y[:, 1])
-            self._head.setData([y[-1, 0]], [y[-1, 1]])
+            q1, q2 = y[:, 0], y[:, 1]
+            if self._path_series is not None:
+                q1, q2 = self._path_series.feed(q1, q2)
+            self._path.update(q1, q2)
+            head = [wrap(v) if a else v for v, a in zip(y[-1, :2], self._path_angles, strict=True)]
+            self._head.setData([head[0]], [head[1]])
 
     def export_target(self) -> QWidget:
         return self.layout_widget

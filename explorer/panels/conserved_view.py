@@ -1,7 +1,14 @@
 """Conserved-quantities view: relative energy error (log scale) and conserved momenta over time.
 
 When H is not conserved (driven, dissipative or rheonomic scenes) the upper plot shows H(t)
-itself instead of an error.
+itself instead of an error. ``set_system`` rebuilds both plots from the new system alone:
+titles, legends, the momentum plot (there is none without a conserved momentum) and the
+curves. The time axes fit the data (a few percent of room ahead, so they are not redrawn
+every frame); legends sit beside the plots, never on the curves.
+
+Curves against time are drawn from their finite rows only (``FiniteSeries``): a gap row
+of a thinned trajectory (NaN) would otherwise blank whole pixel columns, since pyqtgraph's
+peak downsampling takes the min and max of each column with NaN included.
 """
 
 from __future__ import annotations
@@ -12,10 +19,46 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
 from explorer.labels import momentum_label
-from explorer.panels.curves import LEGEND_BRUSH, RangeKeeper, TrailCurve, style_plot
+from explorer.panels.curves import (
+    OutsideLegend,
+    RangeKeeper,
+    TrailCurve,
+    add_outside_legend,
+    set_title,
+    style_plot,
+)
 from explorer.trajectories import backfill_energy
 
 FLOOR = 1e-17
+
+
+class FiniteSeries:
+    """(t, value) rows of a trajectory with the non-finite ones left out, built from the
+    rows not seen before (O(new rows) a frame).
+
+    ``feed(t, values)`` takes the whole columns, shape (k,), and returns views of the
+    kept rows; columns that got shorter start it afresh.
+    """
+
+    def __init__(self):
+        self._rows = GrowingArray((2,))
+        self._seen = 0
+
+    def feed(self, t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if len(t) < self._seen:
+            self._rows.clear()
+            self._seen = 0
+        new_t, new_v = t[self._seen :], values[self._seen :]
+        keep = np.isfinite(new_t) & np.isfinite(new_v)
+        if keep.any():
+            self._rows.extend(np.stack([new_t[keep], new_v[keep]], axis=1))
+        self._seen = len(t)
+        data = self._rows.data
+        return data[:, 0], data[:, 1]
+
+
+LEGEND_ORBITS = 6
+MOMENTUM_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
 
 
 class ConservedView(QWidget):
@@ -32,67 +75,94 @@ class ConservedView(QWidget):
         self.energy_plot = self.layout_widget.addPlot(row=0, col=0)
         style_plot(self.energy_plot)
         self.energy_plot.setLabel("bottom", "t")
-        self.energy_legend = self.energy_plot.addLegend(
-            offset=(-10, 10), brush=LEGEND_BRUSH, colCount=2
+        self.energy_legend = add_outside_legend(
+            self.layout_widget.ci, row=0, col=1, columns=1, side="right"
         )
         self.momentum_plot: pg.PlotItem | None = None
-        self.momentum_legend = None
+        self.momentum_legend: OutsideLegend | None = None
         self._energy_curves: dict[int, TrailCurve] = {}
         self._momentum_curves: dict[int, TrailCurve] = {}
         self._reference: dict[int, float] = {}
         self._values: dict[int, GrowingArray] = {}
+        self._energy_series: dict[int, FiniteSeries] = {}
+        self._momentum_series: dict[int, FiniteSeries] = {}
         self.energy_range = RangeKeeper(self.energy_plot, time_axis=True)
         self.momentum_range: RangeKeeper | None = None
+        self._store = None
         self._generation = -1
         self.conserved_momenta: list[int] = []
 
     @property
     def shows_error(self) -> bool:
+        """H is conserved: the upper plot shows its relative error (log scale)."""
         return bool(self.compiled and self.compiled.mechanics.classification.hamiltonian_conserved)
 
     def set_system(self, compiled) -> None:
+        """Show a newly compiled system: everything is rebuilt from ``compiled``."""
         self.compiled = compiled
         scene = compiled.mechanics.scene
+        self._store = None
+        self._generation = -1
+        self._remove_momentum_plot()
         self._reset_curves()
         self.energy_range.log_y = self.shows_error
         if self.shows_error:
             self.energy_plot.setLogMode(y=True)
-            self.energy_plot.setTitle("Relative energy error |H − H₀| / |H₀|")
+            set_title(self.energy_plot, "Relative energy error |H − H₀| / |H₀|")
             self.energy_plot.setLabel("left", "|ΔH / H₀|")
         else:
             self.energy_plot.setLogMode(y=False)
-            self.energy_plot.setTitle("H(t) (not conserved in this system)")
+            set_title(self.energy_plot, "H(t) (not conserved in this system)")
             self.energy_plot.setLabel("left", "H")
         conserved = [name for name in compiled.mechanics.conserved if name.startswith("p_")]
-        self.conserved_momenta = [scene.coordinates.index(name[2:]) for name in conserved]
+        self.conserved_momenta = [
+            scene.coordinates.index(name[2:]) for name in conserved if name[2:] in scene.coordinates
+        ]
+        if self.conserved_momenta:
+            self._add_momentum_plot(scene)
+
+    def _remove_momentum_plot(self) -> None:
+        for curve in self._momentum_curves.values():
+            curve.remove()
+        self._momentum_curves.clear()
         if self.momentum_plot is not None:
+            self.momentum_plot.setXLink(None)
             self.layout_widget.removeItem(self.momentum_plot)
             self.momentum_plot = None
-        if self.conserved_momenta:
-            self.momentum_plot = self.layout_widget.addPlot(row=0, col=1)
-            self.momentum_plot.setXLink(self.energy_plot)
-            style_plot(self.momentum_plot)
-            self.momentum_plot.setLabel("bottom", "t")
-            labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
-            self.momentum_plot.setTitle(f"Conserved momenta: {labels}")
-            self.momentum_legend = self.momentum_plot.addLegend(
-                offset=(-10, 10), brush=LEGEND_BRUSH
+        if self.momentum_legend is not None:
+            self.layout_widget.removeItem(self.momentum_legend)
+            self.momentum_legend = None
+        self.momentum_range = None
+
+    def _add_momentum_plot(self, scene) -> None:
+        self.momentum_plot = self.layout_widget.addPlot(row=0, col=2)
+        self.momentum_plot.setXLink(self.energy_plot)
+        style_plot(self.momentum_plot)
+        self.momentum_plot.setLabel("bottom", "t")
+        labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
+        set_title(self.momentum_plot, f"Conserved momenta: {labels}")
+        self.momentum_legend = add_outside_legend(
+            self.layout_widget.ci, row=0, col=3, columns=1, side="right"
+        )
+        self.momentum_range = RangeKeeper(self.momentum_plot, time_axis=True)
+        for k, i in enumerate(self.conserved_momenta):
+            pen = pg.mkPen(MOMENTUM_COLOURS[k % len(MOMENTUM_COLOURS)], width=1.5)
+            curve = TrailCurve(
+                self.momentum_plot, pen, ranges=self.momentum_range, monotonic_x=True
             )
-            self.momentum_range = RangeKeeper(self.momentum_plot, time_axis=True)
-            colours = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
-            for k, i in enumerate(self.conserved_momenta):
-                pen = pg.mkPen(colours[k % len(colours)], width=1.5)
-                name = momentum_label(scene.coordinates[i])
-                self._momentum_curves[i] = TrailCurve(
-                    self.momentum_plot, pen, name=name, ranges=self.momentum_range, monotonic_x=True
-                )
+            self._momentum_curves[i] = curve
+            self.momentum_legend.addItem(curve.tail, momentum_label(scene.coordinates[i]))
+        self.momentum_legend.updateSize()
 
     def _reset_curves(self) -> None:
+        """Forget every curve's data (a new store: new trajectories)."""
         for curve in self._energy_curves.values():
             curve.remove()
         self._energy_curves.clear()
         self._reference.clear()
         self._values.clear()
+        self._energy_series.clear()
+        self._momentum_series.clear()
         self.energy_legend.clear()
         self.energy_range.reset()
         if self.momentum_range is not None:
@@ -100,27 +170,42 @@ class ConservedView(QWidget):
         for curve in self._momentum_curves.values():
             curve.reset()
 
+    def _update_energy_legend(self) -> None:
+        self.energy_legend.set_entries(
+            (self._energy_curves[key].tail, "main orbit" if key == 0 else f"orbit {key}")
+            for key in sorted(self._energy_curves)[:LEGEND_ORBITS]
+        )
+
     def refresh(self, store) -> None:
+        """Bring the plots up to date with ``store`` (called by the redraw timer)."""
         if self.compiled is None:
             return
-        if store.generation != self._generation:
+        if store is not self._store or store.generation != self._generation:
+            self._store = store
             self._generation = store.generation
             self._reset_curves()
-            self.set_system(self.compiled)
+        changed = False
         for key in [k for k in self._energy_curves if k not in store.trajectories]:
             self._energy_curves.pop(key).remove()
             self._values.pop(key, None)
+            self._reference.pop(key, None)
+            self._energy_series.pop(key, None)
+            changed = True
+        n = self.compiled.n
         for trajectory in store:
             key = trajectory.key
+            if trajectory.y.data.shape[1] != 2 * n:
+                continue  # a trajectory of another system: the store is about to be replaced
             energy = backfill_energy(trajectory, self.compiled)
             if key not in self._energy_curves:
-                name = "main orbit" if key == 0 else f"orbit {key + 1}"
                 pen = pg.mkPen(trajectory.colour, width=1.3)
                 self._energy_curves[key] = TrailCurve(
-                    self.energy_plot, pen, name=name, ranges=self.energy_range, monotonic_x=True
+                    self.energy_plot, pen, ranges=self.energy_range, monotonic_x=True
                 )
                 self._reference[key] = float(energy[0])
                 self._values[key] = GrowingArray(())
+                self._energy_series[key] = FiniteSeries()
+                changed = True
             values = self._values[key]
             new = energy[len(values) :]  # only rows not seen before are computed
             if self.shows_error:
@@ -129,12 +214,16 @@ class ConservedView(QWidget):
                 values.extend(np.maximum(np.abs(new - h0) / scale, FLOOR))
             else:
                 values.extend(new)
-            self._energy_curves[key].update(trajectory.t.data, values.data)
+            t, shown = self._energy_series[key].feed(trajectory.t.data, values.data)
+            self._energy_curves[key].update(t, shown)
+        if changed:
+            self._update_energy_legend()
         main = store.main
-        if main is not None:
-            n = self.compiled.n
+        if main is not None and main.y.data.shape[1] == 2 * n:
             for i, curve in self._momentum_curves.items():
-                curve.update(main.t.data, main.y.data[:, n + i])
+                series = self._momentum_series.setdefault(i, FiniteSeries())
+                curve.update(*series.feed(main.t.data, main.y.data[:, n + i]))
 
     def export_target(self) -> QWidget:
+        """The widget that figure exports render (both plots with their legends)."""
         return self.layout_widget

@@ -4,6 +4,10 @@ The compiled loops only bracket a crossing of ``y[index] = value`` by the states
 and after a step. Here the crossing is found on an interpolant of that step: DOP853's own
 7th-order dense output for DOP853 runs (``dop853_interpolant``), a cubic Hermite
 interpolant from the states and derivatives at both ends otherwise (error O(h^4)).
+
+A section on an angle coordinate is crossed at ``value + 2 pi j`` for every integer j:
+``periodic_brackets`` finds those steps among consecutive states (the compiled loop only
+knows one level), and ``locate_crossings`` takes one level per bracket.
 """
 
 from __future__ import annotations
@@ -64,12 +68,78 @@ def dop853_interpolant(compiled, t0, y0, t1, y1) -> Callable[[float], np.ndarray
     return u
 
 
+def periodic_brackets(
+    t: np.ndarray,
+    y: np.ndarray,
+    index: int,
+    value: float,
+    direction: float,
+    period: float = 2.0 * np.pi,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps between consecutive states that cross ``y[index] = value + period * j``.
+
+    The test is the compiled loop's (``before < level <= after`` upward, ``before > level
+    >= after`` downward), for every level j at once: with ``k = floor((y - value) /
+    period)`` an upward step crosses the levels ``j`` in ``(k_before, k_after]``, and with
+    ``c = ceil(...)`` a downward one those in ``[c_after, c_before)``. A step that turns
+    more than once yields one bracket per level.
+
+    Parameters
+    ----------
+    t : ndarray, shape (k,)
+        Times of consecutive accepted steps (every step, not a thinned output).
+    y : ndarray, shape (k, m)
+    index : int
+    value : float
+    direction : float
+        +1 upward, -1 downward, 0 both.
+    period : float
+
+    Returns
+    -------
+    brackets_t : ndarray, shape (e, 2)
+    brackets_y : ndarray, shape (e, 2, m)
+    levels : ndarray, shape (e,)
+        The level ``value + period * j`` each bracket crosses, in time order.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    m = y.shape[1] if y.ndim == 2 else 0
+    empty = (np.empty((0, 2)), np.empty((0, 2, m)), np.empty(0))
+    if len(t) < 2:
+        return empty
+    u = (y[:, index] - value) / period
+    with np.errstate(invalid="ignore"):
+        k = np.floor(u)
+        c = np.ceil(u)
+    rows: list[int] = []
+    levels: list[float] = []
+    finite = np.isfinite(u[:-1]) & np.isfinite(u[1:])
+    if direction >= 0:
+        for i in np.flatnonzero(finite & (k[1:] > k[:-1])):
+            for j in np.arange(k[i] + 1, k[i + 1] + 1):
+                rows.append(i)
+                levels.append(value + period * j)
+    if direction <= 0:
+        for i in np.flatnonzero(finite & (c[1:] < c[:-1])):
+            for j in np.arange(c[i] - 1, c[i + 1] - 1, -1):
+                rows.append(i)
+                levels.append(value + period * j)
+    if not rows:
+        return empty
+    order = np.argsort(np.array(rows), kind="stable")
+    rows_sorted = np.array(rows)[order]
+    brackets_t = np.stack([t[rows_sorted], t[rows_sorted + 1]], axis=1)
+    brackets_y = np.stack([y[rows_sorted], y[rows_sorted + 1]], axis=1)
+    return brackets_t, brackets_y, np.array(levels)[order]
+
+
 def locate_crossings(
     compiled,
     brackets_t: np.ndarray,
     brackets_y: np.ndarray,
     index: int,
-    value: float,
+    value: float | np.ndarray,
     *,
     dense: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -81,6 +151,8 @@ def locate_crossings(
         Times before and after each crossing step.
     brackets_y : ndarray, shape (e, 2, 2n)
         States before and after.
+    value : float or ndarray, shape (e,)
+        The level, or one level per bracket (a section on an angle).
     dense : bool
         The steps are DOP853 steps: use its dense output instead of cubic Hermite.
 
@@ -95,11 +167,13 @@ def locate_crossings(
     m = brackets_y.shape[-1] if e else 0
     ts, ys = np.empty(e), np.empty((e, m))
     make = dop853_interpolant if dense else hermite_interpolant
+    levels = np.broadcast_to(np.asarray(value, dtype=float), (e,))
     for i in range(e):
         t0, t1 = brackets_t[i]
         y0, y1 = brackets_y[i]
+        level = float(levels[i])
         u = make(compiled, t0, y0, t1, y1)
-        s = _root(lambda s, u=u: u(s)[index] - value, y0[index] - value, y1[index] - value)
+        s = _root(lambda s, u=u, c=level: u(s)[index] - c, y0[index] - level, y1[index] - level)
         ts[i] = t0 + s * (t1 - t0)
         ys[i] = u(s)
     return ts, ys
