@@ -55,3 +55,73 @@ def run(scene="simple_pendulum") -> int:
     window = create_window(scene)
     window.show()
     return app.exec()
+
+
+def run_session(
+    commands: list,
+    *,
+    source: str,
+    folder: str | os.PathLike | None = None,
+    scene: str = "simple_pendulum",
+    exit_when_done: bool = False,
+) -> int:
+    """Replay a parsed session script in a new window (``open --session FILE``).
+
+    Parameters
+    ----------
+    commands : list of explorer.session.Command
+        The script, parsed (its grammar already checked).
+    source : str
+        The script's name for messages.
+    folder : path, optional
+        Where the script's relative paths start (its folder).
+    scene : str
+        The scene to open first when the script does not begin with ``open`` or ``new``.
+    exit_when_done : bool
+        Close the window when the replay ends and return its outcome.
+
+    Returns
+    -------
+    int
+        With ``exit_when_done``: 0 when the script ran through, 1 when the application
+        raised an exception meanwhile (its traceback is on stderr), 2 for a script error
+        (``source:line: reason`` on stderr). Otherwise the event loop's status, once the
+        user closes the window.
+    """
+    from PySide6.QtCore import QTimer
+
+    from explorer.session import Player
+
+    app = application()
+    from explorer.main_window import MainWindow
+
+    window = MainWindow()
+    if not commands or commands[0].verb not in ("open", "new"):
+        window.open_scene(scene)
+    window.show()
+    player = Player(window, commands, source=source, folder=folder)
+    outcome: list[int] = []
+
+    def on_noted(message: str) -> None:
+        print(message, file=sys.stderr)
+
+    def on_finished(status: int) -> None:
+        outcome.append(status)
+        if player.message:
+            print(player.message, file=sys.stderr)
+        if exit_when_done:
+            QTimer.singleShot(0, window, lambda: _close(app, window, status))
+
+    player.noted.connect(on_noted)
+    player.finished.connect(on_finished)
+    player.start()
+    status = app.exec()
+    if exit_when_done:
+        return outcome[0] if outcome else 1
+    return status
+
+
+def _close(app, window, status: int) -> None:
+    """Close the replaying window and end the event loop with ``status``."""
+    window.close()
+    app.exit(status)
