@@ -66,6 +66,11 @@ def wants_for(mechanics) -> tuple[str, ...]:
 def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built:
     """Read (TOML text or the tables of one), derive and compile; raises the core's errors.
 
+    A ``Scene`` is built as it is and TOML text is read strictly (``parse_scene``). A dict
+    is the editor's document: it is read with ``drop_unfit=True``, so a drawing or
+    ``[view]`` setting that does not fit the system is left out and listed in
+    ``built.scene.warnings`` instead of failing the build.
+
     With ``interpreted_start`` (the window), the kernels run as plain Python at once and
     numba compiles them in a child process (``systems.native_build``); otherwise (exports,
     sweeps, tests) numba compiles or loads every kernel the GUI calls before returning.
@@ -81,8 +86,8 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     start = time.perf_counter()
     if isinstance(source, Scene):
         scene = source
-    elif isinstance(source, dict):
-        scene = scene_from_dict(source, source="<editor>")
+    elif isinstance(source, dict):  # the editor's document: what does not fit is left out
+        scene = scene_from_dict(source, source="<editor>", drop_unfit=True)
     else:
         scene = parse_scene(source, source="<editor>")
     mechanics = derive(scene)
@@ -213,6 +218,14 @@ def equilibria_lines(mechanics) -> list[str]:
 
 
 class _BuildWorker(QObject):
+    """Builds in the builder thread; lays out what a build derived in a layout thread.
+
+    The layout (the readable derivation, about a second of sympy printing, and the
+    equilibrium search, up to ``SEARCH_SECONDS``) runs in its own thread, so that the next
+    request is built at once; a newer request abandons the layout still running for an
+    older one, whose results nobody would see.
+    """
+
     built = Signal(object)
     build_failed = Signal(object)
     described = Signal(int, str)
@@ -223,6 +236,8 @@ class _BuildWorker(QObject):
         self.latest = 0
         self._lock = threading.Lock()
         self._ident: int | None = None  # the builder thread's, while a build runs
+        self._layout: threading.Thread | None = None
+        self._layout_ident: int | None = None  # the layout thread's, while it lays out
         self.first_frame = threading.Event()
 
     @Slot(object)
@@ -230,6 +245,7 @@ class _BuildWorker(QObject):
         request, source = job
         if request < self.latest:
             return  # overtaken by a newer request while waiting
+        self.abandon_layout()
         try:
             with self._lock:
                 self._ident = threading.get_ident()
@@ -243,15 +259,24 @@ class _BuildWorker(QObject):
 
     def abandon(self) -> int | None:
         """End the build in progress at its next bytecode; returns the thread's ident if
-        one was running.
+        one was running. The layout thread is abandoned too.
 
         Under the lock, so ``Abandoned`` can only land inside ``build``'s try block.
         """
+        self.abandon_layout()
         with self._lock:
             ident, self._ident = self._ident, None
             if ident is not None:
                 abandon(ident)
             return ident
+
+    def abandon_layout(self) -> threading.Thread | None:
+        """End the layout of an older build (if one is running); returns its thread."""
+        with self._lock:
+            ident, self._layout_ident = self._layout_ident, None
+            if ident is not None:
+                abandon(ident)
+            return self._layout
 
     def _build(self, request: int, source) -> None:
         from systems.expressions import ExpressionError
@@ -268,6 +293,28 @@ class _BuildWorker(QObject):
             return
         self.first_frame.clear()
         self.built.emit(result)
+        layout = threading.Thread(
+            target=self._lay_out, args=(request, result), name="scene-layout", daemon=True
+        )
+        self._layout = layout
+        layout.start()
+
+    def _lay_out(self, request: int, result: Built) -> None:
+        with self._lock:
+            if request < self.latest:
+                return
+            self._layout_ident = threading.get_ident()
+        try:
+            try:
+                self._describe(request, result)
+            finally:
+                with self._lock:
+                    if self._layout_ident == threading.get_ident():
+                        self._layout_ident = None
+        except Abandoned:
+            pass  # a newer request or the window closing: nobody waits for this layout
+
+    def _describe(self, request: int, result: Built) -> None:
         # The derivation's pretty-printing holds the GIL for a second or so: let the
         # window draw the first frame of the new system before it (the motion first).
         self.first_frame.wait(FIRST_FRAME_WAIT)
@@ -392,6 +439,10 @@ class BuildService(QObject):
                 stopped = False
         if abandoned is not None and not self._thread.isRunning():
             end_left_limits(abandoned)
+        layout = self._worker.abandon_layout()
+        if layout is not None:
+            layout.join(_remaining(deadline))
+            stopped = stopped and not layout.is_alive()
         stopped = stop_native_build(deadline) and stopped
         warm = self._warm_thread  # numba's warm-up is short and must not be interrupted
         if warm is not None:

@@ -27,7 +27,12 @@ SPEEDS = (
     ("100×", 100.0),
     ("max", math.inf),
 )
+DEFAULT_SPEED_INDEX = 3
 AUTOMATIC = "automatic"
+METHOD_TIP = (
+    "The integration method. Automatic picks one for this system (why: below); methods "
+    "that would drop an effect of the system are listed but disabled."
+)
 
 
 class ControlsPanel(QWidget):
@@ -56,11 +61,13 @@ class ControlsPanel(QWidget):
         super().__init__(parent)
         style = self.style()
         self.method_combo = QComboBox()
-        self.method_combo.setMinimumContentsLength(24)
-        self.method_combo.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
+        self.method_combo.setMinimumContentsLength(16)
+        self.method_combo.setSizeAdjustPolicy(
+            QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon
+        )
+        self.method_combo.setToolTip(METHOD_TIP)
         self.method_combo.currentIndexChanged.connect(self._on_method_index_changed)
-        self.reason_label = QLabel("")
-        self.reason_label.setStyleSheet("color: #555")
+        self.reason = ""  # why the automatic choice chose what it did (in the tooltip)
         self.step_edit = QLineEdit()
         self.step_edit.setPlaceholderText("auto")
         self.step_edit.setMaximumWidth(110)
@@ -68,11 +75,18 @@ class ControlsPanel(QWidget):
         validator.setNotation(QDoubleValidator.Notation.ScientificNotation)
         self.step_edit.setValidator(validator)
         self.step_edit.editingFinished.connect(self._on_step_edit_finished)
+        # an empty field is not "acceptable" to the validator, so editingFinished does
+        # not fire for it: emptied is automatic again at once
+        self.step_edit.textChanged.connect(self._on_step_text_changed)
         self.step_label = QLabel("dt:")
         self.speed_combo = QComboBox()
         for label, _ in SPEEDS:
             self.speed_combo.addItem(label)
-        self.speed_combo.setCurrentIndex(3)
+        self.speed_combo.setCurrentIndex(DEFAULT_SPEED_INDEX)
+        self.speed_combo.setToolTip(
+            "Simulated time per second of wall time; max: as fast as the machine goes "
+            "(the states are those of a full-speed run at every speed)"
+        )
         self.speed_combo.currentIndexChanged.connect(self._on_speed_index_changed)
         self.play_button = QPushButton()
         self.play_button.setCheckable(True)
@@ -81,22 +95,26 @@ class ControlsPanel(QWidget):
         self.step_button = QPushButton(
             style.standardIcon(QStyle.StandardPixmap.SP_MediaSeekForward), ""
         )
-        self.step_button.setToolTip("Single step (one frame) while paused")
+        self.step_button.setToolTip("Single step: advance one frame while paused (Ctrl+.)")
         self.step_button.clicked.connect(self.single_step_requested)
         self.reset_button = QPushButton(
             style.standardIcon(QStyle.StandardPixmap.SP_MediaSkipBackward), ""
         )
-        self.reset_button.setToolTip("Reset to the initial conditions")
+        self.reset_button.setToolTip(
+            "Reset: start every orbit again from its initial state (Ctrl+R)"
+        )
         self.reset_button.clicked.connect(self.reset_requested)
         self.clear_button = QPushButton("Clear orbits")
-        self.clear_button.setToolTip("Remove the trajectories launched by clicking")
+        self.clear_button.setToolTip(
+            "Remove the orbits launched by clicking in the phase view (Ctrl+Shift+K); "
+            "right-click an orbit to delete only that one"
+        )
         self.clear_button.clicked.connect(self.clear_requested)
         layout = QHBoxLayout(self)
         layout.setContentsMargins(4, 0, 4, 0)
         for widget in (
             QLabel("Method:"),
             self.method_combo,
-            self.reason_label,
             self.step_label,
             self.step_edit,
             QLabel("Speed:"),
@@ -112,12 +130,20 @@ class ControlsPanel(QWidget):
 
     # -- configuration from the window -------------------------------------------------------
 
-    def set_methods(self, steppers: dict, mechanics, automatic: str, reason: str) -> None:
+    def set_methods(
+        self, steppers: dict, mechanics, automatic: str, reason: str, keep: bool = False
+    ) -> None:
         """Offer ``automatic`` plus every method of the registry ``steppers``.
 
         A method that does not apply to ``mechanics`` (it would drop an effect, needs a
-        separable H, ...) is listed disabled, with the reason as its tooltip.
+        separable H, ...) is listed disabled, with the reason as its tooltip. With ``keep``
+        (the same system rebuilt after an edit) a chosen method that still applies stays
+        chosen with its step; otherwise (a new system) the choice goes back to automatic
+        and the step field is cleared, since a step typed for one system is no step for
+        another.
         """
+        previous = self.method if keep else None
+        step_text = self.step_edit.text() if keep else ""
         self._steppers = steppers
         self.method_combo.blockSignals(True)
         self.method_combo.clear()
@@ -125,6 +151,7 @@ class ControlsPanel(QWidget):
         self.method_combo.addItem(label, None)
         self.method_combo.setItemData(0, reason, Qt.ItemDataRole.ToolTipRole)
         model = self.method_combo.model()
+        chosen = 0
         for name, stepper in steppers.items():
             refusal = stepper.applies_to(mechanics)
             label = name if refusal is None else f"{name} (not for this system)"
@@ -134,12 +161,18 @@ class ControlsPanel(QWidget):
             self.method_combo.setItemData(index, refusal or tip, Qt.ItemDataRole.ToolTipRole)
             if refusal is not None:
                 model.item(index).setEnabled(False)
-        self.method_combo.setCurrentIndex(0)
+            elif name == previous:
+                chosen = index
+        self.method_combo.setCurrentIndex(chosen)
         self.method_combo.blockSignals(False)
         self.automatic = automatic
-        self.reason_label.setText(_first_clause(reason))
-        self.reason_label.setToolTip(reason)
-        self._update_step_label(automatic)
+        self.reason = reason
+        self.method_combo.setToolTip(f"{METHOD_TIP}\n\nAutomatic choice: {reason}")
+        self._setting = None
+        self.step_edit.blockSignals(True)  # the window applies the new settings itself
+        self._update_step_label(self.method)
+        self.step_edit.setText(step_text if chosen else "")
+        self.step_edit.blockSignals(False)
 
     def refusal(self, name: str) -> str | None:
         """The tooltip of a disabled method (why it does not apply), else None."""
@@ -187,14 +220,24 @@ class ControlsPanel(QWidget):
         self.step_label.setText(f"{setting}:")
         self.step_edit.setToolTip(
             {
-                "tol": "relative tolerance of the adaptive method (empty: its default)",
-                "ds": "step in the method's fictitious time (empty: its default)",
-            }.get(setting, "time step (empty: the default, shown greyed)")
+                "tol": "Relative tolerance of the adaptive method; empty: its default "
+                "(shown greyed). Press Enter to apply.",
+                "ds": "Step in the method's fictitious time; empty: its default "
+                "(shown greyed). Press Enter to apply.",
+            }.get(
+                setting,
+                "Time step of the fixed-step method; empty: the default (shown greyed). "
+                "Press Enter to apply.",
+            )
         )
 
     def is_adaptive(self) -> bool:
         stepper = self._steppers.get(self.method or getattr(self, "automatic", ""))
         return bool(stepper and stepper.adaptive)
+
+    def refresh_play_button(self) -> None:
+        """Show the play button's state after it was set with its signals blocked."""
+        self._update_play_button(self.playing)
 
     def _update_play_button(self, playing: bool) -> None:
         pixmap = (
@@ -202,6 +245,9 @@ class ControlsPanel(QWidget):
         )
         self.play_button.setIcon(self.style().standardIcon(pixmap))
         self.play_button.setText("Pause" if playing else "Play")
+        self.play_button.setToolTip(
+            "Pause the simulation (Space)" if playing else "Run the simulation (Space)"
+        )
         self.step_button.setEnabled(not playing)
 
     # -- slots -------------------------------------------------------------------------------
@@ -213,15 +259,13 @@ class ControlsPanel(QWidget):
     def _on_step_edit_finished(self) -> None:
         self.step_changed.emit(self.step_value)
 
+    def _on_step_text_changed(self, text: str) -> None:
+        if not text.strip():
+            self.step_changed.emit(None)
+
     def _on_speed_index_changed(self, _index: int) -> None:
         self.speed_changed.emit(self.speed)
 
     def _on_play_button_toggled(self, checked: bool) -> None:
         self._update_play_button(checked)
         self.play_toggled.emit(checked)
-
-
-def _first_clause(reason: str) -> str:
-    """The automatic choice's reason up to its first colon, for the toolbar (tooltip: all)."""
-    head = reason.split(":", 1)[0]
-    return head if len(head) <= 60 else head[:57] + "…"

@@ -42,7 +42,10 @@ from explorer.gui_gc import GuiThreadCollector
 from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
 from explorer.panels.phase_view import PhaseView
+from explorer.preferences import Preferences
+from explorer.session.script import line
 from explorer.trajectories import TrajectoryStore
+from explorer.wheel_guard import install_wheel_guard
 from explorer.worker import RunSettings, SimulationWorker, WorkerThread
 
 REDRAW_MS = 25
@@ -60,10 +63,13 @@ class MainWindow(QMainWindow):
     -------
     system_started(object)  the ``Built`` value of a system whose worker just started
     frame_received()        a worker frame was appended to the store
+    acted(str)              a user action the window handled itself, as a line of a session
+                            script (docs/sessions.md): open, new, save, export, delete, tab
     """
 
     system_started = Signal(object)
     frame_received = Signal()
+    acted = Signal(str)
 
     def __init__(self, parent: QWidget | None = None, runs=None):
         super().__init__(parent)
@@ -85,6 +91,13 @@ class MainWindow(QMainWindow):
         self._closed = False
         self._opening = 0  # the build request of a file being opened, until it reports
         self._stop_shown: tuple | None = None
+        self._section_continued = 0  # times Play continued a section run past its end
+        self._section_end_shown: tuple | None = None  # the section run end announced last
+        self.scene_path: Path | None = None  # the file Save writes (None: ask)
+        self.preferences = Preferences()
+        self._fresh_next = False  # the editor's next document is a file being opened
+        self._fresh_request = 0  # the build request of the file opened last
+        self._put_aside: Path | None = None  # where the last replaced unsaved edits went
         self.error_details = ""  # the traceback of the last unexpected error
         self.error_reporter = ErrorReporter(self)
         self.error_reporter.reported.connect(self._on_error_reporter_reported)
@@ -144,6 +157,7 @@ class MainWindow(QMainWindow):
         self.phase_view.launch_requested.connect(self._on_phase_launch_requested)
         self.phase_view.launch_refused.connect(self._on_phase_launch_refused)
         self.phase_view.mode_changed.connect(self._on_phase_mode_changed)
+        self.phase_view.orbit_delete_requested.connect(self.delete_orbit)
         self.controls.method_changed.connect(self._on_controls_method_changed)
         self.controls.step_changed.connect(self._on_controls_step_changed)
         self.controls.speed_changed.connect(self._on_controls_speed_changed)
@@ -170,6 +184,13 @@ class MainWindow(QMainWindow):
         # Qt runs the filter installed last first: this one shuts down before the
         # Textbook's waits for its computations (which end sooner once the builder stops)
         self.installEventFilter(self)
+        self._default_layout = self.saveState()
+        install_wheel_guard(self)
+        self._connect_tabs()
+        from explorer.session import Recorder
+
+        # last: the window's own slots run before the recorder hears of an action
+        self.recorder = Recorder(self)
 
     # -- construction helpers ---------------------------------------------------------------
 
@@ -233,10 +254,42 @@ class MainWindow(QMainWindow):
         menu = self.menuBar()
         file_menu = menu.addMenu("&File")
         self._action(
-            file_menu, "&Open scene…", self._on_open_triggered, QKeySequence.StandardKey.Open
+            file_menu,
+            "&New scene",
+            self.new_scene,
+            QKeySequence.StandardKey.New,
+            "Start a blank system in the editor",
         )
         self._action(
-            file_menu, "&Save scene as…", self._on_save_triggered, QKeySequence.StandardKey.SaveAs
+            file_menu,
+            "&Open scene…",
+            self._on_open_triggered,
+            QKeySequence.StandardKey.Open,
+            "Open a scene file (.toml)",
+        )
+        self.recent_menu = file_menu.addMenu("Open &recent")
+        self.recent_menu.aboutToShow.connect(self._fill_recent_menu)
+        file_menu.addSeparator()
+        self._action(
+            file_menu,
+            "&Save scene",
+            self._on_save_triggered,
+            QKeySequence.StandardKey.Save,
+            "Write what the editor holds to the scene's file",
+        )
+        self._action(
+            file_menu,
+            "Save scene &as…",
+            self._on_save_as_triggered,
+            QKeySequence.StandardKey.SaveAs,
+            "Write what the editor holds to a new scene file",
+        )
+        self._action(
+            file_menu,
+            "Save sess&ion…",
+            self._on_save_session_triggered,
+            None,
+            "Write what you did in this window as a session script to replay (docs/sessions.md)",
         )
         file_menu.addSeparator()
         export_menu = file_menu.addMenu("&Export")
@@ -255,28 +308,58 @@ class MainWindow(QMainWindow):
                 f"{title} as PNG or SVG…",
                 lambda _=False, k=key: self.export_panel_dialog(k),
                 shortcuts.get(key),
+                f"Write the {title.lower()} as a PNG image or an SVG drawing",
             )
         self.csv_action = self._action(
-            export_menu, "Trajectories as CSV…", self._on_export_csv_triggered, "Ctrl+Shift+E"
+            export_menu,
+            "Trajectories as CSV…",
+            self._on_export_csv_triggered,
+            "Ctrl+Shift+E",
+            "Write every orbit's t, q, q_dot, p and H as CSV",
         )
         file_menu.addSeparator()
         self._action(file_menu, "&Quit", self.close, QKeySequence.StandardKey.Quit)
         run_menu = menu.addMenu("&Run")
         self._action(run_menu, "Play / pause", self.controls.play_button.toggle, "Space")
-        self._action(run_menu, "Single step", self._on_controls_single_step_requested, "Ctrl+.")
-        self._action(run_menu, "Reset", self._on_controls_reset_requested, "Ctrl+R")
-        self._action(run_menu, "Clear launched orbits", self._on_controls_clear_requested)
+        # through the toolbar's widgets: the same path (and the same session line) as a click
+        self._action(run_menu, "Single step", self.controls.single_step_requested.emit, "Ctrl+.")
+        self._action(run_menu, "Reset", self.controls.reset_button.click, "Ctrl+R")
+        self._action(
+            run_menu, "Clear launched orbits", self.controls.clear_button.click, "Ctrl+Shift+K"
+        )
         run_menu.addSeparator()
-        self._action(run_menu, "Energy guard…", self._on_energy_guard_triggered)
-        view_menu = menu.addMenu("&View")
+        self._action(
+            run_menu,
+            "Energy guard…",
+            self._on_energy_guard_triggered,
+            None,
+            "Stop a run whose relative energy error exceeds a bound",
+        )
+        self.view_menu = menu.addMenu("&View")
         for dock in self.docks.values():
-            view_menu.addAction(dock.toggleViewAction())
+            self.view_menu.addAction(dock.toggleViewAction())
+        self.view_menu.addSeparator()
+        self._action(
+            self.view_menu,
+            "Reset &layout",
+            self.reset_layout,
+            "Ctrl+Shift+L",
+            "Put every panel back where it was when the window opened",
+        )
+        help_menu = menu.addMenu("&Help")
+        self._action(
+            help_menu, "Quick &tour", self.show_quick_tour, QKeySequence.StandardKey.HelpContents
+        )
+        self._action(help_menu, "&Scene format", self.show_scene_format)
+        self._action(help_menu, "&Session scripts", self.show_session_format)
         toolbar = self.addToolBar("Export")
         toolbar.setObjectName("export-toolbar")
         toolbar.addAction(self.export_actions["phase"])
         toolbar.addAction(self.csv_action)
         self.export_actions["phase"].setText("Export figure")
+        self.export_actions["phase"].setToolTip("Export the phase view as PNG or SVG (Ctrl+E)")
         self.csv_action.setText("Export CSV")
+        self.csv_action.setToolTip("Export every orbit as CSV (Ctrl+Shift+E)")
 
     # -- opening systems ----------------------------------------------------------------------
 
@@ -286,10 +369,12 @@ class MainWindow(QMainWindow):
         Returns the build request, or 0 if the file could not be read. A file that cannot
         be read or built is reported in the window (status bar and editor), never raised,
         and the system running before keeps running, with the editor showing it again.
+        A scene opened from a file of the user's becomes the file Save writes.
         """
-        from systems.scene import Scene, SceneError, load_scene
+        from systems.scene import SCENES_DIR, Scene, SceneError, load_scene
 
         if not isinstance(scene, Scene):
+            name = str(scene)
             try:
                 scene = load_scene(scene)
             except SceneError as exc:
@@ -298,9 +383,77 @@ class MainWindow(QMainWindow):
             except (OSError, ValueError, RecursionError, MemoryError) as exc:
                 self._refuse_opening(f"{scene}: the file cannot be read: {exc}")
                 return 0
+            self.acted.emit(line("open", name))
+        source = getattr(scene, "source", None)
+        path = Path(source).resolve() if source else None
+        if path is not None and path.is_file() and path.parent != SCENES_DIR:
+            self.scene_path = path
+            self.preferences.add_recent(path)
+        else:
+            self.scene_path = None  # a catalogue scene is never overwritten: Save asks
+        self._put_aside_typed_work()
         self.editor.show_scene(scene)
         self._opening = self.builder.request(scene)
         return self._opening
+
+    def _put_aside_typed_work(self) -> Path | None:
+        """Before the editor's document is replaced: if it holds typed changes that were
+        not saved, write it to the preferences folder's ``unsaved/``, put it first in
+        Open recent, and say so. Typed work is never lost, and no dialog interrupts."""
+        if not self.editor.typed_changes:
+            return None
+        from systems.files import atomic_path
+
+        title = _file_name(self.editor)[: -len(".toml")]
+        folder = self.preferences.path.parent / "unsaved"
+        path = folder / f"{title}-{time.strftime('%Y%m%d-%H%M%S')}.toml"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as temporary:
+                temporary.write_text(self.editor.document_text(), encoding="utf-8")
+        except OSError as exc:
+            self.statusBar().showMessage(f"could not keep the unsaved edits: {exc}", MESSAGE_MS)
+            return None
+        self.preferences.add_recent(path)
+        self._put_aside = path
+        self.statusBar().showMessage(
+            f"your unsaved edits are kept in {path} (File > Open recent)", MESSAGE_MS
+        )
+        return path
+
+    def open_file(self, path: str | Path) -> int:
+        """File > Open: show a scene file of the user's in the editor and build it.
+
+        Unlike ``open_scene`` (the catalogue), the file need not be a valid scene yet: a
+        document saved unfinished opens with its errors under the fields, so that it can
+        be finished. Until it builds, the system running before keeps running. A file
+        that is not text, or not TOML, is refused and the editor keeps what it had.
+        Returns the build request, or 0 if the file was refused.
+        """
+        from systems.scene import SceneError, read_scene_file
+
+        self._put_aside_typed_work()
+        self._fresh_next = True
+        try:
+            self.editor.show_document(read_scene_file(path), source=str(path))
+        except SceneError as exc:
+            self._refuse_opening(str(exc))
+            return 0
+        finally:
+            self._fresh_next = False
+        self.acted.emit(line("open", str(path)))
+        self.scene_path = Path(path).resolve()
+        self.preferences.add_recent(self.scene_path)
+        return self._fresh_request
+
+    def new_scene(self) -> None:
+        """File > New scene: a blank template in the editor, built as soon as it builds."""
+        self.acted.emit("new")
+        self._put_aside_typed_work()
+        self.scene_path = None
+        self.editor.new_scene()
+        self.docks["editor"].show()
+        self.docks["editor"].raise_()
 
     def _refuse_opening(self, message: str) -> None:
         """Say that a file was not opened; the running system and the editor stay."""
@@ -310,8 +463,10 @@ class MainWindow(QMainWindow):
     def _on_editor_catalogue_selected(self, name: str) -> None:
         self.open_scene(name)
 
-    def _on_editor_scene_edited(self, text: str) -> None:
-        self.builder.request(text)
+    def _on_editor_scene_edited(self, document) -> None:
+        request = self.builder.request(document)
+        if self._fresh_next:
+            self._fresh_request = request  # a file opened: its system starts clean
 
     def _on_builder_busy_changed(self, busy: bool) -> None:
         self.busy_bar.setVisible(busy)
@@ -336,12 +491,41 @@ class MainWindow(QMainWindow):
     def _on_builder_built(self, built: Built) -> None:
         if self._closed:
             return
+        previous = self.built
+        opened = built.request in (self._opening, self._fresh_request)
         self._opening = 0
+        # a new system (opened, or edited into other coordinates) starts clean: the
+        # method, step and section chosen for the last one do not carry over, nor do its
+        # messages; an edit of the same system keeps what still applies
+        fresh = (
+            opened
+            or previous is None
+            or tuple(previous.scene.coordinates) != tuple(built.scene.coordinates)
+        )
         self.built = built
         self.editor.show_built(built)
         from systems.integrators import STEPPERS
 
-        self.controls.set_methods(STEPPERS, built.compiled.mechanics, built.method, built.reason)
+        self.controls.set_methods(
+            STEPPERS, built.compiled.mechanics, built.method, built.reason, keep=not fresh
+        )
+        if fresh:
+            if not self.controls.playing:  # a new system starts running
+                self.controls.play_button.blockSignals(True)
+                self.controls.play_button.setChecked(True)
+                self.controls.play_button.blockSignals(False)
+                self.controls.refresh_play_button()
+            self.phase_view.blockSignals(True)  # the new system is started just below
+            self.phase_view.set_mode("phase")
+            self.phase_view.blockSignals(False)
+            self.statusBar().clearMessage()
+            if self._put_aside is not None:  # the one message that outlives the old system
+                self.statusBar().showMessage(
+                    f"your unsaved edits are kept in {self._put_aside} (File > Open recent)",
+                    MESSAGE_MS,
+                )
+                self._put_aside = None
+            self.details_button.setVisible(False)
         self.setWindowTitle(f"Phase Explorer — {built.scene.title}")
         self._start_system(built.compiled, launches=None)
         if self.workprecision_view is not None:
@@ -405,11 +589,16 @@ class MainWindow(QMainWindow):
             dt=None if adaptive else step,
             tol=step if adaptive else None,
             speed=math.inf if poincare else self.controls.speed,
-            t_end=max(POINCARE_T_END, 25 * scene_t_end) if poincare else math.inf,
+            t_end=self._section_t_end(scene_t_end) if poincare else math.inf,
             diagnostics=self._wanted_diagnostics(),
             section=section,
             energy_tolerance=self.energy_tolerance,
         )
+
+    def _section_t_end(self, scene_t_end: float) -> float:
+        """Where a section run pauses: 25 scene times (at least ``POINCARE_T_END``), and
+        as much again each time Play continues it."""
+        return max(POINCARE_T_END, 25 * scene_t_end) * (1 + self._section_continued)
 
     def _wanted_diagnostics(self) -> tuple[str, ...]:
         wanted = []
@@ -435,6 +624,7 @@ class MainWindow(QMainWindow):
         self._stop_worker()
         self.compiled = compiled
         self._generation += 1
+        self._section_continued = 0
         n_points = len(compiled.point_names)
         self.store = TrajectoryStore(n_points=n_points)
         y0 = compiled.initial_state()
@@ -557,17 +747,40 @@ class MainWindow(QMainWindow):
     def set_energy_tolerance(self, value: float | None) -> None:
         """The energy guard for runs from now on (None: off); applies at once."""
         self.energy_tolerance = value
+        self.acted.emit(line("energy-guard", "off" if value is None else float(value)))
         self._apply_settings()
 
     def _on_controls_play_toggled(self, playing: bool) -> None:
-        if self.worker is not None:
-            (self.worker.resume if playing else self.worker.pause)()
+        if self.worker is None:
+            return
+        if playing and self._section_run_ended():
+            self._section_continued += 1  # Play continues a section run that reached its end
+            self._apply_settings()
+        (self.worker.resume if playing else self.worker.pause)()
+
+    def _section_run_ended(self) -> bool:
+        main = self.store.main
+        return (
+            self.phase_view.mode == "poincare"
+            and main is not None
+            and math.isfinite(self.settings.t_end)
+            and main.last_t >= self.settings.t_end * (1 - 1e-12)
+        )
 
     def _on_controls_single_step_requested(self) -> None:
         if self.worker is not None:
             if self.controls.playing:
                 self.controls.play_button.setChecked(False)
             self.worker.step()
+
+    def delete_orbit(self, key: int) -> None:
+        """Forget one launched orbit (the main orbit, key 0, stays)."""
+        if key == 0 or self.worker is None or key not in {t.key for t in self.store}:
+            return
+        self.acted.emit(line("delete", key))
+        self.worker.remove_trajectory(key)
+        self.store.remove(key)
+        self.store.mark_dirty()
 
     def _on_controls_reset_requested(self) -> None:
         if self.compiled is not None:
@@ -635,6 +848,14 @@ class MainWindow(QMainWindow):
         method = main.method or (self.built.method if self.built else "")
         self.method_label.setText(f"method: {method}")
         self.controls.show_setting_in_use(main.setting, main.setting_value)
+        section_end = (self._generation, self._section_continued)
+        if self._section_run_ended() and self._section_end_shown != section_end:
+            self._section_end_shown = section_end
+            self.controls.play_button.setChecked(False)
+            self.statusBar().showMessage(
+                f"the section run reached t = {main.last_t:.6g}; press Play to go on as long again",
+                MESSAGE_MS,
+            )
         stop = (self._generation, main.status) if main.status not in ("running", "ok") else None
         if stop is not None and stop != self._stop_shown:
             # once, not at every redraw: it would hide every later message
@@ -643,31 +864,182 @@ class MainWindow(QMainWindow):
 
     # -- files ---------------------------------------------------------------------------------
 
+    def _dialog_folder(self) -> str:
+        """Where file dialogs start: the open scene's folder, else the last one used."""
+        if self.scene_path is not None:
+            return str(self.scene_path.parent)
+        return self.preferences.folder
+
     def _on_open_triggered(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open scene", "", "Scenes (*.toml)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Open scene", self._dialog_folder(), "Scenes (*.toml)"
+        )
         if path:
-            self.open_scene(path)
+            self.open_file(path)
+
+    def _fill_recent_menu(self) -> None:
+        self.recent_menu.clear()
+        recent = self.preferences.recent
+        for path in recent:
+            action = self.recent_menu.addAction(Path(path).name)
+            action.setToolTip(path)
+            action.setStatusTip(path)
+            action.triggered.connect(lambda _=False, p=path: self.open_file(p))
+        if not recent:
+            self.recent_menu.addAction("(no recent files)").setEnabled(False)
+            return
+        self.recent_menu.addSeparator()
+        self.recent_menu.addAction("Clear the list", self.preferences.clear_recent)
 
     def _on_save_triggered(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Save scene as", "", "Scenes (*.toml)")
+        if self.scene_path is None:
+            self._on_save_as_triggered()
+        else:
+            self.save_scene(self.scene_path)
+
+    def _on_save_as_triggered(self) -> None:
+        folder = Path(self._dialog_folder())
+        name = self.scene_path.name if self.scene_path else _file_name(self.editor)
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Save scene as", str(folder / name), "Scenes (*.toml)"
+        )
         if path:
+            if not path.endswith(".toml"):
+                path += ".toml"
             self.save_scene(path)
 
-    def save_scene(self, path: str | Path) -> None:
-        """Write the edited system (with the current parameter values) as a scene file."""
+    def save_scene(self, path: str | Path) -> bool:
+        """Write exactly what the editor holds to ``path`` (atomically); True if written.
+
+        A document that does not build is written all the same, with a warning in the
+        status bar: typed work is never lost. The file becomes the one Save writes.
+        """
+        from systems.files import atomic_path
+
+        text = self.editor.document_text()
+        try:
+            with atomic_path(path) as temporary:
+                temporary.write_text(text, encoding="utf-8")
+        except OSError as exc:
+            self.statusBar().showMessage(f"could not save {path}: {exc.strerror or exc}", 10000)
+            return False
+        self.acted.emit(line("save", str(path)))
+        self.editor.mark_saved()
+        self.scene_path = Path(path).resolve()
+        self.preferences.add_recent(self.scene_path)
+        if self.editor.build_status == "failed":
+            self.statusBar().showMessage(
+                f"saved {path}, but it does not build yet: {self.editor.build_problem}",
+                MESSAGE_MS,
+            )
+        else:
+            self.statusBar().showMessage(f"saved {path}", 5000)
+        return True
+
+    def _on_save_session_triggered(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(
+            self,
+            "Save session",
+            str(Path(self._dialog_folder()) / "session.session"),
+            "Session scripts (*.session);;All files (*)",
+        )
+        if path:
+            self.save_session(path)
+
+    def save_session(self, path: str | Path) -> bool:
+        """Write the session script of what was done in this window (docs/sessions.md)."""
         from systems.files import atomic_path
 
         try:
             with atomic_path(path) as temporary:
-                temporary.write_text(self.editor.scene_text(), encoding="utf-8")
+                temporary.write_text(self.recorder.text(), encoding="utf-8")
         except OSError as exc:
             self.statusBar().showMessage(f"could not save {path}: {exc.strerror or exc}", 10000)
+            return False
+        self.statusBar().showMessage(f"saved the session to {path}", 5000)
+        return True
+
+    # -- layout, tabs and help ---------------------------------------------------------------
+
+    def reset_layout(self) -> None:
+        """View > Reset layout: every dock back where it was when the window opened."""
+        self.restoreState(self._default_layout)
+        for dock in self.docks.values():
+            if dock.isFloating():
+                dock.setFloating(False)
+            dock.show()
+        self.docks["conserved"].raise_()
+
+    def tab_names(self) -> dict[str, QWidget]:
+        """What ``show_tab`` accepts: dock keys and the Textbook's and editor's tab names."""
+        names: dict[str, QWidget] = dict(self.docks)
+        for tabs in self._tab_widgets():
+            for index in range(tabs.count()):
+                names.setdefault(_slug(tabs.tabText(index)), tabs.widget(index))
+        return names
+
+    def _tab_widgets(self) -> list:
+        found = [getattr(self.editor, "tabs", None), getattr(self.textbook, "tabs", None)]
+        return [tabs for tabs in found if tabs is not None]
+
+    def show_tab(self, name: str) -> None:
+        """Bring a dock or a tab (editor, Textbook) to the front by name (``tab_names``).
+
+        Raises ``KeyError`` naming the known names for any other name.
+        """
+        names = self.tab_names()
+        widget = names.get(_slug(name))
+        if widget is None:
+            raise KeyError(f"no tab {name!r} (tabs: {', '.join(sorted(names))})")
+        if isinstance(widget, QDockWidget):
+            widget.show()
+            widget.raise_()
             return
-        self.statusBar().showMessage(f"saved {path}", 5000)
+        for key, tabs in (("editor", self.editor.tabs), ("textbook", self.textbook.tabs)):
+            if tabs.indexOf(widget) >= 0:
+                self.docks[key].show()
+                self.docks[key].raise_()
+                tabs.setCurrentWidget(widget)
+
+    def _connect_tabs(self) -> None:
+        for tabs in self._tab_widgets():
+            tabs.currentChanged.connect(
+                lambda index, tabs=tabs: self.acted.emit(line("tab", _slug(tabs.tabText(index))))
+            )
+
+    def _show_text(self, title: str, markdown: str) -> QWidget:
+        from PySide6.QtWidgets import QDialog, QTextBrowser, QVBoxLayout
+
+        dialog = QDialog(self)
+        dialog.setWindowTitle(title)
+        browser = QTextBrowser()
+        browser.setOpenExternalLinks(True)
+        browser.setMarkdown(markdown)
+        layout = QVBoxLayout(dialog)
+        layout.addWidget(browser)
+        dialog.resize(720, 560)
+        dialog.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
+
+    def show_quick_tour(self) -> QWidget:
+        """Help > Quick tour: the window's parts and what to do with them."""
+        return self._show_text("Quick tour", QUICK_TOUR)
+
+    def show_scene_format(self) -> QWidget:
+        """Help > Scene format: docs/scenes.md, rendered."""
+        return self._show_text("Scene format", _document("scenes.md"))
+
+    def show_session_format(self) -> QWidget:
+        """Help > Session scripts: docs/sessions.md, rendered."""
+        return self._show_text("Session scripts", _document("sessions.md"))
 
     def export_panel_dialog(self, key: str) -> None:
         path, _ = QFileDialog.getSaveFileName(
-            self, "Export figure", f"{key}.png", "PNG image (*.png);;SVG drawing (*.svg)"
+            self,
+            "Export figure",
+            str(Path(self._dialog_folder()) / f"{key}.png"),
+            "PNG image (*.png);;SVG drawing (*.svg)",
         )
         if path:
             try:
@@ -683,12 +1055,16 @@ class MainWindow(QMainWindow):
         if key != "workprecision":
             panel.refresh(self.store)
         written = export_widget(panel.export_target(), path)
+        self.acted.emit(line("export", key, str(path)))
         self.statusBar().showMessage(f"wrote {written}", 5000)
         return written
 
     def _on_export_csv_triggered(self) -> None:
         path, _ = QFileDialog.getSaveFileName(
-            self, "Export trajectories", "trajectories.csv", "CSV (*.csv)"
+            self,
+            "Export trajectories",
+            str(Path(self._dialog_folder()) / "trajectories.csv"),
+            "CSV (*.csv)",
         )
         if path:
             try:
@@ -702,7 +1078,9 @@ class MainWindow(QMainWindow):
 
         if self.compiled is None:
             raise RuntimeError("no system is open")
-        return write_trajectories_csv(self.compiled, list(self.store), path)
+        written = write_trajectories_csv(self.compiled, list(self.store), path)
+        self.acted.emit(line("export", "csv", str(path)))
+        return written
 
     # -- closing -------------------------------------------------------------------------------
 
@@ -742,3 +1120,53 @@ class MainWindow(QMainWindow):
         end_forked_children(deadline)  # one the Textbook started meanwhile
         self.collector.stop()
         self.error_reporter.uninstall()
+
+
+def _slug(text: str) -> str:
+    """A tab's name in session scripts: lower case, words joined by hyphens."""
+    words = "".join(c if c.isalnum() else " " for c in text.replace("'", "").lower()).split()
+    return "-".join(words)
+
+
+def _file_name(editor) -> str:
+    """A file name for Save as from the edited scene's title."""
+    title = _slug(editor.title_edit.text() or "scene").replace("-", "_")
+    return f"{title or 'scene'}.toml"
+
+
+def _document(name: str) -> str:
+    """A file of ``docs/`` as Markdown (a sentence if this installation lacks it)."""
+    path = Path(__file__).resolve().parent.parent / "docs" / name
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError:
+        return f"The document `{name}` is not part of this installation."
+
+
+QUICK_TOUR = """\
+# Phase Explorer: a quick tour
+
+**System editor** (left). Pick a system from the *Catalogue*, or type one: coordinates,
+parameters, and either T and V, a Lagrangian L or a Hamiltonian H. Errors show under the
+field they are in; nothing you type is lost. *File > New scene* starts a blank one;
+*File > Save scene* (Ctrl+S) writes what the editor holds. The *Derivation* tab shows
+Lagrange's equations, the momenta, H and Hamilton's equations.
+
+**Phase view** (centre). The orbit in the (q, p) plane of the pair chosen above it, with
+the level sets of H where H is conserved. *Click* to launch another orbit from that point;
+*right-click* an orbit to delete it. *Poincaré section* (two-degree conservative systems)
+plots where orbits cross the section instead; Play continues a section run that paused.
+
+**Configuration** (right). The mechanism moving. **Conserved quantities** (bottom): H and
+the conserved momenta over time, and what the run's accuracy costs in the
+**Work–precision** tab. **Textbook**: equilibria and normal modes, Hamilton's principle,
+reduction, action–angle variables and the energy theorem, computed for this system.
+
+**Toolbar.** *Method* (automatic chooses for the system: the tooltip says why), its step
+or tolerance (Enter applies), *Speed*, Play/Pause (Space), single step (Ctrl+.), Reset
+(Ctrl+R), Clear orbits (Ctrl+Shift+K).
+
+**Menus.** *File > Export* writes PNG, SVG and CSV. *File > Save session* writes what you
+did as a script that `python main.py open --session FILE` replays. *View > Reset layout*
+(Ctrl+Shift+L) puts the panels back. *Help > Scene format* documents scene files.
+"""

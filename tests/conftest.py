@@ -1,5 +1,6 @@
 """Test-wide setup. Qt must be told to render offscreen before anything imports it, and
-every cache the program writes goes to a temporary folder, never the user's."""
+every cache the program writes, and the window's preferences, go to a temporary folder,
+never the user's."""
 
 import os
 import shutil
@@ -11,6 +12,10 @@ _OWN_CACHE = None
 if not os.environ.get("PHASE_EXPLORER_CACHE"):
     _OWN_CACHE = tempfile.mkdtemp(prefix="phase-explorer-tests-")
     os.environ["PHASE_EXPLORER_CACHE"] = _OWN_CACHE
+# the window's preferences (recent files) likewise
+if not os.environ.get("PHASE_EXPLORER_CONFIG"):
+    _OWN_CACHE = _OWN_CACHE or tempfile.mkdtemp(prefix="phase-explorer-tests-")
+    os.environ["PHASE_EXPLORER_CONFIG"] = os.path.join(_OWN_CACHE, "config")
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from PySide6.QtWidgets import QTabWidget, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QFrame, QScrollArea, QTabWidget, QVBoxLayout, QWidget
 
 from explorer.textbook.action_angle_view import ActionAngleView
 from explorer.textbook.energy_view import EnergyTheoremView
@@ -10,6 +10,8 @@ from explorer.textbook.equilibria_view import EquilibriaView, EquilibriumMarkers
 from explorer.textbook.principle_view import PrincipleView
 from explorer.textbook.reduction_view import ReductionView
 from explorer.textbook.tasks import TaskRunner
+
+MINIMUM_HEIGHT = 120
 
 
 class TextbookPanel(QWidget):
@@ -34,8 +36,16 @@ class TextbookPanel(QWidget):
         self.energy = EnergyTheoremView(self.runner)
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
+        self._holders: dict = {}
         for view in self.views:
-            self.tabs.addTab(view, view.title)
+            # each tab scrolls, so the dock can be made short on a small screen
+            holder = QScrollArea()
+            holder.setFrameShape(QFrame.Shape.NoFrame)
+            holder.setWidgetResizable(True)
+            holder.setWidget(view)
+            holder.setMinimumHeight(MINIMUM_HEIGHT)
+            self._holders[view] = holder
+            self.tabs.addTab(holder, view.title)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addWidget(self.tabs)
@@ -57,7 +67,7 @@ class TextbookPanel(QWidget):
 
     def show_tab(self, view: QWidget) -> None:
         """Bring ``view`` (one of ``views``) to the front."""
-        self.tabs.setCurrentWidget(view)
+        self.tabs.setCurrentWidget(self._holders[view])
 
     def _on_equilibria_found(self, result) -> None:
         if self.markers is not None:

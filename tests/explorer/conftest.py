@@ -82,6 +82,12 @@ def _no_dangling_qt(monkeypatch, request):
         pytest.fail("the test left Qt activity behind:\n" + "\n".join(left), pytrace=False)
 
 
+@pytest.fixture(autouse=True)
+def _own_preferences(monkeypatch, tmp_path_factory):
+    """Each test's window starts with no recent files: preferences in a folder of its own."""
+    monkeypatch.setenv("PHASE_EXPLORER_CONFIG", str(tmp_path_factory.mktemp("config")))
+
+
 @pytest.fixture
 def qt_activity(_no_dangling_qt) -> QtActivity:
     """The recorder of the current test's threads and timers."""

@@ -173,27 +173,39 @@ def test_bad_file_from_the_catalogue_is_reported_and_the_scene_kept(
     assert "Traceback" not in capfd.readouterr().err
 
 
-def test_bad_file_from_file_open_goes_the_same_way(qtbot, window, bad_files, monkeypatch):
+def test_bad_file_from_file_open_is_shown_to_be_fixed_and_the_scene_kept(
+    qtbot, window, bad_files, monkeypatch
+):
+    """File > Open shows a user's file in the editor even when it does not build (it may
+    have been saved unfinished), with the reason; the running system keeps running."""
     from PySide6.QtWidgets import QFileDialog
 
     wait_for_points(qtbot, window, 5)
-    runner = window.runner
+    runner, built = window.runner, window.built
     path = bad_files["kepler_r0"]
     monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (str(path), ""))
     window._on_open_triggered()
     status = window.statusBar()
-    qtbot.waitUntil(lambda: status.currentMessage().startswith("not opened"), timeout=30000)
+    qtbot.waitUntil(lambda: window.editor.build_status == "failed", timeout=30000)
     assert "initial" in status.currentMessage() and "r = 0" in status.currentMessage()
-    assert window.runner is runner
+    assert window.runner is runner and window.built is built
     _still_running(qtbot, window)
-    # the editor is back on the pendulum (its parameters, its initial state)
-    assert window.editor.parameter_table.values() == {"m": 1.0, "g": 9.81, "l": 1.0}
+    # the editor holds the file as written, to be fixed there
+    assert window.editor.coordinates.text() == "r, theta"
+    assert window.editor.document_text() == path.read_text(encoding="utf-8") or (
+        "r = 0.0" in window.editor.document_text()
+    )
+    # a binary file is refused and the editor keeps what it had
+    request = window.open_file(bad_files["binary"])
+    assert request == 0 and "not a text file" in status.currentMessage()
+    assert window.editor.coordinates.text() == "r, theta"
     # a good file afterwards opens as usual
     good = path.with_name("kepler_good.toml")
     good.write_text(_scene_text("planetary_motion"), encoding="utf-8")
-    request = window.open_scene(good)
+    request = window.open_file(good)
     qtbot.waitUntil(lambda: window.built.request == request, timeout=60000)
     assert window.compiled.mechanics.scene.coordinates == ("r", "theta")
+    assert window.scene_path == good.resolve()
 
 
 def test_open_scene_never_raises_for_a_missing_file(qtbot, window, tmp_path):
