@@ -19,6 +19,7 @@ SCRIPTS = (
     "kepler_cartesian_vs_rebound",
     "compile_latency",
     "gui_latency",
+    "max_speed",
 )
 
 

@@ -2,25 +2,173 @@
 
 pyqtgraph's own SVGExporter is broken on Qt 6.12 (pyqtgraph issue 3485), so an SVG is
 made by rendering the panel's widget into a ``QSvgGenerator`` (see ``explorer.svg``):
-every curve becomes a vector path in pixel coordinates, clipped to its plot. PNGs are
-the widget's own rendering (``QWidget.grab``).
-``render_headless`` builds a panel without a main window (for the ``export`` command),
+every curve becomes a vector path in pixel coordinates, clipped to its plot and
+simplified to the drawing's resolution.
+
+Sized for use: a figure is drawn at a chosen size in pixels (``size``; the GUI offers
+twice the panel's size on screen by default, ``export --width/--height`` on the command
+line). The panel keeps its look: it is laid out at the chosen shape, no smaller than on
+screen, and scaled up to the chosen size (``figure_layout``), so text and lines grow with
+the picture instead of shrinking into a corner. CSV tables can be thinned: one row every
+``every`` of simulated time, or ``points`` rows evenly spaced in time (``csv_rows``); the
+rows are always states the run passed through, never interpolated.
+``explorer.headless`` builds a panel without a main window (for the ``export`` command),
 integrates the scene to ``t_end`` and draws it.
 """
 
 from __future__ import annotations
 
 import csv
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 FIGURE_SUFFIXES = (".png", ".svg")
+FORMATS = ("png", "svg", "csv")
 PANELS = ("configuration", "phase", "conserved", "workprecision")
+MAX_PIXELS = 12_000
+"""The largest width or height a figure may be drawn at."""
+GUI_SCALE = 2
+"""The GUI's default figure: this many times the panel's size on screen."""
 
 
-def export_widget(widget, path: str | Path) -> Path:
-    """Render ``widget`` to ``path``: PNG or SVG by its suffix. Returns the path."""
+@dataclass(frozen=True)
+class ExportOptions:
+    """What to write: the format, a figure's size, or a table's thinning.
+
+    Attributes
+    ----------
+    format : str
+        ``"png"``, ``"svg"`` or ``"csv"``.
+    width, height : int or None
+        A figure's size in pixels (PNG pixels, SVG view box); None: the panel's size.
+    every : float or None
+        CSV: one row every this much simulated time.
+    points : int or None
+        CSV: this many rows, evenly spaced in simulated time.
+    """
+
+    format: str = "png"
+    width: int | None = None
+    height: int | None = None
+    every: float | None = None
+    points: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.format not in FORMATS:
+            raise ValueError(f"unknown export format {self.format!r}; choose from {FORMATS}")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if value is not None and not 1 <= value <= MAX_PIXELS:
+                raise ValueError(f"{name} must be between 1 and {MAX_PIXELS} pixels, not {value}")
+        check_thinning(self.every, self.points)
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        """(width, height), or None when either is not given."""
+        if self.width is None or self.height is None:
+            return None
+        return (self.width, self.height)
+
+    @property
+    def suffix(self) -> str:
+        return f".{self.format}"
+
+    @property
+    def file_filter(self) -> str:
+        """For ``QFileDialog``: e.g. ``"PNG image (*.png)"``."""
+        return {
+            "png": "PNG image (*.png)",
+            "svg": "SVG drawing (*.svg)",
+            "csv": "CSV table (*.csv)",
+        }[self.format]
+
+
+def check_thinning(every: float | None, points: int | None) -> None:
+    """``ValueError`` unless the CSV thinning is one valid choice (or none)."""
+    if every is not None and points is not None:
+        raise ValueError("choose one row every DT or a number of rows, not both")
+    if every is not None and not (math.isfinite(every) and every > 0):
+        raise ValueError(f"one row every DT needs a positive time, not {every}")
+    if points is not None and not 2 <= points <= 10**7:
+        raise ValueError(f"the number of rows must be between 2 and 10000000, not {points}")
+
+
+def scaled_size(on_screen: tuple[int, int], scale: float = GUI_SCALE) -> tuple[int, int]:
+    """A figure size: ``scale`` times a panel's size on screen, within ``MAX_PIXELS``."""
+    width, height = on_screen
+    return (
+        max(1, min(MAX_PIXELS, round(scale * width))),
+        max(1, min(MAX_PIXELS, round(scale * height))),
+    )
+
+
+def figure_layout(
+    on_screen: tuple[int, int], size: tuple[int, int]
+) -> tuple[tuple[int, int], float]:
+    """How a panel of size ``on_screen`` is drawn into a figure of ``size`` pixels.
+
+    Returns the size to lay the panel out at and the scale from it to the figure: the
+    scale is the figure's size over the panel's in the tighter direction (at least 1, so
+    a small figure gets the panel's own text size, not a smaller one), and the layout has
+    the figure's shape. Twice the panel's size gives the same layout at scale 2.
+    """
+    width, height = size
+    scale = max(1.0, min(width / max(on_screen[0], 1), height / max(on_screen[1], 1)))
+    layout = (max(1, math.ceil(width / scale - 1e-9)), max(1, math.ceil(height / scale - 1e-9)))
+    return layout, scale
+
+
+@contextmanager
+def laid_out(widget, size: tuple[int, int]) -> Iterator[None]:
+    """``widget`` resized to ``size`` while the block runs, then given its size back.
+
+    Nothing is painted in between (only pending layout requests are handled), so a panel
+    of the window does not flicker.
+    """
+    from PySide6.QtCore import QCoreApplication, QEvent
+
+    before = widget.size()
+    if (before.width(), before.height()) == tuple(size):
+        yield
+        return
+    widget.resize(*size)
+    QCoreApplication.sendPostedEvents(None, QEvent.Type.LayoutRequest)
+    try:
+        yield
+    finally:
+        widget.resize(before)
+        QCoreApplication.sendPostedEvents(None, QEvent.Type.LayoutRequest)
+
+
+def render_image(widget, size: tuple[int, int]):
+    """``widget`` drawn into a ``QImage`` of ``size`` pixels (``figure_layout``): laid out
+    at the figure's shape and rendered at a device pixel ratio, as on a high-DPI screen,
+    so text and curves are drawn sharp at the larger size, not scaled up as pixels."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtGui import QImage
+    from PySide6.QtWidgets import QWidget
+
+    layout, scale = figure_layout((widget.width(), widget.height()), size)
+    image = QImage(size[0], size[1], QImage.Format.Format_ARGB32)
+    image.setDevicePixelRatio(scale)
+    image.fill(Qt.GlobalColor.white)
+    with laid_out(widget, layout):
+        QWidget.render(widget, image)  # QWidget's, not QGraphicsView's (which takes a painter)
+    image.setDevicePixelRatio(1.0)
+    return image
+
+
+def export_widget(widget, path: str | Path, size: tuple[int, int] | None = None) -> Path:
+    """Render ``widget`` to ``path``: PNG or SVG by its suffix. Returns the path.
+
+    ``size`` is the figure's size in pixels (``figure_layout``); None: the widget's size
+    on screen (a PNG is then the widget's own rendering, ``QWidget.grab``).
+    """
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -28,15 +176,28 @@ def export_widget(widget, path: str | Path) -> Path:
         raise ValueError(
             f"cannot export a figure as {suffix or 'a file without suffix'}; use .png or .svg"
         )
+    if size is not None:
+        size = (int(size[0]), int(size[1]))
+        if not all(1 <= side <= MAX_PIXELS for side in size):
+            raise ValueError(f"a figure's sides must be 1 to {MAX_PIXELS} pixels, not {size}")
     from systems.files import atomic_path
 
     with atomic_path(path) as temporary:
         if suffix == ".svg":
             from explorer.svg import write_svg
 
-            write_svg(widget, temporary, title=widget.window().windowTitle() or "Phase Explorer")
+            title = widget.window().windowTitle() or "Phase Explorer"
+            if size is None:
+                write_svg(widget, temporary, title=title)
+            else:
+                layout, _ = figure_layout((widget.width(), widget.height()), size)
+                with laid_out(widget, layout):
+                    write_svg(widget, temporary, title=title, size=size)
             check_svg(temporary)
-        elif not widget.grab().save(str(temporary)):
+        elif size is None:
+            if not widget.grab().save(str(temporary)):
+                raise OSError(f"could not write {path}")
+        elif not render_image(widget, size).save(str(temporary), "PNG"):
             raise OSError(f"could not write {path}")
     return path
 
@@ -54,21 +215,65 @@ def csv_header(scene) -> list[str]:
     return ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
 
 
-def trajectory_table(compiled, trajectory) -> np.ndarray:
-    """Rows (t, q, q_dot, p, H) of one trajectory; shape (k, 2 + 3n)."""
-    from explorer.trajectories import backfill_energy
+def csv_rows(t: np.ndarray, every: float | None = None, points: int | None = None) -> np.ndarray:
+    """Which samples of times ``t`` (non-decreasing, shape (k,)) a thinned table keeps.
+
+    With ``every``: the first sample at or after each of 0, DT, 2 DT, ... from the first
+    time, and the last sample (the meaning of ``run --every``). With ``points``: the first
+    sample at or after each of ``points`` times evenly spaced from the first time to the
+    last. Neither: all. Returns increasing indices, each sample at most once (where
+    samples are sparser than the times asked for, as in the thinned past of a long run,
+    fewer rows come out).
+    """
+    t = np.asarray(t, dtype=float)
+    check_thinning(every, points)
+    if not len(t) or (every is None and points is None):
+        return np.arange(len(t))
+    start, end = float(t[0]), float(t[-1])
+    if every is not None:
+        count = (end - start) / every
+        if count > 10**7:
+            raise ValueError(f"one row every {every:g} asks for {count:.3g} rows; at most 1e7")
+        times = start + every * np.arange(math.floor(count) + 1)
+    else:
+        times = np.linspace(start, end, points)
+    index = np.searchsorted(t, times, side="left")
+    index = np.append(index[index < len(t)], len(t) - 1)
+    return np.unique(index)
+
+
+def trajectory_table(
+    compiled, trajectory, every: float | None = None, points: int | None = None
+) -> np.ndarray:
+    """Rows (t, q, q_dot, p, H) of one trajectory's states, thinned by ``csv_rows``;
+    shape (k, 2 + 3n). Gap rows (``explorer.trajectories``) are not states: left out."""
+    from explorer.trajectories import backfill_energy, is_gap
 
     n = compiled.n
-    t = trajectory.t.data
-    y = trajectory.y.data
+    real = ~is_gap(trajectory.y.data)
+    energy = backfill_energy(trajectory, compiled)[real]
+    t = trajectory.t.data[real]
+    y = trajectory.y.data[real]
+    rows = csv_rows(t, every, points)
+    t, y, energy = t[rows], y[rows], energy[rows]
     with np.errstate(all="ignore"):
         qdot = compiled.velocities(t, y)
-    energy = backfill_energy(trajectory, compiled)
     return np.column_stack([t, y[:, :n], qdot, y[:, n:], energy])
 
 
-def write_trajectories_csv(compiled, trajectories, path: str | Path) -> Path:
-    """Write trajectories as CSV; with more than one, an ``orbit`` column comes first."""
+def write_trajectories_csv(
+    compiled,
+    trajectories,
+    path: str | Path,
+    every: float | None = None,
+    points: int | None = None,
+) -> Path:
+    """Write trajectories as CSV; with more than one, an ``orbit`` column comes first.
+
+    ``every`` (one row every DT of simulated time) or ``points`` (rows evenly spaced in
+    time) thin each trajectory (``csv_rows``); neither writes every sample kept.
+    """
+    check_thinning(every, points)
     path = Path(path)
     scene = compiled.mechanics.scene
     header = csv_header(scene)
@@ -79,16 +284,19 @@ def write_trajectories_csv(compiled, trajectories, path: str | Path) -> Path:
         writer = csv.writer(out)
         writer.writerow((["orbit"] if many else []) + header)
         for number, trajectory in enumerate(trajectories, start=1):
-            table = trajectory_table(compiled, trajectory)
+            table = trajectory_table(compiled, trajectory, every, points)
             for row in table:
                 values = [repr(float(v)) for v in row]
                 writer.writerow(([str(number)] if many else []) + values)
     return path
 
 
-def render_workprecision(result, path: str | Path, size=(1100, 560)) -> Path:
+def render_workprecision(
+    result, path: str | Path, size=(1100, 560), image_size: tuple[int, int] | None = None
+) -> Path:
     """Draw a work-precision result (``systems.workprecision.WorkPrecision``) to PNG or
-    SVG, headless (offscreen Qt unless a platform was chosen)."""
+    SVG, headless (offscreen Qt unless a platform was chosen), laid out at ``size``, drawn
+    at ``image_size`` pixels (``figure_layout``; default ``size``)."""
     from explorer.app import application
     from explorer.headless import ensure_qt_platform
 
@@ -97,11 +305,13 @@ def render_workprecision(result, path: str | Path, size=(1100, 560)) -> Path:
 
     app = application()
     view = WorkPrecisionView()
+    if image_size is not None:
+        size, _ = figure_layout(size, image_size)
     view.resize(*size)
     view.show_result(result)
     view.show()
     app.processEvents()
-    written = export_widget(view.export_target(), path)
+    written = export_widget(view.export_target(), path, image_size)
     view.shutdown()
     view.close()
     view.deleteLater()

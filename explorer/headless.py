@@ -1,13 +1,18 @@
 """Panels drawn without a main window: integrate a scene to ``t_end`` and render a figure.
 
 Used by the ``export`` command. The scene is built and integrated synchronously (there is
-no event loop to keep responsive), then the panel is laid out offscreen and exported.
+no event loop to keep responsive), then the panel is laid out offscreen and exported at
+the size asked for (``explorer.export.figure_layout``), or its trajectory is written as
+CSV at the times asked for (``write_csv``; the ``export`` command chooses them as ``run``
+does).
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
+
+import numpy as np
 
 FIGURE_SIZE = (1000, 720)
 
@@ -22,12 +27,13 @@ EXPORT_SAMPLES = 20_000
 a smooth curve at print resolution, and the same figure on any machine."""
 
 
-def integrate(built, t_end: float, *, diagnostics=("H",), section=None):
+def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=None):
     """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``.
 
-    The trajectory is sampled at ``EXPORT_SAMPLES`` evenly spaced times (and keeps every
-    section crossing), so memory does not grow with ``t_end``; the run has the command
-    line's step budget.
+    The trajectory is sampled at ``times`` (default: ``EXPORT_SAMPLES`` evenly spaced
+    times; each sample is the state of the first step at or after its time) and keeps
+    every section crossing, so memory does not grow with ``t_end``; the run has the
+    command line's step budget.
     """
     import dataclasses
 
@@ -38,7 +44,10 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None):
     from systems.simulation import Run, Sampler
 
     compiled = built.compiled
-    store = TrajectoryStore(n_points=len(compiled.point_names))
+    if times is None:
+        times = np.linspace(0.0, t_end, EXPORT_SAMPLES + 1)
+    times = np.asarray(times, dtype=float)
+    store = TrajectoryStore(n_points=len(compiled.point_names), capacity=len(times) + 16)
     y0 = compiled.initial_state()
     trajectory = store.add(y0)
     run = Run(
@@ -51,7 +60,7 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None):
         max_points=64,
         max_steps=DEFAULT_MAX_STEPS,
     )
-    sampler = Sampler(run, np.linspace(0.0, t_end, EXPORT_SAMPLES + 1))
+    sampler = Sampler(run, times)
     samples = list(sampler)
     t = np.array([row[0] for row in samples])
     y = np.array([row[1] for row in samples])
@@ -93,10 +102,13 @@ def render_panel(
     t_end: float | None = None,
     poincare: bool = False,
     size=FIGURE_SIZE,
+    image_size: tuple[int, int] | None = None,
 ) -> tuple[Path, object]:
     """Build ``scene``, integrate it to ``t_end`` and export ``panel`` to ``out``.
 
-    Returns the written path and the trajectory's final status (``"ok"`` or a problem).
+    The panel is laid out at ``size`` and drawn at ``image_size`` pixels (default: as
+    laid out; ``explorer.export.figure_layout``). Returns the written path and the main
+    trajectory (its ``status`` is ``"ok"`` or a problem).
     """
     ensure_qt_platform()
     from explorer.app import application
@@ -128,9 +140,22 @@ def render_panel(
     app.processEvents()
     view.refresh(store)
     app.processEvents()
-    written = export_widget(view.export_target(), out)
+    written = export_widget(view.export_target(), out, image_size)
     main = store.main
     view.close()
     view.deleteLater()
     app.processEvents()
     return written, main
+
+
+def write_csv(scene, out: str | Path, t_end: float, times: np.ndarray) -> tuple[Path, object]:
+    """Build ``scene``, integrate it to ``t_end`` and write its main trajectory to the CSV
+    ``out``: one row per time of ``times``, shape (k,), each the state of the first step
+    at or after it. Returns the path and the trajectory."""
+    from explorer.builder import build
+    from explorer.export import write_trajectories_csv
+
+    built = build(scene)
+    store = integrate(built, float(t_end), times=times)
+    written = write_trajectories_csv(built.compiled, list(store), out)
+    return written, store.main

@@ -8,6 +8,12 @@ data outside the axes. So the widget is rendered without its data items (axes, l
 legends and titles are drawn in pixel coordinates and come out right), and the data items
 are then drawn by this module in pixel coordinates, clipped to their view box: polylines
 as paths, scatter points as small vector symbols, images as embedded pictures.
+
+Decimated to the output resolution: a polyline keeps only the vertices needed to stay
+within ``TOLERANCE`` output pixels of the original (``simplify``: Douglas–Peucker on a
+dyadic grid, vectorised), coordinates are rounded to a tenth of an output pixel, and
+scatter points of one style that fall on the same half pixel are drawn once. A long
+trajectory (a million samples) so becomes a few thousand vertices, drawn the same.
 """
 
 from __future__ import annotations
@@ -16,10 +22,13 @@ from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, QRect, QRectF
+from PySide6.QtCore import QPoint, QPointF, QRect, QRectF, QSize
 from PySide6.QtGui import QBrush, QPainter, QPainterPath, QPen, QTransform
+from PySide6.QtWidgets import QWidget
 
 DATA_TYPES = (pg.PlotCurveItem, pg.ScatterPlotItem, pg.ImageItem, pg.TextItem)
+TOLERANCE = 0.25
+"""How far (output pixels) a simplified polyline may stray from the original."""
 
 
 def _view_boxes(widget) -> list[pg.ViewBox]:
@@ -100,6 +109,74 @@ def clip_segments(x: np.ndarray, y: np.ndarray, rect: QRectF):
     )
 
 
+def _straight(x, y, starts, stops, width: int, limit: float) -> np.ndarray:
+    """Whether every vertex strictly inside each window [start, stop] lies within
+    sqrt(``limit``) of the window's chord; windows at most ``width`` long."""
+    offsets = np.arange(1, width)
+    index = np.minimum(starts[:, None] + offsets[None, :], stops[:, None])
+    ax, ay = x[starts][:, None], y[starts][:, None]
+    dx, dy = x[stops][:, None] - ax, y[stops][:, None] - ay
+    length = dx * dx + dy * dy
+    px, py = x[index] - ax, y[index] - ay
+    with np.errstate(invalid="ignore", divide="ignore"):
+        along = np.where(length > 0, (px * dx + py * dy) / length, 0.0)
+    along = np.clip(along, 0.0, 1.0)
+    ex, ey = px - along * dx, py - along * dy
+    return (ex * ex + ey * ey).max(axis=1) <= limit
+
+
+def simplify(x: np.ndarray, y: np.ndarray, tolerance: float) -> np.ndarray:
+    """Which vertices of the polyline (x, y) to keep so that it strays by at most
+    ``tolerance`` from the original.
+
+    Douglas–Peucker on a dyadic grid: a window of vertices is replaced by its chord when
+    every vertex in it lies within ``tolerance`` of the chord, otherwise it is halved;
+    all windows of one size are tested at once. Non-finite vertices break the line:
+    they are kept, and each finite stretch is simplified on its own.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (k,)
+    tolerance : float
+        In the units of x and y; 0 keeps every vertex.
+
+    Returns
+    -------
+    ndarray of bool, shape (k,)
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    k = len(x)
+    keep = np.ones(k, dtype=bool)
+    if k < 3 or not tolerance > 0:
+        return keep
+    finite = np.isfinite(x) & np.isfinite(y)
+    # windows never span a break: the vertices next to one are window ends
+    ends = np.flatnonzero(~finite)
+    bounds = np.unique(np.concatenate([[0, k - 1], ends, ends - 1, ends + 1]))
+    bounds = bounds[(bounds >= 0) & (bounds < k)]
+    keep[:] = False
+    keep[bounds] = True
+    starts = bounds[:-1][finite[bounds[:-1]] & finite[bounds[1:]]]
+    stops = bounds[1:][finite[bounds[:-1]] & finite[bounds[1:]]]
+    starts, stops = starts[stops - starts > 1], stops[stops - starts > 1]
+    limit = tolerance * tolerance
+    while len(starts):
+        # windows of like sizes together, so padding never more than doubles the work
+        size_class = np.ceil(np.log2(stops - starts)).astype(int)
+        bent = np.zeros(len(starts), dtype=bool)
+        for cls in np.unique(size_class):
+            chosen = np.flatnonzero(size_class == cls)
+            bent[chosen] = ~_straight(x, y, starts[chosen], stops[chosen], 1 << cls, limit)
+        bent_starts, bent_stops = starts[bent], stops[bent]
+        middle = (bent_starts + bent_stops) // 2
+        keep[middle] = True
+        starts = np.concatenate([bent_starts, middle])
+        stops = np.concatenate([middle, bent_stops])
+        starts, stops = starts[stops - starts > 1], stops[stops - starts > 1]
+    return keep
+
+
 def _polyline_path(segments) -> QPainterPath:
     sx0, sy0, sx1, sy1 = segments
     path = QPainterPath()
@@ -119,7 +196,11 @@ def _pixel_pen(pen: QPen) -> QPen:
     return pen
 
 
-def _draw_curve(painter, widget, item: pg.PlotCurveItem, rect: QRectF) -> int:
+def _draw_curve(
+    painter, widget, item: pg.PlotCurveItem, rect: QRectF, tolerance: float = 0.0
+) -> int:
+    """Draw a curve simplified to ``tolerance`` (widget pixels), rounded to a tenth of it;
+    returns the segments drawn."""
     x, y = item.getData()
     if x is None or len(x) < 2:
         return 0
@@ -128,6 +209,12 @@ def _draw_curve(painter, widget, item: pg.PlotCurveItem, rect: QRectF) -> int:
     if isinstance(connect, str) and connect == "pairs":
         x = np.insert(x, np.arange(2, len(x), 2), np.nan)
         y = np.insert(y, np.arange(2, len(y), 2), np.nan)
+    elif tolerance > 0:
+        keep = simplify(x, y, tolerance)
+        x, y = x[keep], y[keep]
+    if tolerance > 0:
+        quantum = 0.4 * tolerance
+        x, y = np.round(x / quantum) * quantum, np.round(y / quantum) * quantum
     segments = clip_segments(x, y, rect)
     if not len(segments[0]):
         return 0
@@ -137,13 +224,25 @@ def _draw_curve(painter, widget, item: pg.PlotCurveItem, rect: QRectF) -> int:
     return len(segments[0])
 
 
-def _draw_scatter(painter, widget, item: pg.ScatterPlotItem, rect: QRectF) -> int:
+def _draw_scatter(
+    painter, widget, item: pg.ScatterPlotItem, rect: QRectF, tolerance: float = 0.0
+) -> int:
+    """Draw scatter points as vector symbols; points of one style closer than
+    ``2 * tolerance`` (on one cell of that size) are drawn once. Returns the count."""
     data = item.data
     if not len(data):
         return 0
     x, y = _map(_to_widget(widget, item), data["x"].astype(float), data["y"].astype(float))
     count = 0
-    for k in np.flatnonzero(np.isfinite(x) & np.isfinite(y)):
+    shown = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
+    uniform = all(
+        all(value is None for value in data[column]) for column in ("pen", "brush", "symbol")
+    ) and bool(np.all(data["size"] == data["size"][0]))
+    if tolerance > 0 and uniform and len(shown) > 1:
+        cells = np.floor(np.column_stack([x[shown], y[shown]]) / (2 * tolerance))
+        _, first = np.unique(cells, axis=0, return_index=True)
+        shown = shown[np.sort(first)]
+    for k in shown:
         point = QPointF(x[k], y[k])
         if not rect.contains(point):
             continue
@@ -192,36 +291,67 @@ def _draw_image(painter, widget, item: pg.ImageItem, rect: QRectF) -> int:
     return 1
 
 
-def write_svg(widget, path: str | Path, title: str = "Phase Explorer") -> dict[str, int]:
-    """Render ``widget`` (pyqtgraph plots inside) to ``path``; returns counts of drawn items."""
+def write_svg(
+    widget,
+    path: str | Path,
+    title: str = "Phase Explorer",
+    size: tuple[int, int] | None = None,
+    tolerance: float = TOLERANCE,
+) -> dict[str, int]:
+    """Render ``widget`` (pyqtgraph plots inside) to ``path``; returns counts of drawn items.
+
+    Parameters
+    ----------
+    widget : QWidget
+        Laid out at the size it is to be drawn at (``explorer.export`` does that).
+    path : str or Path
+    title : str
+    size : (int, int), optional
+        The drawing's size in pixels; the view box is the widget's size, scaled to it by
+        the viewer. Default: the widget's size.
+    tolerance : float
+        How far (drawing pixels) simplified curves may stray from the data; 0 keeps every
+        vertex.
+
+    Returns
+    -------
+    dict
+        ``curves`` (curves drawn), ``segments`` (their segments), ``points``, ``images``.
+    """
     from PySide6.QtSvg import QSvgGenerator
 
-    size = widget.size()
+    logical = widget.size()
+    width, height = size if size is not None else (logical.width(), logical.height())
+    scale = min(width / max(logical.width(), 1), height / max(logical.height(), 1))
     generator = QSvgGenerator()
     generator.setFileName(str(path))
-    generator.setSize(size)
-    generator.setViewBox(QRect(0, 0, size.width(), size.height()))
+    generator.setSize(QSize(width, height))
+    generator.setViewBox(QRect(0, 0, logical.width(), logical.height()))  # scaled by viewers
     generator.setTitle(title)
     generator.setResolution(widget.logicalDpiX())
     boxes = [box for box in _view_boxes(widget) if box.isVisible()]
     items = {box: [i for i in _data_items(box) if i.isVisible()] for box in boxes}
-    counts = {"curves": 0, "points": 0, "images": 0}
+    counts = {"curves": 0, "segments": 0, "points": 0, "images": 0}
     for group in items.values():
         for item in group:
             item.setVisible(False)
     painter = QPainter(generator)
     try:
-        widget.render(painter)
+        # QWidget's render, not QGraphicsView's (which would fill the device's size)
+        QWidget.render(widget, painter, QPoint(0, 0))
         painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+        fine = tolerance / scale
         for box, group in items.items():
             rect = _box_rect(widget, box)
             for item in sorted(group, key=lambda i: i.zValue()):
                 if isinstance(item, pg.ImageItem):
                     counts["images"] += _draw_image(painter, widget, item, rect)
                 elif isinstance(item, pg.PlotCurveItem):
-                    counts["curves"] += bool(_draw_curve(painter, widget, item, rect))
+                    drawn = _draw_curve(painter, widget, item, rect, fine)
+                    counts["curves"] += bool(drawn)
+                    counts["segments"] += drawn
                 elif isinstance(item, pg.ScatterPlotItem):
-                    counts["points"] += _draw_scatter(painter, widget, item, rect)
+                    counts["points"] += _draw_scatter(painter, widget, item, rect, fine)
     finally:
         painter.end()
         for group in items.values():

@@ -1,44 +1,103 @@
 """The integrator worker: streams blocks from ``systems.simulation`` in a ``QThread``.
 
 Modelled on superqt's ``GeneratorWorker.work``: each turn of the loop checks abort, then
-pause, then produces the next blocks and emits them, one signal per frame (about every
-30 ms) carrying every trajectory's new block, never one signal per point. The numba
+pause and the pending commands, then produces the next blocks and emits them, one signal
+per frame carrying every trajectory's new block, never one signal per point. The numba
 kernels release the GIL, so the GUI thread keeps running while a block is computed.
 
 Each trajectory is one ``systems.simulation.Run`` for its whole life, whatever the
 speed: every frame takes its next block. At a finite ``speed`` the block ends after the
 first step that reaches ``speed`` times the frame's wall time past the last state, so the
-mechanism moves at a watchable rate; at ``speed = inf`` it ends when the frame's time is
-spent. Pacing only decides where blocks end: the states, and the step of a fixed-step
-method (chosen once per trajectory, never from the speed), are those of a full-speed run.
-A change of method, step, tolerance, section or diagnostics starts new runs from the
-trajectories' current states; a change of speed does not.
+mechanism moves at a watchable rate; at ``speed = inf`` it ends when ``CHUNK_SECONDS`` of
+compiled stepping are spent. Pacing only decides where blocks end: the states, and the
+step of a fixed-step method (chosen once per trajectory, never from the speed), are those
+of a full-speed run. A change of method, step, tolerance or section starts new runs from
+the trajectories' current states; a change of speed or diagnostics does not.
+
+Responsive at any speed
+-----------------------
+- The loop never computes more than ``CHUNK_SECONDS`` (12 ms) between two looks at its
+  commands (abort, pause, settings, added and removed orbits), so each acts within a
+  chunk, well under 100 ms, even at full speed; at most one new run is made per turn
+  (making one probes the default step: tens of ms).
+- At most ``MAX_IN_FLIGHT`` frames are on their way to the GUI thread: the worker waits
+  (still answering commands) until the GUI has taken one, so a busy GUI never finds a
+  backlog of frames queued ahead of a click.
+- The store takes a bounded number of rows that keep closed orbits curves. Every step
+  is sampled (a block keeps up to ``FINE_POINTS`` states, so no stride skips a turn of
+  the orbit; ``stride`` grows only while ``OVERSAMPLING`` or more samples are taken per
+  state kept). Of those, ``arc_keep`` keeps the states that moved ``1 / ARC_RESOLUTION``
+  of the orbit's size along the curve since the last one kept, and a token bucket lets
+  at most ``rows_per_second`` rows a wall second through, for all trajectories together:
+  past that, the most recent part (at least ``MIN_FRAGMENT`` rows) goes over after a gap
+  row (``explorer.trajectories``), so no chord is drawn across what was left out.
+- The energy guard and the diagnostics: runs are made without diagnostics (the guard then
+  checks the last state of each block); ``H`` and the drawing's points are computed here
+  for the states handed over only.
+- Frames carry true counts: each block's ``steps`` and ``rhs_evaluations`` are those
+  taken for that block (a ``Run`` block's are totals of its run), and ``Frame.steps``
+  their sum, for ``RateMeter``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from PySide6.QtCore import QObject, QThread, Signal
+from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from systems.deadline import Abandoned, abandon
 
 FRAME_SECONDS = 0.03
+CHUNK_SECONDS = 0.012
+"""Wall time of compiled stepping between two looks at the commands, at most."""
+MAX_IN_FLIGHT = 2
+"""Frames emitted that the GUI thread has not taken yet, at most."""
+ACK_SECONDS = 1.0
+"""How long the worker waits for the GUI to take a frame before sending the next anyway."""
+FINE_POINTS = 1 << 17
+"""States a block may keep: every step (or every ``stride``-th), as long as a chunk takes
+fewer; fewer for large systems (``FINE_VALUES``)."""
+FINE_VALUES = 1 << 19
+"""Numbers (states times their size plus one) a block may keep: 4 MB."""
+OVERSAMPLING = 4
+"""States sampled per state kept along the curve, at least (the stride adapts to it)."""
+MAX_STRIDE = 1 << 12
+ARC_RESOLUTION = 64.0
+"""Kept states per unit of orbit size along the curve (the size of each coordinate is its
+range in the block, about its trend), at most."""
+ROWS_PER_SECOND = 2048.0
+"""Rows per wall second the store takes from all trajectories together, at most: what the
+panels redraw every frame grows with it (at 4096 the window's event latency at full speed
+reached hundreds of ms, at 1024 it stayed under 5 ms; benchmarks/max_speed.py)."""
+BURST_SECONDS = 8.0
+"""The token bucket holds this many seconds' worth of rows: a run's first seconds, or a
+newly launched orbit's, go over whole."""
+MIN_FRAGMENT = 256
+"""Rows of a part handed over after a gap, at least: until the bucket holds that many, a
+trajectory's rows wait (a closed orbit of the default step is drawn a few turns at a
+time)."""
 ABANDON_AFTER = 0.25
 """Seconds ``WorkerThread.stop`` waits for the loop to see its abort before abandoning it."""
 STOP_SECONDS = 5.0
 """How long ``WorkerThread.stop`` waits by default (closing the window passes less)."""
 PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled", "budget")
+DIAGNOSTIC_FUNCTIONS = {"H": "hamiltonian", "qdot": "velocities", "points": "drawing"}
 
 
 @dataclass(frozen=True)
 class RunSettings:
-    """How to integrate: method, step or tolerance, speed and what to compute alongside."""
+    """How to integrate: method, step or tolerance, speed and what to compute alongside.
+
+    ``max_points`` is the states a run's block keeps (every step up to that many);
+    ``rows_per_second`` bounds the rows handed to the store per wall second.
+    """
 
     method: str | None = None
     dt: float | None = None
@@ -47,21 +106,22 @@ class RunSettings:
     t_end: float = math.inf
     diagnostics: tuple[str, ...] = ()
     frame_seconds: float = FRAME_SECONDS
-    max_points: int = 4096
+    max_points: int = FINE_POINTS
     section: tuple[int, float, int] | None = None
     energy_tolerance: float | None = 1e-2
+    rows_per_second: float = ROWS_PER_SECOND
 
     def with_(self, **changes) -> RunSettings:
         return replace(self, **changes)
 
     def run_options(self) -> dict:
-        """What a ``Run`` is made with: everything but the pacing."""
+        """What a ``Run`` is made with: everything but the pacing and the diagnostics
+        (computed by the worker for the states it keeps)."""
         return dict(
             method=self.method,
             dt=self.dt,
             tol=self.tol,
             t_end=self.t_end,
-            diagnostics=self.diagnostics,
             max_points=self.max_points,
             section=self.section,
             energy_tolerance=self.energy_tolerance,
@@ -70,11 +130,67 @@ class RunSettings:
 
 @dataclass(frozen=True)
 class Frame:
-    """What one ``blocks_ready`` signal carries: the worker's generation and its blocks."""
+    """What one ``blocks_ready`` signal carries: the worker's generation and its blocks.
+
+    Each block's ``steps`` and ``rhs_evaluations`` are those taken for it (not the totals
+    of its run); ``wall_seconds`` is the time the frame took to compute.
+    """
 
     generation: int
     blocks: tuple[tuple[int, object], ...]
     wall_seconds: float
+    iteration: int = 0  # the turn of the worker's loop that made it
+    made_at: float = 0.0  # ``time.perf_counter()`` when it was emitted
+    ready_at: float = 0.0  # when its blocks were ready (before waiting for the GUI)
+
+    @property
+    def steps(self) -> int:
+        """Integrator steps taken for this frame, all trajectories together."""
+        return sum(int(block.steps) for _, block in self.blocks)
+
+
+class RateMeter:
+    """Steps per second of wall time, over the frames of the last ``window`` seconds.
+
+    ``add(now, steps)`` records the steps a frame brought at time ``now`` (seconds, e.g.
+    ``time.perf_counter()``); ``rate()`` divides the steps after the first recorded frame
+    of the window by the time since it, so it is exact for any spacing of frames.
+
+    Parameters
+    ----------
+    window : float
+        Seconds of history the rate is taken over.
+    """
+
+    def __init__(self, window: float = 1.0):
+        self.window = float(window)
+        self._samples: deque[tuple[float, int]] = deque()
+        self._sum = 0  # steps of the samples after the first
+
+    def add(self, now: float, steps: int) -> None:
+        """Record ``steps`` integrator steps that arrived at wall time ``now``."""
+        if self._samples:
+            self._sum += int(steps)
+        self._samples.append((float(now), int(steps)))
+        while len(self._samples) > 2 and self._samples[1][0] <= now - self.window:
+            self._samples.popleft()
+            self._sum -= self._samples[0][1]
+
+    def rate(self, now: float | None = None) -> float | None:
+        """Steps per second, or None without two frames (or, given ``now``, when the
+        last frame is older than the window: nothing is running)."""
+        if len(self._samples) < 2:
+            return None
+        first, last = self._samples[0][0], self._samples[-1][0]
+        if now is not None and now - last > self.window:
+            return None
+        if last <= first:
+            return None
+        return self._sum / (last - first)
+
+    def clear(self) -> None:
+        self._samples.clear()
+        self._sum = 0
 
 
 @dataclass
@@ -85,6 +201,17 @@ class _Track:
     run: object | None = None
     done: bool = False
     target: float | None = None  # paced playback: the simulated time due by this frame
+    run_steps: int = 0  # totals of the current run at its last block
+    run_evaluations: int = 0
+    seconds_per_step: float = 0.0
+    stride: int = 1  # steps per state sampled (``_adapt_stride``)
+    tokens: float = math.nan  # rows the store may take now (token bucket)
+    refilled: float = 0.0
+    cut: bool = False  # rows were left out since the last one handed over
+    fresh: bool = True  # its run is new: its first block is handed over whatever the bucket
+    owed_steps: int = 0  # counts of blocks not handed over yet
+    owed_evaluations: int = 0
+    owed_events: list = dataclasses.field(default_factory=list)
 
 
 def default_runs() -> Callable:
@@ -92,6 +219,94 @@ def default_runs() -> Callable:
     from systems.simulation import Run
 
     return Run
+
+
+def arc_keep(
+    t: np.ndarray, y: np.ndarray, before: np.ndarray | None, resolution: float
+) -> np.ndarray:
+    """Which states to keep so that kept neighbours stay close along the curve.
+
+    Each coordinate is measured in units of its range over the block about its linear
+    trend (an angle that keeps turning is measured by its wobble, not by how far it
+    went); a state is kept when the path since the last kept one has grown past a
+    multiple of ``1 / resolution``, and the last state always. A block too short to have
+    a size is kept whole.
+
+    Parameters
+    ----------
+    t : ndarray, shape (k,)
+    y : ndarray, shape (k, m)
+    before : ndarray, shape (m,), or None
+        The state before the block (the last one kept).
+    resolution : float
+
+    Returns
+    -------
+    ndarray of bool, shape (k,)
+    """
+    k = len(t)
+    keep = np.ones(k, dtype=bool)
+    if k < 3 or not np.isfinite(y).all():
+        return keep
+    # the size of each coordinate about its trend, from at most ~1000 of the states
+    sample = slice(None, None, max(1, k // 1024))
+    ts, ys = t[sample], y[sample]
+    dt = ts - ts.mean()
+    spread = float((dt * dt).sum())
+    centred = ys - ys.mean(axis=0)
+    slope = (dt[:, None] * centred).sum(axis=0) / spread if spread > 0 else 0.0 * centred[0]
+    residual = centred - dt[:, None] * slope
+    size = residual.max(axis=0) - residual.min(axis=0)
+    scale = np.abs(ys).max(axis=0) + size
+    used = np.flatnonzero(size > 1e-9 * np.maximum(scale, 1e-300))
+    if not len(used):
+        return keep
+    previous = y[0] if before is None or not np.isfinite(before).all() else before
+    squares = np.zeros(k)
+    for j in used:  # column by column: no (k, m) temporaries
+        column = y[:, j]
+        step = np.empty(k)
+        step[0] = column[0] - previous[j]
+        np.subtract(column[1:], column[:-1], out=step[1:])
+        step *= resolution / size[j]
+        squares += step * step
+    mark = np.floor(np.cumsum(np.sqrt(squares, out=squares)))
+    keep[0] = mark[0] >= 1
+    keep[1:] = mark[1:] > mark[:-1]
+    keep[-1] = True
+    return keep
+
+
+def _diagnostics(compiled, wanted, t: np.ndarray, y: np.ndarray) -> dict:
+    """The ``wanted`` diagnostics of the states (t, y), NaN in gap rows."""
+    out: dict[str, np.ndarray] = {}
+    if compiled is None or not wanted or not len(t):
+        return out
+    real = np.isfinite(y).all(axis=1)
+    for name in wanted:
+        function = DIAGNOSTIC_FUNCTIONS.get(name)
+        if function is None or function not in getattr(compiled, "wanted", ()):
+            continue
+        with np.errstate(all="ignore"):
+            values = np.asarray(getattr(compiled, function)(t[real], y[real]), dtype=float)
+        full = np.full((len(t), *values.shape[1:]), np.nan)
+        full[real] = values
+        out[name] = full
+    return out
+
+
+class _Receipt(QObject):
+    """Lives in the GUI thread: counts the frames the GUI's event loop has taken."""
+
+    def __init__(self, wake: threading.Event):
+        super().__init__()
+        self.taken = 0
+        self._wake = wake
+
+    @Slot(object)
+    def take(self, _frame) -> None:
+        self.taken += 1
+        self._wake.set()
 
 
 class SimulationWorker(QObject):
@@ -106,7 +321,14 @@ class SimulationWorker(QObject):
         Stamped on every emitted ``Frame`` so late frames of a replaced worker are ignored.
     runs : callable, optional
         ``systems.simulation.Run`` or a factory with its signature, whose objects have
-        ``advance(seconds, until) -> Block`` and ``finished``.
+        ``advance(seconds, until) -> Block`` (a dataclass) and ``finished``.
+
+    Attributes
+    ----------
+    frames : int
+        Frames emitted.
+    iterations : int
+        Turns of the loop (each looks at the commands once).
     """
 
     blocks_ready = Signal(object)
@@ -130,26 +352,34 @@ class SimulationWorker(QObject):
         self._pending: list[_Track] = []
         self._removed: set[int] = set()
         self._restart = False
+        self._changed = False  # a command waits for the loop (read without the lock)
+        self._made_run = False  # a run was made in this turn of the loop
+        self._receipt = _Receipt(self._wake)  # in the creating (GUI) thread
+        self._connected = False
         self.frames = 0
+        self.iterations = 0
 
     # -- called from the GUI thread --------------------------------------------------------
 
     def add_trajectory(self, key: int, y0: np.ndarray, t0: float = 0.0) -> None:
         with self._lock:
             self._pending.append(_Track(key, float(t0), np.array(y0, dtype=float)))
+            self._changed = True
         self._wake.set()
 
     def remove_trajectory(self, key: int) -> None:
         with self._lock:
             self._removed.add(key)
+            self._changed = True
         self._wake.set()
 
     def set_settings(self, settings: RunSettings) -> None:
         """New settings; runs restart from their current states unless only the pacing
-        (speed, frame time) changed."""
+        (speed, frame time, rows) or the diagnostics changed."""
         with self._lock:
             if settings.run_options() != self._settings.run_options():
-                self._restart = True  # applied by the worker thread, between frames
+                self._restart = True  # applied by the worker thread, between chunks
+                self._changed = True
             self._settings = settings
         self._wake.set()
 
@@ -159,6 +389,7 @@ class SimulationWorker(QObject):
 
     def pause(self) -> None:
         self._paused = True
+        self._wake.set()
 
     def resume(self) -> None:
         self._paused = False
@@ -167,6 +398,13 @@ class SimulationWorker(QObject):
     @property
     def paused(self) -> bool:
         return self._paused
+
+    @property
+    def tracked(self) -> tuple[int, ...]:
+        """Keys of the trajectories the loop integrates, as of its last look at the
+        commands."""
+        with self._lock:
+            return tuple(self._tracks)
 
     def step(self) -> None:
         """While paused: advance one frame."""
@@ -195,6 +433,11 @@ class SimulationWorker(QObject):
         try:
             with self._ident_lock:
                 self._ident = threading.get_ident()
+            if not self._connected:
+                # connected last, so its slot runs after every consumer's: a frame counts
+                # as taken once the GUI has handled it
+                self.blocks_ready.connect(self._receipt.take)
+                self._connected = True
             try:
                 self._loop()
             finally:
@@ -211,7 +454,9 @@ class SimulationWorker(QObject):
         if self._runs is None:
             self._runs = default_runs()
         while not self._abort:
+            self.iterations += 1
             self._take_changes()
+            stepping = False
             if self._paused:
                 with self._lock:
                     stepping = self._steps_requested > 0
@@ -219,25 +464,230 @@ class SimulationWorker(QObject):
                 if not stepping:
                     self._idle(0.05)
                     continue
-                for track in self._tracks.values():
-                    track.target = None  # a single step always moves
             active = [track for track in self._tracks.values() if not track.done]
             if not active:
                 self._idle(0.05)
                 continue
             start = time.perf_counter()
             settings = self._settings
+            paced = math.isfinite(settings.speed)
+            if stepping:
+                for track in active:
+                    track.target = None  # a single step always moves
+            chunks = self._frame(active, settings, paced, start)
             blocks = []
+            for track in active:
+                block = self._hand_over(track, chunks.get(track.key, []), settings, len(active))
+                if block is not None:
+                    blocks.append((track.key, block))
+            ready = time.perf_counter()
+            if blocks and not self._abort:
+                self._wait_for_room()
+                if not self._abort:
+                    self.frames += 1
+                    frame = Frame(
+                        self.generation,
+                        tuple(blocks),
+                        ready - start,
+                        self.iterations,
+                        time.perf_counter(),
+                        ready,
+                    )
+                    self.blocks_ready.emit(frame)
+            if paced:
+                self._idle(settings.frame_seconds - (time.perf_counter() - start))
+
+    def _interrupted(self) -> bool:
+        return self._abort or self._paused or self._changed
+
+    def _frame(self, active: list[_Track], settings: RunSettings, paced: bool, start: float):
+        """The chunks of this frame, per trajectory key: one chunk each at full speed; at a
+        finite speed, chunks until each trajectory reaches the time due (or the frame's
+        time is spent, or a command waits). At most one new run is made per turn (making
+        one costs tens of ms: the default step is probed), so a restart of many orbits
+        never keeps the loop from its commands."""
+        chunks: dict[int, list] = {}
+        share = min(settings.frame_seconds, CHUNK_SECONDS) / len(active)
+        self._made_run = False
+        if not paced:
             for track in active:
                 if self._abort:
                     break
-                blocks.extend(self._advance(track, settings, len(active)))
-            elapsed = time.perf_counter() - start
-            if blocks and not self._abort:
-                self.frames += 1
-                self.blocks_ready.emit(Frame(self.generation, tuple(blocks), elapsed))
-            if math.isfinite(settings.speed):
-                self._idle(settings.frame_seconds - elapsed)
+                track.target = None  # paced playback, when it comes back, starts from here
+                chunk = self._chunk(track, settings, share, math.inf)
+                if chunk is not None:
+                    chunks.setdefault(track.key, []).append(chunk)
+            return chunks
+        frame = settings.speed * settings.frame_seconds
+        due = []
+        for track in active:
+            # simulated time falls due at speed x wall time; a step longer than a frame's
+            # share is taken only once it is due, and a machine that falls behind does not
+            # pile up a debt of more than two frames
+            goal = track.t if track.target is None else track.target
+            track.target = min(goal + frame, track.t + 2 * frame)
+            if track.t < track.target:
+                due.append(track)
+        deadline = start + settings.frame_seconds
+        first = True
+        while due and not self._abort:
+            if not first and (self._interrupted() or time.perf_counter() > deadline):
+                break
+            first = False
+            for track in due:
+                chunk = self._chunk(track, settings, share, track.target)
+                if chunk is not None:
+                    chunks.setdefault(track.key, []).append(chunk)
+            due = [t for t in due if t.run is not None and not t.done and t.t < (t.target or 0.0)]
+        return chunks
+
+    def _chunk(self, track: _Track, settings: RunSettings, seconds: float, until: float):
+        """One ``advance`` of the track's run: (block, state before, steps, evaluations),
+        None if there is nothing to do (or its run is to be made next turn)."""
+        if track.run is None:
+            if track.t >= settings.t_end:
+                track.done = True
+                return None
+            if self._made_run:
+                return None
+            self._made_run = True
+            track.run = self._runs(self.compiled, y0=track.y, t0=track.t, **settings.run_options())
+            track.run_steps = track.run_evaluations = 0
+            track.fresh = True
+        if track.seconds_per_step > 0:
+            # the states sampled (one every ``stride`` steps) stay under max_points
+            points = min(settings.max_points, FINE_VALUES // (len(track.y) + 1))
+            seconds = min(seconds, 0.8 * points * track.stride * track.seconds_per_step)
+            if hasattr(track.run, "max_points"):
+                steps = seconds / track.seconds_per_step
+                track.run.max_points = int(min(points, steps / track.stride + 2))
+        before = track.y
+        started = time.perf_counter()
+        block = track.run.advance(seconds, until)
+        elapsed = time.perf_counter() - started
+        steps = int(block.steps)
+        evaluations = int(block.rhs_evaluations)
+        if steps >= track.run_steps:
+            steps, track.run_steps = steps - track.run_steps, steps
+        if evaluations >= track.run_evaluations:
+            evaluations, track.run_evaluations = (
+                evaluations - track.run_evaluations,
+                evaluations,
+            )
+        if steps > 0:
+            track.seconds_per_step = elapsed / steps
+        self._follow(track, block)
+        if track.run.finished:
+            track.done = True
+        return block, before, steps, evaluations
+
+    def _hand_over(self, track: _Track, chunks: list, settings: RunSettings, count: int):
+        """The block the store gets for this frame (None: nothing, or it waits).
+
+        The chunks' states are thinned along the curve (``arc_keep``) from the newest
+        back, only as far as the token bucket lets rows through: past it, the newest part
+        goes after a gap row, and when the bucket holds less than ``MIN_FRAGMENT`` rows
+        the frame's states wait out (their counts and section crossings never do), unless
+        they all fit and either follow on from the last rows handed over or are paced
+        playback, or the run is new (a launch or a change of method shows at once).
+        """
+        if not chunks:
+            return None
+        last = chunks[-1][0]
+        track.owed_steps += sum(c[2] for c in chunks)
+        track.owed_evaluations += sum(c[3] for c in chunks)
+        for block, _, _, _ in chunks:
+            events_t = getattr(block, "events_t", None)
+            if events_t is not None and len(events_t):
+                track.owed_events.append((np.asarray(events_t), np.asarray(block.events_y)))
+        now = time.perf_counter()
+        rate = settings.rows_per_second / count
+        burst = max(rate * BURST_SECONDS, MIN_FRAGMENT)
+        if math.isnan(track.tokens):
+            track.tokens, track.refilled = burst, now
+        track.tokens = min(burst, track.tokens + rate * (now - track.refilled))
+        track.refilled = now
+        sampled = sum(len(block.t) for block, _, _, _ in chunks)
+        fresh, track.fresh = track.fresh, False
+        paced = math.isfinite(settings.speed)
+        # after a gap, a fragment waits until it can be long enough to show the motion;
+        # paced playback hands its few rows over at once (they fit)
+        cut = track.cut and not paced
+        short = track.tokens < MIN_FRAGMENT and (cut or sampled > track.tokens)
+        if short and not fresh and last.status == "running":
+            track.cut = True
+            return None  # this frame's states are left out; the counts wait
+        room = max(int(track.tokens), 1)
+        parts = []
+        rows = 0
+        for index in range(len(chunks) - 1, -1, -1):
+            block, before, _, _ = chunks[index]
+            t = np.asarray(block.t, dtype=float)
+            y = np.asarray(block.y, dtype=float).reshape(len(t), -1)
+            keep = arc_keep(t, y, before, ARC_RESOLUTION)
+            self._adapt_stride(track, keep)
+            parts.append((t[keep], y[keep]))
+            rows += int(keep.sum())
+            if rows >= room:
+                track.cut = track.cut or index > 0
+                break
+        t = np.concatenate([p[0] for p in reversed(parts)])
+        y = np.concatenate([p[1] for p in reversed(parts)])
+        if len(t) > room:
+            t, y = t[len(t) - room :], y[len(t) - room :]
+            track.cut = True
+        track.tokens -= len(t)
+        if track.cut and len(t):
+            t = np.concatenate([t[:1], t])
+            y = np.concatenate([np.full((1, y.shape[1]), np.nan), y])
+            track.cut = False
+        fields = {f.name for f in dataclasses.fields(last)}
+        changes = dict(
+            t=t,
+            y=y,
+            diagnostics=_diagnostics(self.compiled, settings.diagnostics, t, y),
+            steps=track.owed_steps,
+            rhs_evaluations=track.owed_evaluations,
+        )
+        if "events_t" in fields:
+            events = track.owed_events
+            m = y.shape[1]
+            changes["events_t"] = np.concatenate([e[0] for e in events]) if events else np.empty(0)
+            changes["events_y"] = (
+                np.concatenate([e[1].reshape(-1, m) for e in events])
+                if events
+                else np.empty((0, m))
+            )
+        track.owed_steps = track.owed_evaluations = 0
+        track.owed_events = []
+        return replace(last, **changes)
+
+    @staticmethod
+    def _adapt_stride(track: _Track, keep: np.ndarray) -> None:
+        """Sample every ``stride``-th step while the curve keeps at most one state in
+        ``OVERSAMPLING``: cheap steps are not all copied out only to be thinned."""
+        sampled = len(keep)
+        if sampled < 64:
+            return
+        kept = max(int(keep.sum()), 1)
+        if kept * OVERSAMPLING * 2 < sampled:
+            track.stride = min(track.stride * 2, MAX_STRIDE)
+        elif kept * OVERSAMPLING > sampled:
+            track.stride = max(track.stride // 2, 1)
+
+    def _wait_for_room(self) -> None:
+        """Wait until fewer than ``MAX_IN_FLIGHT`` frames are on their way to the GUI
+        (at most ``ACK_SECONDS``, and never past an abort); commands that come meanwhile
+        are taken at once."""
+        give_up = time.perf_counter() + ACK_SECONDS
+        while self.frames - self._receipt.taken >= MAX_IN_FLIGHT and not self._abort:
+            left = give_up - time.perf_counter()
+            if left <= 0:
+                break
+            self._wake.wait(min(left, 0.05))
+            self._wake.clear()
+            if self._changed:
+                self._take_changes()
 
     def _idle(self, seconds: float) -> None:
         if seconds > 0 and not self._abort:
@@ -246,6 +696,7 @@ class SimulationWorker(QObject):
 
     def _take_changes(self) -> None:
         with self._lock:
+            self._changed = False
             for track in self._pending:
                 self._tracks[track.key] = track
             self._pending.clear()
@@ -258,29 +709,6 @@ class SimulationWorker(QObject):
                     track.run = None
                     track.target = None
                     track.done = False
-
-    def _advance(self, track: _Track, settings: RunSettings, count: int) -> list:
-        if track.run is None:
-            if track.t >= settings.t_end:
-                track.done = True
-                return []
-            track.run = self._runs(self.compiled, y0=track.y, t0=track.t, **settings.run_options())
-        until = math.inf
-        if math.isfinite(settings.speed):
-            # simulated time falls due at speed x wall time; a step longer than a frame's
-            # share is taken only once it is due, and a machine that falls behind does not
-            # pile up a debt of more than two frames
-            frame = settings.speed * settings.frame_seconds
-            due = track.t if track.target is None else track.target
-            track.target = min(due + frame, track.t + 2 * frame)
-            if track.t >= track.target:
-                return []
-            until = track.target
-        block = track.run.advance(settings.frame_seconds / count, until)
-        self._follow(track, block)
-        if track.run.finished:
-            track.done = True
-        return [(track.key, block)]
 
     @staticmethod
     def _follow(track: _Track, block) -> None:

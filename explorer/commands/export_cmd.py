@@ -1,4 +1,13 @@
-"""``export SCENE --panel P --out FILE``: a panel's figure rendered headless (PNG or SVG)."""
+"""``export SCENE --panel P --out FILE``: a panel's figure rendered headless (PNG or SVG),
+or the scene's trajectory as CSV.
+
+Figures are drawn at ``--width`` x ``--height`` pixels (either alone keeps the default
+figure's shape; default 1000 x 720 laid out, less the panel's margins); a larger figure
+is the same layout scaled up (``explorer.export.figure_layout``). An SVG's curves are
+simplified to its resolution. A CSV holds the states at ``--every DT`` of simulated time
+(as ``run --every``) or at ``--points N`` evenly spaced times (``run``'s default spacing
+otherwise).
+"""
 
 from __future__ import annotations
 
@@ -10,11 +19,13 @@ from pathlib import Path
 from explorer.commands.errors import UserError, user_errors
 
 PANELS = ("configuration", "phase", "conserved", "workprecision")
+SUFFIXES = (".png", ".svg", ".csv")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "export", help="render a panel of a scene to PNG or SVG without a display"
+        "export",
+        help="render a panel of a scene to PNG or SVG without a display, or write it as CSV",
     )
     parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
     parser.add_argument(
@@ -31,35 +42,111 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="phase panel: the Poincaré section (two-degree autonomous systems)",
     )
-    parser.add_argument("--out", required=True, help="the figure to write: FILE.png or FILE.svg")
+    parser.add_argument("--width", type=int, default=None, help="figure width in pixels (PNG, SVG)")
+    parser.add_argument(
+        "--height", type=int, default=None, help="figure height in pixels (PNG, SVG)"
+    )
+    rows = parser.add_mutually_exclusive_group()
+    rows.add_argument(
+        "--every",
+        type=float,
+        default=None,
+        help="CSV: one row every DT of simulated time (as run --every)",
+    )
+    rows.add_argument(
+        "--points",
+        type=int,
+        default=None,
+        help="CSV: this many rows, evenly spaced in simulated time",
+    )
+    parser.add_argument(
+        "--out", required=True, help="the file to write: FILE.png, FILE.svg or FILE.csv"
+    )
+
+
+def image_size(args: argparse.Namespace, base: tuple[int, int]) -> tuple[int, int] | None:
+    """The figure's pixel size from ``--width``/``--height`` (one alone keeps the shape of
+    ``base``), or None for the default. ``UserError`` for a size out of range."""
+    from explorer.export import MAX_PIXELS
+
+    width, height = args.width, args.height
+    for name, value in (("--width", width), ("--height", height)):
+        if value is not None and not 1 <= value <= MAX_PIXELS:
+            raise UserError(f"{name} must be between 1 and {MAX_PIXELS} pixels, not {value}")
+    if width is None and height is None:
+        return None
+    if width is None:
+        width = max(1, round(height * base[0] / base[1]))
+    if height is None:
+        height = max(1, round(width * base[1] / base[0]))
+    return (width, height)
+
+
+def csv_times(args: argparse.Namespace, t_end: float):
+    """The simulated times of a CSV's rows, chosen as ``run`` chooses them: one every
+    ``--every`` from 0 and ``t_end``, or ``--points`` evenly spaced from 0 to ``t_end``
+    (``run --samples N`` gives N + 1 rows), or ``run``'s default."""
+    from explorer.commands.run_cmd import sample_times
+
+    samples = None if args.points is None else args.points - 1
+    return sample_times(argparse.Namespace(every=args.every, samples=samples), t_end)
+
+
+def check_args(args: argparse.Namespace, out: Path) -> None:
+    """``UserError`` for options that do not go together, before any work is done."""
+    suffix = out.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise UserError(f"{args.out}: --out must end in .png or .svg (a figure) or .csv (a table)")
+    table = suffix == ".csv"
+    if table and (args.width is not None or args.height is not None):
+        raise UserError("--width and --height size a figure (.png, .svg), not a CSV table")
+    if not table and (args.every is not None or args.points is not None):
+        raise UserError("--every and --points choose the rows of a CSV table, not a figure")
+    if table and args.panel == "workprecision":
+        raise UserError("the work-precision panel is a figure: --out must be .png or .svg")
+    if args.every is not None and not (math.isfinite(args.every) and args.every > 0):
+        raise UserError(f"--every must be a positive time, not {args.every:g}")
+    if args.points is not None and not 2 <= args.points <= 10**7:
+        raise UserError(f"--points must be between 2 and 10000000, not {args.points}")
+    if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
+        raise UserError(f"--t-end must be a positive finite time, not {args.t_end:g}")
 
 
 def run(args: argparse.Namespace) -> int:
-    from explorer.headless import ensure_qt_platform
+    from explorer.headless import FIGURE_SIZE, ensure_qt_platform
 
     out = Path(args.out)
-    if out.suffix.lower() not in (".png", ".svg"):
-        raise UserError(f"{args.out}: --out must end in .png or .svg")
+    check_args(args, out)
+    size = image_size(args, FIGURE_SIZE)
     from systems.files import write_problem
 
     problem = write_problem(out)
     if problem:
         raise UserError(f"--out: {problem}")
-    if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
-        raise UserError(f"--t-end must be a positive finite time, not {args.t_end:g}")
     ensure_qt_platform()
     from systems.scene import load_scene
 
     with user_errors():
         scene = load_scene(args.scene)
         if args.panel == "workprecision":
-            return _workprecision(scene, args, out)
-        from explorer.headless import render_panel
-
+            return _workprecision(scene, args, out, size)
         try:
-            written, main = render_panel(
-                scene, args.panel, out, t_end=args.t_end, poincare=args.poincare
-            )
+            if out.suffix.lower() == ".csv":
+                from explorer.headless import write_csv
+
+                t_end = float(args.t_end or scene.view.get("t_end", 20.0))
+                written, main = write_csv(scene, out, t_end, csv_times(args, t_end))
+            else:
+                from explorer.headless import render_panel
+
+                written, main = render_panel(
+                    scene,
+                    args.panel,
+                    out,
+                    t_end=args.t_end,
+                    poincare=args.poincare,
+                    image_size=size,
+                )
         except ValueError as exc:
             raise UserError(str(exc)) from exc
     if main is not None and main.status not in ("ok", "running"):
@@ -68,11 +155,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _workprecision(scene, args, out: Path) -> int:
+def _workprecision(scene, args, out: Path, size: tuple[int, int] | None) -> int:
     from explorer.export import render_workprecision
     from explorer.panels.workprecision_view import run_workprecision
 
     result = run_workprecision(scene, t_end=args.t_end)
-    written = render_workprecision(result, out)
+    written = render_workprecision(result, out, image_size=size)
     print(f"wrote {written}")
     return 0

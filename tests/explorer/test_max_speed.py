@@ -1,0 +1,407 @@
+"""Max speed is smooth and honest (issue 10, item 4).
+
+Closed orbits stay curves at full speed, the store keeps a bounded number of samples
+however long a run lasts, every command acts within a couple of turns of the worker's
+loop, and the steps a frame reports are the integrator's real steps, so the rate shown is
+the true one.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from explorer.trajectories import (
+    MAX_LEVEL,
+    Trajectory,
+    TrajectoryStore,
+    is_gap,
+    level_quotas,
+    thin_runs,
+    with_gaps,
+)
+from explorer.worker import (
+    MAX_IN_FLIGHT,
+    RateMeter,
+    RunSettings,
+    SimulationWorker,
+    WorkerThread,
+    arc_keep,
+)
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    from explorer.builder import build
+    from systems.scene import load_scene
+
+    built = build(load_scene("simple_pendulum"))
+    return built, built.compiled.native()
+
+
+def pendulum_period(compiled) -> float:
+    m, g, l = compiled.parameters
+    theta0 = compiled.initial_state()[0]
+    return 4.0 * math.sqrt(l / g) * float(ellipk(math.sin(theta0 / 2) ** 2))
+
+
+class Feed:
+    """A worker in its thread feeding a store, as the main window does."""
+
+    def __init__(self, compiled, settings, capacity=None, runs=None, launches=()):
+        n_points = len(compiled.point_names) if compiled is not None else 0
+        kwargs = {} if capacity is None else {"capacity": capacity}
+        self.store = TrajectoryStore(n_points=n_points, **kwargs)
+        self.meter = RateMeter(window=60.0)
+        self.frames = []
+        self.worker = SimulationWorker(compiled, settings, runs=runs)
+        self.worker.blocks_ready.connect(self.take)
+        y0 = compiled.initial_state() if compiled is not None else np.zeros(2)
+        for state in (y0, *launches):
+            trajectory = self.store.add(state)
+            self.worker.add_trajectory(trajectory.key, state)
+        self.runner = WorkerThread(self.worker)
+
+    def take(self, frame) -> None:
+        for key, block in frame.blocks:
+            self.store.append(key, block)
+        now = time.perf_counter()
+        self.meter.add(now, frame.steps)
+        self.frames.append((now, frame))
+
+    def __enter__(self):
+        self.runner.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.runner.stop()
+        assert not self.runner.running
+
+
+def connected_steps(y: np.ndarray) -> np.ndarray:
+    """Distances between neighbouring rows that a panel joins by a line (no gap)."""
+    gap = is_gap(y)
+    joined = ~gap[1:] & ~gap[:-1]
+    return np.linalg.norm(np.diff(y, axis=0), axis=1)[joined]
+
+
+# -- closed orbits stay curves -------------------------------------------------------------
+
+
+def test_a_closed_orbit_is_a_curve_at_max_speed(qtbot, pendulum):
+    built, compiled = pendulum
+    period = pendulum_period(compiled)
+    settings = RunSettings(method=built.method, speed=math.inf, diagnostics=("H",))
+    with Feed(compiled, settings) as feed:
+        main = feed.store.main
+        qtbot.waitUntil(lambda: main.last_t > 300 * period and len(feed.frames) > 10, timeout=60000)
+    t, y = main.t.data, main.y.data
+    size = np.ptp(y[~is_gap(y)], axis=0).max()
+    # nowhere in the store is a chord drawn across the orbit (the old worker joined
+    # samples a few hundred steps apart: a filled blob)
+    assert connected_steps(y).max() < 0.06 * size
+    # the last period is there whole, sampled finely
+    last = t > t[-1] - period
+    assert not is_gap(y[last]).any()
+    assert last.sum() > 40
+    assert np.ptp(y[last], axis=0).max() > 0.9 * size
+    # and H came along for the rows kept
+    assert np.isfinite(main.energy.data[1:][~is_gap(y[1:])]).all()
+
+
+def test_arc_keep_keeps_neighbours_close_and_drops_the_rest():
+    t = np.linspace(0.0, 20 * 2 * np.pi, 200_001)
+    y = np.column_stack([np.cos(t), 3.0 * np.sin(t), np.full_like(t, 7.0)])  # one constant
+    keep = arc_keep(t, y, None, 200.0)
+    assert keep[-1] and 20 * 300 < keep.sum() < 20 * 1500
+    kept = y[keep] / np.array([2.0, 6.0, 1.0])  # in units of each coordinate's range
+    assert np.linalg.norm(np.diff(kept, axis=0), axis=1).max() < 2.5 / 200
+    # an angle that keeps turning is measured by its wobble, not by its growth
+    theta = 5.0 * t + 0.1 * np.sin(t)
+    turning = arc_keep(t, np.column_stack([theta, np.cos(t)]), None, 200.0)
+    assert turning.sum() > 20 * 300
+    # short blocks, and blocks without a size, are kept whole
+    assert arc_keep(t[:2], y[:2], None, 200.0).all()
+    assert arc_keep(t[:50], np.ones((50, 2)), None, 200.0).all()
+
+
+# -- bounded memory --------------------------------------------------------------------------
+
+
+def circle_block(start: int, count: int, per_turn: int = 100):
+    index = np.arange(start, start + count)
+    angle = 2 * np.pi * index / per_turn
+    return SimpleNamespace(
+        t=index.astype(float),
+        y=np.column_stack([np.cos(angle), np.sin(angle)]),
+        diagnostics={"H": np.ones(count)},
+        status="running",
+        message="",
+        method="fake",
+        steps=count,
+        rhs_evaluations=2 * count,
+    )
+
+
+def test_the_store_keeps_a_bounded_history_at_full_resolution_where_it_is_recent():
+    capacity = 1 << 14
+    trajectory = Trajectory(0, "#000", np.array([1.0, 0.0]), capacity=capacity)
+    sizes = set()
+    total = 4_000_000
+    for start in range(1, total, 2000):
+        trajectory.append(circle_block(start, 2000))
+        sizes.add(trajectory.nbytes)
+    t, y = trajectory.t.data, trajectory.y.data
+    assert len(t) <= capacity
+    assert len(sizes) <= 5  # the buffers stopped growing once full (doubling up to it)
+    assert max(sizes) <= 8 * capacity * (1 + 2 + 1 + 2)
+    assert trajectory.steps == total and trajectory.revision > 100
+    assert t[0] == 0.0 and np.all(np.diff(t) >= 0)
+    recent, _ = level_quotas(capacity)
+    assert not is_gap(y[-recent:]).any()
+    assert np.array_equal(t[-recent:], np.arange(total - recent, total) + 1.0)
+    # old samples thin out but stay: some in every octave of age, none joined by a chord
+    age = total - t[~is_gap(y)]
+    counts = [((age > total / 2 ** (k + 1)) & (age <= total / 2**k)).sum() for k in range(10)]
+    assert all(counts) and counts[0] < counts[-1]
+    spacing = 2 * np.sin(np.pi / 100)
+    assert connected_steps(y[1:]).max() < 1.01 * spacing
+    assert len(trajectory.levels) <= MAX_LEVEL
+
+
+def test_thinning_drops_every_other_run_and_marks_gaps():
+    rows = np.array([0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11])
+    kept, parity = thin_runs(rows, 0, run=2)
+    assert kept.tolist() == [0, 1, 4, 5, 9, 10] and parity == 0
+    kept, parity = thin_runs(rows, 1, run=2)
+    assert kept.tolist() == [2, 3, 7, 8, 11] and parity == 1
+    assert with_gaps(np.array([0, 1, 2, 5, 6, 9])).tolist() == [0, 1, 2, -5, 5, 6, -9, 9]
+
+
+def test_a_thinning_makes_every_panel_redraw_once(qtbot):
+    store = TrajectoryStore(capacity=4096)
+    store.add(np.array([1.0, 0.0]))
+    store.add(np.array([1.0, 0.0]))
+    generations = []
+    for start in range(1, 40_000, 1000):
+        store.append(0, circle_block(start, 1000))
+        store.append(1, circle_block(start, 1000))
+        generations.append(store.generation)
+    # the second trajectory, as full as the first, is thinned along with it: one
+    # redraw of everything per thinning, not two
+    assert generations[-1] == store.trajectories[0].revision
+    assert store.trajectories[1].revision == store.trajectories[0].revision
+    assert all(len(trajectory.t) <= 4096 for trajectory in store)
+
+
+def test_a_long_run_at_max_speed_keeps_the_store_bounded(qtbot):
+    # a run that produces 20 000 states a block as fast as it can, for two seconds
+    class Fast:
+        def __init__(self, compiled, *, y0, t0, t_end, **options):
+            self.t, self.finished, self.steps = t0, False, 0
+
+        def advance(self, seconds=0.03, until=math.inf):
+            index = np.arange(1, 20_001)
+            t = self.t + 0.01 * index
+            angle = 2 * np.pi * t
+            self.t, self.steps = float(t[-1]), self.steps + 20_000
+            y = np.column_stack([np.cos(angle), np.sin(angle)])
+            return FakeBlock(t, y, steps=self.steps, rhs_evaluations=self.steps)
+
+    capacity = 8192
+    settings = RunSettings(speed=math.inf, rows_per_second=1e6)
+    with Feed(None, settings, capacity=capacity, runs=Fast) as feed:
+        qtbot.wait(2000)
+    main = feed.store.main
+    assert main.revision > 3  # it did overflow, several times
+    assert len(main.t) <= capacity and main.nbytes <= 8 * capacity * (1 + 2 + 1 + 2)
+    assert main.steps == sum(frame.steps for _, frame in feed.frames) > 10 * capacity
+    assert connected_steps(main.y.data[1:]).max() < 0.07  # samples 2 pi / 100 apart
+
+
+@dataclass(frozen=True)
+class FakeBlock:
+    t: np.ndarray
+    y: np.ndarray
+    diagnostics: dict = field(default_factory=dict)
+    status: str = "running"
+    message: str = ""
+    steps: int = 0
+    rhs_evaluations: int = 0
+    method: str = "fake"
+
+
+def test_past_the_row_budget_a_block_hands_its_latest_part_after_a_gap(qtbot):
+    class Line:
+        def __init__(self, compiled, *, y0, t0, t_end, **options):
+            self.t, self.finished = t0, False
+
+        def advance(self, seconds=0.03, until=math.inf):
+            t = self.t + 0.001 * np.arange(1, 3001)
+            self.t = float(t[-1])
+            return FakeBlock(t, np.column_stack([t, 2 * t]), steps=3000)  # kept whole
+
+    settings = RunSettings(speed=math.inf, rows_per_second=2000)  # a burst of 16 000 rows
+    with Feed(None, settings, runs=Line) as feed:
+        qtbot.waitUntil(lambda: len(feed.frames) > 12, timeout=10000)
+    blocks = [block for _, frame in feed.frames for _, block in frame.blocks]
+    cut = [block for block in blocks if is_gap(block.y[:1])[0]]
+    assert cut and len(cut) < len(blocks)
+    for block in cut:
+        assert block.t[0] == block.t[1] and not is_gap(block.y[1:]).any()
+    y = feed.store.main.y.data[1:]
+    assert is_gap(y).any() and connected_steps(y).max() < 0.0023
+
+
+# -- commands act at once --------------------------------------------------------------------
+
+
+def test_commands_act_within_two_turns_of_the_loop_at_max_speed(qtbot, pendulum):
+    built, compiled = pendulum
+    y0 = compiled.initial_state()
+    launches = [y0 * 0.5, y0 * 0.25]
+    settings = RunSettings(method=built.method, speed=math.inf, diagnostics=("H", "points"))
+    with Feed(compiled, settings, launches=launches) as feed:
+        worker = feed.worker
+        qtbot.waitUntil(lambda: len(feed.frames) > 10, timeout=60000)
+
+        # clear: a launched orbit is dropped
+        before, start = worker.iterations, time.perf_counter()
+        worker.remove_trajectory(2)
+        feed.store.remove(2)
+        qtbot.waitUntil(lambda: 2 not in worker.tracked, timeout=5000)
+        assert worker.iterations - before <= 2 and time.perf_counter() - start < 1.0
+
+        # method: new runs, from the current states
+        before, count = worker.iterations, len(feed.frames)
+        worker.set_settings(worker.settings.with_(method="leapfrog"))
+
+        def method_frame():
+            for _, frame in feed.frames[count:]:
+                if all(block.method == "leapfrog" for _, block in frame.blocks):
+                    return frame
+            return None
+
+        qtbot.waitUntil(lambda: method_frame() is not None, timeout=5000)
+        assert method_frame().iteration - before <= 2
+
+        # speed: from max to 1x, paced from the next turn on
+        before, count = worker.iterations, len(feed.frames)
+        worker.set_settings(worker.settings.with_(speed=1.0))
+        qtbot.waitUntil(lambda: len(feed.frames) > count + 5, timeout=5000)
+        paced = [f for _, f in feed.frames[count:] if f.iteration > before + 1]
+        first = min(f.iteration for _, f in feed.frames[count:] if f.iteration > before)
+        assert first - before <= 2 and paced
+        span = 2 * 1.0 * settings.frame_seconds + 1e-9
+        for frame in paced:
+            for _, block in frame.blocks:
+                t = block.t[~is_gap(block.y)]
+                assert np.ptp(t) <= span
+
+        # pause: nothing computed after the next turn
+        worker.set_settings(worker.settings.with_(speed=math.inf))
+        qtbot.wait(200)
+        before = worker.iterations
+        worker.pause()
+        count = len(feed.frames)
+        qtbot.wait(300)
+        late = [f for _, f in feed.frames[count:] if f.iteration > before + 1]
+        assert not late and len(feed.frames) - count <= MAX_IN_FLIGHT + 1
+        worker.resume()
+        qtbot.waitUntil(lambda: len(feed.frames) > count + 3, timeout=5000)
+
+        # reset: the thread ends at once
+        start = time.perf_counter()
+        assert feed.runner.stop()
+        assert time.perf_counter() - start < 1.0
+
+
+# -- the true rate -----------------------------------------------------------------------
+
+
+def test_frames_count_the_integrator_steps_and_the_rate_is_true(qtbot, pendulum):
+    built, compiled = pendulum
+    settings = RunSettings(method=built.method, speed=math.inf)
+    with Feed(compiled, settings) as feed:
+        qtbot.waitUntil(lambda: len(feed.frames) > 30, timeout=60000)
+    main = feed.store.main
+    dt = main.setting_value
+    assert main.setting == "dt" and dt > 0
+    # every step of a fixed-step run is counted once: t = n dt
+    assert main.steps == sum(frame.steps for _, frame in feed.frames)
+    assert main.steps == pytest.approx(main.last_t / dt, abs=1.0)
+    # the rate over the run agrees with the simulated time covered per wall second
+    (w0, first), (w1, last) = feed.frames[0], feed.frames[-1]
+    t0 = max(block.t[-1] for _, block in first.blocks)
+    t1 = max(block.t[-1] for _, block in last.blocks)
+    assert feed.meter.rate() == pytest.approx((t1 - t0) / dt / (w1 - w0), rel=1e-5)
+    assert 1e3 < feed.meter.rate() < 1e9
+
+
+def test_rate_meter_divides_the_steps_by_the_time_they_took():
+    meter = RateMeter(window=1.0)
+    assert meter.rate() is None
+    meter.add(10.0, 500)  # steps done before the first look are not timed
+    assert meter.rate() is None
+    meter.add(10.1, 100)
+    meter.add(10.4, 200)
+    assert meter.rate() == pytest.approx(300 / 0.4)
+    for k in range(1, 31):  # frames every 0.1 s, 50 steps each: 500 steps/s
+        meter.add(10.4 + 0.1 * k, 50)
+    assert meter.rate() == pytest.approx(500.0)
+    assert meter.rate(now=13.5) == pytest.approx(500.0)
+    assert meter.rate(now=20.0) is None  # nothing came for longer than the window
+    meter.clear()
+    assert meter.rate() is None
+
+
+# -- panels read stores with gaps and thinning ---------------------------------------------
+
+
+def test_panels_draw_a_store_with_gaps_through_a_thinning(qtbot, pendulum):
+    from explorer.panels.configuration_view import ConfigurationView
+    from explorer.panels.conserved_view import ConservedView
+    from explorer.panels.phase_view import PhaseView
+
+    built, compiled = pendulum
+    period = pendulum_period(compiled)
+    store = TrajectoryStore(n_points=len(compiled.point_names), capacity=4096)
+    trajectory = store.add(compiled.initial_state())
+    views = [PhaseView(), ConfigurationView(), ConservedView()]
+    views[0].set_system(compiled, compiled.initial_state())
+    views[1].set_system(compiled)
+    views[2].set_system(compiled)
+    for view in views:
+        qtbot.addWidget(view)
+    from systems.simulation import Run
+
+    run = Run(compiled, method=built.method, max_points=1 << 15, energy_tolerance=None)
+    generation = store.generation
+    while store.generation == generation or trajectory.last_t < 20 * period:
+        block = run.advance(0.01)
+        rows = slice(len(block.t) // 2, None)  # half of each block left out: gaps
+        gap = SimpleNamespace(
+            t=np.concatenate([block.t[rows][:1], block.t[rows]]),
+            y=np.concatenate([np.full((1, 2), np.nan), block.y[rows]]),
+            diagnostics={},
+            status=block.status,
+            message="",
+            method=block.method,
+            steps=len(block.t),
+            rhs_evaluations=0,
+        )
+        store.append(0, gap)
+        for view in views:
+            view.refresh(store)
+    assert is_gap(trajectory.y.data).any()
+    energy = trajectory.energy.data
+    real = ~is_gap(trajectory.y.data)
+    assert np.isfinite(energy[real]).all() and np.isnan(energy[~real]).all()
+    points = trajectory.points.data
+    assert np.isfinite(points[-1]).all() and np.isnan(points[~real]).all()
