@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +45,7 @@ from explorer.preferences import Preferences
 from explorer.session.script import line
 from explorer.trajectories import TrajectoryStore
 from explorer.wheel_guard import install_wheel_guard
-from explorer.worker import RunSettings, SimulationWorker, WorkerThread
+from explorer.worker import RateMeter, RunSettings, SimulationWorker, WorkerThread
 
 REDRAW_MS = 25
 PARAMETER_DEBOUNCE_MS = 80
@@ -84,7 +83,7 @@ class MainWindow(QMainWindow):
         self.runner: WorkerThread | None = None
         self._generation = 0
         self._speed = 1.0
-        self._rate_window: deque = deque(maxlen=40)
+        self.rate_meter = RateMeter()
         self._last_error = math.nan
         self.redraws = 0
         self.panel_refreshes = 0  # redraws of the phase view (for the speed benchmark)
@@ -642,7 +641,7 @@ class MainWindow(QMainWindow):
             worker.pause()
         self.runner = WorkerThread(worker)
         self.runner.start()
-        self._rate_window.clear()
+        self.rate_meter.clear()
         self.method_label.setText("")
 
     def _stop_worker(self, closing_within: float | None = None) -> None:
@@ -666,12 +665,10 @@ class MainWindow(QMainWindow):
     def _on_worker_blocks_ready(self, frame) -> None:
         if frame.generation != self._generation:
             return  # a late frame from a replaced worker
-        steps = 0
         for key, block in frame.blocks:
             self.store.append(key, block)
-            steps += int(block.steps)
-        self._rate_window.append((time.perf_counter(), steps))
-        if steps:
+        self.rate_meter.add(time.perf_counter(), frame.steps)
+        if frame.steps:
             self.builder.frame_shown()  # the builder may go on to the slower layout work
         self.frame_received.emit()
 
@@ -821,20 +818,20 @@ class MainWindow(QMainWindow):
         if main is None:
             return
         self.time_label.setText(f"t = {main.last_t:.4g}")
-        if len(self._rate_window) >= 2:
-            (t0, _), (t1, _) = self._rate_window[0], self._rate_window[-1]
-            steps = sum(s for _, s in list(self._rate_window)[1:])
-            if t1 > t0:
-                rate = f"{steps / (t1 - t0):.3g} steps/s"
-                tip = "steps of the main orbit per second of wall time"
-                if not self.compiled.handed_over:
-                    rate += " (interpreted)"
-                    tip = (
-                        "numba is compiling this scene's kernels; until it is done they "
-                        "run as plain Python, the same steps about 100 times slower"
-                    )
-                self.rate_label.setText(rate)
-                self.rate_label.setToolTip(tip)
+        rate = self.rate_meter.rate(time.perf_counter())
+        if rate is None:
+            self.rate_label.setText("" if self.controls.playing else "paused")
+        else:
+            text = f"{rate:.3g} steps/s"
+            tip = "integrator steps per second of wall time, all orbits together"
+            if not self.compiled.handed_over:
+                text += " (interpreted)"
+                tip = (
+                    "numba is compiling this scene's kernels; until it is done they "
+                    "run as plain Python, the same steps about 100 times slower"
+                )
+            self.rate_label.setText(text)
+            self.rate_label.setToolTip(tip)
         cls = self.compiled.mechanics.classification
         with np.errstate(all="ignore"):
             H = self.compiled.hamiltonian(
@@ -1035,31 +1032,53 @@ class MainWindow(QMainWindow):
         return self._show_text("Session scripts", _document("sessions.md"))
 
     def export_panel_dialog(self, key: str) -> None:
+        """File > Export: the format and size (or CSV thinning) first, then the file."""
+        from explorer.export_dialog import ExportDialog
+
+        target = self.panels[key].export_target()
+        options = ExportDialog.ask(target.size(), self, title=f"Export the {key} view")
+        if options is None:
+            return
         path, _ = QFileDialog.getSaveFileName(
             self,
-            "Export figure",
-            str(Path(self._dialog_folder()) / f"{key}.png"),
-            "PNG image (*.png);;SVG drawing (*.svg)",
+            "Export",
+            str(Path(self._dialog_folder()) / f"{key}{options.suffix}"),
+            options.file_filter,
         )
-        if path:
-            try:
-                self.export_panel(key, path)
-            except (OSError, ValueError) as exc:
-                self.statusBar().showMessage(f"could not export {path}: {exc}", 10000)
+        if not path:
+            return
+        try:
+            if options.format == "csv":
+                self.export_csv(path, every=options.every, points=options.points)
+            else:
+                self.export_panel(key, path, options.size)
+        except (OSError, ValueError) as exc:
+            self.statusBar().showMessage(f"could not export {path}: {exc}", 10000)
 
-    def export_panel(self, key: str, path: str | Path) -> Path:
-        """Render a panel to PNG or SVG (chosen by the suffix of ``path``)."""
-        from explorer.export import export_widget
+    def export_panel(self, key: str, path: str | Path, size=None) -> Path:
+        """Render a panel to PNG or SVG (chosen by the suffix of ``path``), at ``size``
+        (width, height) in pixels; by default twice the panel's size on screen."""
+        from explorer.export import export_widget, scaled_size
 
         panel = self.panels[key]
         if key != "workprecision":
             panel.refresh(self.store)
-        written = export_widget(panel.export_target(), path)
+        target = panel.export_target()
+        if size is None:
+            size = scaled_size((target.width(), target.height()))
+        written = export_widget(target, path, size)
         self.acted.emit(line("export", key, str(path)))
         self.statusBar().showMessage(f"wrote {written}", 5000)
         return written
 
     def _on_export_csv_triggered(self) -> None:
+        from explorer.export_dialog import ExportDialog
+
+        options = ExportDialog.ask(
+            self.phase_view.size(), self, formats=("csv",), format="csv", title="Export CSV"
+        )
+        if options is None:
+            return
         path, _ = QFileDialog.getSaveFileName(
             self,
             "Export trajectories",
@@ -1068,17 +1087,22 @@ class MainWindow(QMainWindow):
         )
         if path:
             try:
-                self.export_csv(path)
-            except OSError as exc:
+                self.export_csv(path, every=options.every, points=options.points)
+            except (OSError, ValueError) as exc:
                 self.statusBar().showMessage(f"could not export {path}: {exc}", 10000)
 
-    def export_csv(self, path: str | Path) -> Path:
-        """Write every trajectory (t, q, q_dot, p_q, H; an ``orbit`` column) to CSV."""
+    def export_csv(
+        self, path: str | Path, every: int | None = None, points: int | None = None
+    ) -> Path:
+        """Write every trajectory (t, q, q_dot, p_q, H; an ``orbit`` column) to CSV, every
+        ``every``-th row or ``points`` rows evenly in time (default: every row kept)."""
         from explorer.export import write_trajectories_csv
 
         if self.compiled is None:
             raise RuntimeError("no system is open")
-        written = write_trajectories_csv(self.compiled, list(self.store), path)
+        written = write_trajectories_csv(
+            self.compiled, list(self.store), path, every=every, points=points
+        )
         self.acted.emit(line("export", "csv", str(path)))
         return written
 

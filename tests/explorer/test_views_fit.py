@@ -337,7 +337,7 @@ def test_right_click_on_an_orbit_offers_to_delete_it(qtbot, window):
     i = int(np.flatnonzero(np.isfinite(x))[len(x) // 2])
     assert phase.orbit_at(x[i], y[i]) == 1
     menu, texts = _right_click_menu(qtbot, phase, x[i], y[i])
-    assert texts[0] == ("Delete this orbit (orbit 2)", True)
+    assert texts[0] == ("Delete this orbit (orbit 1)", True)
     assert any("View All" in t for t, _ in texts)  # pyqtgraph's own menu is still there
     with qtbot.waitSignal(phase.orbit_delete_requested, timeout=2000) as signal:
         menu.actions()[0].trigger()
