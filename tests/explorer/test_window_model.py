@@ -30,7 +30,7 @@ from explorer.labels import coordinate_label, momentum_label
 from systems.scene import catalogue
 
 EXAMPLES = int(os.environ.get("GUI_MODEL_EXAMPLES", "200"))
-STEPS = 5
+STEPS = 4
 SETTLE_SECONDS = 60.0
 CATALOGUE = [entry.name for entry in catalogue()]
 PICK = st.integers(0, 63)  # an index into a list the window decides (taken modulo its length)
