@@ -357,4 +357,23 @@ def write_svg(
         for group in items.values():
             for item in group:
                 item.setVisible(True)
+    _size_in_pixels(Path(path), width, height)
     return counts
+
+
+def _size_in_pixels(path: Path, width: int, height: int) -> None:
+    """Give the drawing its size in pixels, not the millimetres QSvgGenerator writes.
+
+    Converted back at 96 dpi, the millimetres come out a hair above the whole pixel count
+    (1008.0000001), and renderers round that up: a last row and column left transparent.
+    """
+    import re
+
+    text = path.read_text(encoding="utf-8")
+    text = re.sub(
+        r'<svg width="[^"]*" height="[^"]*"',
+        f'<svg width="{width}" height="{height}"',
+        text,
+        count=1,
+    )
+    path.write_text(text, encoding="utf-8")

@@ -304,7 +304,21 @@ c = 0.2
 
 
 def test_close_during_a_derivation_abandons_it(qtbot, monkeypatch, tmp_path, open_window):
+    import systems.mechanics
+
     monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")  # a derivation that runs
+    # sympy derives a triple pendulum in well under a second once warm: it is slowed
+    # down (pure Python, as sympy is) so that closing surely meets it running
+    real = systems.mechanics._derive
+
+    def slowed(scene):
+        if len(scene.coordinates) == 3:
+            end = time.monotonic() + 30
+            while time.monotonic() < end:
+                sum(range(1000))
+        return real(scene)
+
+    monkeypatch.setattr(systems.mechanics, "_derive", slowed)
     before = {t.ident for t in threading.enumerate()}
     win = open_window()
     # the builder is done with the pendulum (its equilibria, the last thing it sends)
@@ -315,7 +329,9 @@ def test_close_during_a_derivation_abandons_it(qtbot, monkeypatch, tmp_path, ope
     path.write_text(TRIPLE_PENDULUM, encoding="utf-8")
     request = win.open_scene(path)
     assert request
-    qtbot.wait(400)
+    # the derivation starts (a loaded machine may take a moment to schedule the builder)
+    qtbot.waitUntil(lambda: win.builder._worker._ident is not None, timeout=10000)
+    qtbot.wait(300)
     assert win.builder._worker._ident is not None, "the derivation should still be running"
     seconds = _timed_close(win)
     assert seconds < CLOSE_BOUND, f"closing took {seconds:.2f} s"
