@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
@@ -34,6 +33,7 @@ from explorer.worker import (
     WorkerThread,
     arc_keep,
 )
+from tests.explorer.test_worker import FakeBlock
 
 
 @pytest.fixture(scope="module")
@@ -223,18 +223,6 @@ def test_a_long_run_at_max_speed_keeps_the_store_bounded(qtbot):
     assert len(main.t) <= capacity and main.nbytes <= 8 * capacity * (1 + 2 + 1 + 2)
     assert main.steps == sum(frame.steps for _, frame in feed.frames) > 10 * capacity
     assert connected_steps(main.y.data[1:]).max() < 0.07  # samples 2 pi / 100 apart
-
-
-@dataclass(frozen=True)
-class FakeBlock:
-    t: np.ndarray
-    y: np.ndarray
-    diagnostics: dict = field(default_factory=dict)
-    status: str = "running"
-    message: str = ""
-    steps: int = 0
-    rhs_evaluations: int = 0
-    method: str = "fake"
 
 
 def test_past_the_row_budget_a_block_hands_its_latest_part_after_a_gap(qtbot):
