@@ -99,7 +99,7 @@ def _defining_expressions(scene) -> list[sympy.Expr]:
     expressions = []
     for name in fields:
         try:
-            expressions.append(sympy.sympify(scene.expression(name)))
+            expressions.append(scene.expression(name))  # already parsed (whitelist)
         except KeyError:  # a field the scene does not have (T and V given, not L)
             continue
     return expressions
