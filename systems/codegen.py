@@ -103,7 +103,7 @@ def _numba_can_skip_nrt() -> bool:
     return hasattr(CPUTargetOptions, "_nrt")
 
 
-def jit_wrappers(source: str) -> str:
+def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     """Lines that wrap every top-level function of ``source`` in ``njit``.
 
     Functions whose name ends in ``_parallel`` are compiled with ``parallel=True`` (for
@@ -113,14 +113,16 @@ def jit_wrappers(source: str) -> str:
     allocate nothing (steps, system functions, helpers) are compiled without reference
     counting (``_nrt=False``): every array they unpack from a tuple or hand on would
     otherwise cost an atomic increment and decrement, about 100 ns a leapfrog step, four
-    times the step itself.
+    times the step itself. With ``reference_counting`` every function keeps it: a system
+    function that allocates (the velocity solve of a system in matrix form) needs it, and
+    numba compiles a callee with its caller's flags.
     """
     lines = []
     for name in TOP_LEVEL_DEF.findall(source):  # a regex: ast.parse took 50 ms here
         options = "nogil=True, cache=True, error_model='numpy'"
         if name.endswith("_parallel"):
             options += ", parallel=True"
-        if not name.endswith(ALLOCATING) and _numba_can_skip_nrt():
+        if not (reference_counting or name.endswith(ALLOCATING)) and _numba_can_skip_nrt():
             options += ", _nrt=False"
         lines.append(f"{name} = njit({options})({name})")
     return "\n".join(lines) + "\n"
@@ -152,7 +154,8 @@ def build_module(system_source: str, *, with_templates: bool = True) -> ModuleTy
     body = textwrap.dedent(system_source).strip() + "\n\n"
     if with_templates:
         body += template_source().strip() + "\n\n"
-    source = HEADER + body + "\n" + jit_wrappers(body)
+    allocating = "np.empty(" in system_source
+    source = HEADER + body + "\n" + jit_wrappers(body, reference_counting=allocating)
     data = source.encode()
     key = hashlib.sha256(data).hexdigest()[:20]
     if key in _loaded:

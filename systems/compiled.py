@@ -19,6 +19,7 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
+from systems import calculus, matrix_solve
 from systems.codegen import build_module
 from systems.expressions import as_expr
 from systems.interpreted import KernelHandover
@@ -316,6 +317,8 @@ class _KernelWriter:
         npoints = len(scene.drawing.points) if scene.drawing else 0
         parts = [f"N_DOF = {n}\nN_POINTS = {npoints}\n"]
         state = self.unpack_state()
+        if mech.matrix_form is not None and wanted & {"rhs", "hamiltonian", "velocities"}:
+            parts.append(matrix_solve.kernel_source())
         if "rhs" in wanted:
             parts.append(self.function("rhs(t, y, P, out)", state, mech.hamilton_equations))
         if "hamiltonian" in wanted:
@@ -385,13 +388,52 @@ class _KernelWriter:
 
     def body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
         renamed = [as_expr(e).xreplace(self.rename) for e in exprs]
-        temporaries, reduced = sympy.cse(renamed, symbols=sympy.numbered_symbols("c"))
+        temporaries, reduced = calculus.cse(renamed)
         lines = [f"{s} = {self.printer.doprint(e)}" for s, e in temporaries]
         return lines, [self.printer.doprint(e) for e in reduced]
 
+    def solved_body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
+        """``body`` for a system in matrix form: the velocities in ``exprs`` are solved
+        from ``M(q, t) qdot = p - a(q, t)`` first (``systems.matrix_solve``).
+
+        One common-subexpression pass covers M, a and ``exprs``; the temporaries free of
+        velocities go before the solve, the others after it.
+        """
+        form = self.mech.matrix_form
+        qd = set(self.mech.qdot)
+        if form is None or not any(as_expr(e).free_symbols & qd for e in exprs):
+            return self.body(exprs)
+        n = self.mech.n
+        upper = [(i, j) for i in range(n) for j in range(i, n)]
+        entries = [form.mass_matrix[i, j] for i, j in upper] + list(form.shift)
+        renamed = [as_expr(e).xreplace(self.rename) for e in [*entries, *exprs]]
+        temporaries, reduced = calculus.cse(renamed)
+        velocity_names = {sympy.Symbol(self.rename[v].name) for v in qd}
+        before, after = [], []
+        for symbol, expr in temporaries:
+            if expr.free_symbols & velocity_names:
+                velocity_names.add(symbol)
+                after.append(f"{symbol} = {self.printer.doprint(expr)}")
+            else:
+                before.append(f"{symbol} = {self.printer.doprint(expr)}")
+        printed = [self.printer.doprint(e) for e in reduced]
+        lines = [*before, f"W = np.empty(({n}, {n + 2}))"]
+        for (i, j), value in zip(upper, printed, strict=False):
+            lines.append(f"W[{i}, {j}] = {value}")
+            lines.append(
+                f"W[{j}, {i}] = W[{i}, {j}]" if i != j else f"W[{i}, {n + 1}] = W[{i}, {i}]"
+            )
+        for i, (name, value) in enumerate(
+            zip(self.scene.momentum_names, printed[len(upper) :], strict=False)
+        ):
+            lines.append(f"W[{i}, {n}] = v_{name} - ({value})")
+        lines.append(f"solve_augmented(W, {n})")
+        lines += [f"v_{name} = W[{i}, {n}]" for i, name in enumerate(self.scene.velocity_names)]
+        return lines + after, printed[len(entries) :]
+
     def function(self, signature, unpack, exprs, pairs=False) -> str:
         lines = self.header(signature, unpack)
-        temps, values = self.body(exprs)
+        temps, values = self.solved_body(exprs)
         lines += temps
         for i, value in enumerate(values):
             target = f"out[{i // 2}, {i % 2}]" if pairs else f"out[{i}]"
@@ -400,7 +442,7 @@ class _KernelWriter:
 
     def scalar(self, signature, unpack, expr) -> str:
         lines = self.header(signature, unpack)
-        temps, values = self.body([expr])
+        temps, values = self.solved_body([expr])
         return _indent(lines + temps + [f"return {values[0]}"])
 
 

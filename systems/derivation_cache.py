@@ -26,6 +26,7 @@ from pathlib import Path
 
 import sympy
 
+import systems.calculus
 import systems.expressions
 import systems.mechanics
 import systems.scene
@@ -42,7 +43,7 @@ from systems.cache_integrity import (
 @cache
 def _code_version() -> str:
     digest = hashlib.sha256(MAGIC + sympy.__version__.encode())  # MAGIC: the file format
-    for module in (systems.expressions, systems.scene, systems.mechanics):
+    for module in (systems.expressions, systems.scene, systems.mechanics, systems.calculus):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import sympy
 
+from systems.calculus import Calculus, Unsupported, numeric_evaluator
 from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
 from systems.expressions import as_expr
 from systems.scene import Scene
@@ -73,6 +74,33 @@ class Classification:
 
 
 @dataclass(frozen=True, eq=False)
+class MatrixForm:
+    """The Legendre transform of ``L = qdot.M.qdot/2 + a.qdot + L0``, left unsolved.
+
+    For a system in matrix form, the velocity symbols qdot in ``Mechanics.velocities``,
+    ``hamiltonian`` and ``hamilton_equations`` stand for the solution of
+    ``M(q, t) qdot = p - a(q, t)``, which the kernels solve numerically at every
+    evaluation (``systems.matrix_solve``). Nothing of size n**2 or worse is ever formed
+    symbolically beyond M itself.
+
+    Attributes
+    ----------
+    mass_matrix : sympy.Matrix, shape (n, n)
+        M(q, t), symmetric; positive definite for a physical kinetic energy.
+    shift : sympy.Matrix, shape (n, 1)
+        a(q, t), the part of the momenta free of velocities (gyroscopic, moving frames).
+    rest : sympy.Expr
+        L0(q, t), the Lagrangian at zero velocity (-V for a natural system).
+    """
+
+    mass_matrix: sympy.Matrix
+    shift: sympy.Matrix
+    rest: sympy.Expr
+    constant: bool
+    """True if M depends on neither q nor t (only on parameters)."""
+
+
+@dataclass(frozen=True, eq=False)
 class Mechanics:
     """Everything derived from a scene. Expressions use the scene's own symbols.
 
@@ -87,6 +115,10 @@ class Mechanics:
     velocities : tuple of n expressions qdot_i(q, p, t)
     hamilton_equations : tuple of 2n expressions: (qdot_1..qdot_n, pdot_1..pdot_n)
     generalized_forces : tuple of n expressions Q_i(q, qdot, t) of the enabled effects
+    matrix_form : MatrixForm or None
+        Set when the Legendre transform is left to the kernels (large systems whose M is
+        not diagonal): then ``velocities`` are the velocity symbols themselves and qdot in
+        ``hamiltonian`` and ``hamilton_equations`` means M(q, t)^-1 (p - a(q, t)).
     """
 
     scene: Scene
@@ -109,6 +141,7 @@ class Mechanics:
     conserved: dict[str, sympy.Expr]
     classification: Classification
     separable_parts: tuple[sympy.Expr, sympy.Expr] | None = None
+    matrix_form: MatrixForm | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -251,11 +284,12 @@ class _Context:
         if expr == 0:
             return True
         free = sorted(expr.free_symbols, key=str)
+        evaluate = numeric_evaluator(expr)
         for _ in range(4):
-            values = {s: sympy.Float(self.rng.uniform(0.3, 1.7)) for s in free}
+            values = {s: self.rng.uniform(0.3, 1.7) for s in free}
             try:
-                value = complex(expr.xreplace(values).evalf(20))
-            except (TypeError, ValueError, ZeroDivisionError):
+                value = evaluate(values)
+            except (TypeError, ValueError, ZeroDivisionError, RuntimeError):
                 return False
             if not abs(value) <= ZERO_TOLERANCE:
                 return False
@@ -276,16 +310,23 @@ class _Context:
                 "of motion; check the kinetic energy",
                 "system.kinetic" if kinetic is not None else "system.lagrangian",
             )
-        momenta = tuple(sympy.diff(L, v) for v in qd)
-        M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
+        momenta, hessian, gradient, rest = self.lagrangian_parts(L)
+        M = sympy.Matrix(hessian)
         self.check_regular(M, "system.kinetic" if kinetic is not None else "system.lagrangian")
-        F = self.forcing(L, momenta, forces)
+        F = sympy.Matrix([gradient[i] + forces[i] - rest[i] for i in range(self.n)])
         zero_velocity = dict.fromkeys(qd, sympy.S.Zero)
         L0 = L.xreplace(zero_velocity)
         quadratic = _degree_at_most(L, qd, 2)
+        matrix_form = None
         if quadratic:
             a = sympy.Matrix([m.xreplace(zero_velocity) for m in momenta])
-            velocities, H = self.legendre_quadratic(M, a, L0)
+            if self.needs_matrix_form(M):
+                matrix_form = MatrixForm(M, a, L0, constant=False)
+                velocities = qd
+                shifted = [pi - ai for pi, ai in zip(self.p, a, strict=True)]
+                H = sum(s * v for s, v in zip(shifted, qd, strict=True)) / 2 - L0
+            else:
+                velocities, H = self.legendre_quadratic(M, a, L0)
         else:
             velocities = self.solve_velocities(momenta)
             H = _tidy(
@@ -293,9 +334,12 @@ class _Context:
                 - L.xreplace(dict(zip(qd, velocities, strict=True)))
             )
         to_velocities = dict(zip(qd, velocities, strict=True))
-        pdot = tuple(
-            _tidy((sympy.diff(L, q[i]) + forces[i]).xreplace(to_velocities)) for i in range(self.n)
-        )
+        if matrix_form is None:
+            pdot = tuple(
+                _tidy((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
+            )
+        else:  # the kernels' input, never shown at length: no simplification
+            pdot = tuple(gradient[i] + forces[i] for i in range(self.n))
         velocity_part = L - L0 if kinetic is None else kinetic
         if kinetic is None:
             kinetic, potential = L - L0, -L0
@@ -324,7 +368,38 @@ class _Context:
             natural=natural,
             is_energy=is_energy,
             time_dependent=time_dependent,
+            matrix_form=matrix_form,
         )
+
+    def lagrangian_parts(self, L) -> tuple[tuple, list[list], list, list]:
+        """(momenta, d2L/dqdot2, dL/dq, dp/dq.qdot + dp/dt) of ``L``; see
+        ``systems.calculus.Calculus.lagrangian_parts``. symengine where it can, sympy
+        otherwise."""
+        q, qd, t, n = self.q, self.qd, self.t, self.n
+        try:
+            momenta, hessian, gradient, rest = Calculus(
+                self.scene.symbols.values()
+            ).lagrangian_parts(L, q, qd, t)
+            return tuple(momenta), hessian, gradient, rest
+        except Unsupported:
+            pass
+        momenta = tuple(sympy.diff(L, v) for v in qd)
+        hessian = [[sympy.diff(momenta[i], qd[j]) for j in range(n)] for i in range(n)]
+        gradient = [sympy.diff(L, x) for x in q]
+        rest = [
+            sum((sympy.diff(momenta[i], q[j]) * qd[j] for j in range(n)), sympy.S.Zero)
+            + sympy.diff(momenta[i], t)
+            for i in range(n)
+        ]
+        return momenta, hessian, gradient, rest
+
+    def needs_matrix_form(self, M: sympy.Matrix) -> bool:
+        """True if the Legendre transform is left to the kernels: more than
+        ``SYMBOLIC_INVERSE_LIMIT`` coordinates, M not diagonal and not constant (a
+        constant M's inverse is a matrix of numbers and parameters, cheap to form)."""
+        if self.n <= SYMBOLIC_INVERSE_LIMIT or _is_diagonal(M):
+            return False
+        return bool(M.free_symbols & {*self.q, self.t})
 
     def forcing(self, L, momenta, forces) -> sympy.Matrix:
         """F in ``M qddot = F``: dL/dq + Q - (dp/dq) qdot - dp/dt, shape (n, 1)."""
@@ -348,7 +423,7 @@ class _Context:
                 matrix = [[complex(numeric[i, j]) for j in range(self.n)] for i in range(self.n)]
             except (TypeError, ValueError):
                 continue
-            if abs(_det(matrix)) > 1e-9 * max(1.0, _norm(matrix)) ** self.n:
+            if _well_conditioned(matrix):
                 return
         raise self.fail(
             "the Legendre transform is singular: the velocity Hessian d2L/dqdot2 has zero "
@@ -365,11 +440,8 @@ class _Context:
         elif self.n <= SYMBOLIC_INVERSE_LIMIT:
             det = _tidy(M.det(method="berkowitz"))
             inverse = M.adjugate() / det
-        else:
-            raise self.fail(
-                f"systems of more than {SYMBOLIC_INVERSE_LIMIT} coordinates are not supported "
-                "yet (the symbolic Legendre transform would be too large)"
-            )
+        else:  # constant: see needs_matrix_form
+            inverse = M.inv(method="LU")
         shifted = p - a
         velocities = tuple(_tidy(e) for e in inverse * shifted)
         H = _tidy((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
@@ -506,14 +578,16 @@ class _Context:
         natural,
         is_energy,
         time_dependent,
+        matrix_form=None,
     ) -> Mechanics:
         q, qd, p, t = self.q, self.qd, self.p, self.t
         has_effects = any(not self.vanishes(f) for f in forces)
-        H_explicit_t = H.has(t)
+        H_explicit_t = H.has(t) or (matrix_form is not None and matrix_form.mass_matrix.has(t))
         potential_t = potential is not None and as_expr(potential).has(t)
         conservative = not has_effects and not potential_t
         H_conserved = not has_effects and not H_explicit_t
-        separable = self.splits(H)
+        # in matrix form M depends on q (needs_matrix_form), so H cannot split
+        separable = matrix_form is None and self.splits(H)
         separable_parts = None
         if separable:
             zero_p = dict.fromkeys(p, sympy.S.Zero)
@@ -559,6 +633,7 @@ class _Context:
             conserved=conserved,
             classification=classification,
             separable_parts=separable_parts,
+            matrix_form=matrix_form,
         )
 
 
@@ -571,11 +646,22 @@ def _tidy(expr: sympy.Expr) -> sympy.Expr:
     denominator, and a 40-term sum to the 20th power has 10**14 terms.
     """
     expr = as_expr(expr)
-    if expr.count_ops() > 400 or expanded_terms(expr) > EXPANSION_LIMIT:
+    if _nodes_exceed(expr, 4000) or expr.count_ops() > 400:
+        return expr
+    if expanded_terms(expr) > EXPANSION_LIMIT:
         return expr
     tidy = sympy.cancel(sympy.together(expr))
     candidates = [expr, tidy, sympy.factor_terms(tidy)]
     return min(candidates, key=lambda e: (e.count_ops(), len(str(e))))
+
+
+def _nodes_exceed(expr: sympy.Expr, limit: int) -> bool:
+    """True if ``expr`` has more than ``limit`` nodes; stops counting there (count_ops
+    of a large expression costs more than the rest of its derivation)."""
+    for count, _ in enumerate(sympy.preorder_traversal(expr)):
+        if count >= limit:
+            return True
+    return False
 
 
 EXPANSION_LIMIT = 2000
@@ -666,11 +752,13 @@ def _is_diagonal(matrix: sympy.Matrix) -> bool:
     return all(matrix[i, j] == 0 for i in range(n) for j in range(n) if i != j)
 
 
-def _det(matrix: list[list[complex]]) -> complex:
+def _well_conditioned(matrix: list[list[complex]]) -> bool:
+    """True if the smallest singular value is not below 1e-9 of the largest.
+
+    A determinant test scales as the n-th power of the entries: it called a twelve-link
+    chain's mass matrix singular.
+    """
     import numpy as np
 
-    return complex(np.linalg.det(np.array(matrix, dtype=complex)))
-
-
-def _norm(matrix: list[list[complex]]) -> float:
-    return max(abs(v) for row in matrix for v in row)
+    values = np.linalg.svd(np.array(matrix, dtype=complex), compute_uv=False)
+    return bool(np.all(np.isfinite(values)) and values[0] > 0 and values[-1] > 1e-9 * values[0])
