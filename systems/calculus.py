@@ -77,6 +77,14 @@ class Calculus:
             raise Unsupported("a derivative symengine left unevaluated")
         return expr
 
+    def gradient(self, expr: sympy.Expr, variables: Sequence[sympy.Symbol]) -> list[sympy.Expr]:
+        """[d expr / d v for v in variables], by symengine (sympy if it cannot)."""
+        try:
+            engine = self.to_engine(expr)
+            return [self.to_sympy(engine.diff(self.variable(v))) for v in variables]
+        except Unsupported:
+            return [sympy.diff(expr, v) for v in variables]
+
     def lagrangian_parts(
         self,
         L: sympy.Expr,

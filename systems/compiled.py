@@ -354,14 +354,9 @@ class _KernelWriter:
             qu = self.unpack("y", scene.coordinates)
             parts.append(self.scalar("kinetic(y, P)", pu, T))
             parts.append(self.scalar("potential(t, y, P)", qu, V))
-            parts.append(
-                self.function("grad_kinetic(y, P, out)", pu, [sympy.diff(T, s) for s in mech.p])
-            )
-            parts.append(
-                self.function(
-                    "grad_potential(t, y, P, out)", qu, [sympy.diff(V, s) for s in mech.q]
-                )
-            )
+            gradient = calculus.Calculus(scene.symbols.values()).gradient
+            parts.append(self.function("grad_kinetic(y, P, out)", pu, gradient(T, mech.p)))
+            parts.append(self.function("grad_potential(t, y, P, out)", qu, gradient(V, mech.q)))
         if "drawing" in wanted:
             exprs = []
             for name, _, _ in scene.drawing.points if scene.drawing else ():

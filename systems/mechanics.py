@@ -258,6 +258,12 @@ class _Context:
         self.n = len(q)
         self.rng = random.Random(1234)
 
+    def tidy(self, expr: sympy.Expr) -> sympy.Expr:
+        """``_tidy`` for systems of up to ``SYMBOLIC_INVERSE_LIMIT`` coordinates; larger
+        ones keep their expressions as derived (simplifying each of a 32-particle
+        lattice's 64 equations cost 8 s, for a display no one reads in full)."""
+        return _tidy(expr) if self.n <= SYMBOLIC_INVERSE_LIMIT else as_expr(expr)
+
     def fail(self, reason: str, field: str | None = None) -> DerivationError:
         return DerivationError(reason, source=self.scene.source, field=field)
 
@@ -329,14 +335,14 @@ class _Context:
                 velocities, H = self.legendre_quadratic(M, a, L0)
         else:
             velocities = self.solve_velocities(momenta)
-            H = _tidy(
+            H = self.tidy(
                 sum(pi * vi for pi, vi in zip(self.p, velocities, strict=True))
                 - L.xreplace(dict(zip(qd, velocities, strict=True)))
             )
         to_velocities = dict(zip(qd, velocities, strict=True))
         if matrix_form is None:
             pdot = tuple(
-                _tidy((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
+                self.tidy((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
             )
         else:  # the kernels' input, never shown at length: no simplification
             pdot = tuple(gradient[i] + forces[i] for i in range(self.n))
@@ -401,19 +407,6 @@ class _Context:
             return False
         return bool(M.free_symbols & {*self.q, self.t})
 
-    def forcing(self, L, momenta, forces) -> sympy.Matrix:
-        """F in ``M qddot = F``: dL/dq + Q - (dp/dq) qdot - dp/dt, shape (n, 1)."""
-        q, qd, t = self.q, self.qd, self.t
-        return sympy.Matrix(
-            [
-                sympy.diff(L, q[i])
-                + forces[i]
-                - sum(sympy.diff(momenta[i], q[j]) * qd[j] for j in range(self.n))
-                - sympy.diff(momenta[i], t)
-                for i in range(self.n)
-            ]
-        )
-
     def check_regular(self, M: sympy.Matrix, field: str) -> None:
         """Refuse a Lagrangian whose velocity Hessian is singular everywhere sampled."""
         for _ in range(3):
@@ -438,13 +431,13 @@ class _Context:
         if _is_diagonal(M):  # any size: particles in Cartesian coordinates, lattices
             inverse = sympy.diag(*[1 / M[i, i] for i in range(self.n)])
         elif self.n <= SYMBOLIC_INVERSE_LIMIT:
-            det = _tidy(M.det(method="berkowitz"))
+            det = self.tidy(M.det(method="berkowitz"))
             inverse = M.adjugate() / det
         else:  # constant: see needs_matrix_form
             inverse = M.inv(method="LU")
         shifted = p - a
-        velocities = tuple(_tidy(e) for e in inverse * shifted)
-        H = _tidy((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
+        velocities = tuple(self.tidy(e) for e in inverse * shifted)
+        H = self.tidy((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
         return velocities, H
 
     def solve_velocities(self, momenta):
@@ -462,7 +455,7 @@ class _Context:
                 for m, pi in zip(momenta, self.p, strict=True)
             ]
             if all(self.vanishes(e) for e in back):
-                return tuple(_tidy(v) for v in velocities)
+                return tuple(self.tidy(v) for v in velocities)
         raise self.fail(
             "the momenta p = dL/dqdot could not be solved for the velocities, so the "
             "Hamiltonian cannot be formed; write L quadratic in the velocities, or give the "
@@ -478,12 +471,13 @@ class _Context:
             raise self.fail(
                 "the Hamiltonian does not depend on any momentum p_<q>", "system.hamiltonian"
             )
-        velocities = tuple(_tidy(sympy.diff(H, pi)) for pi in p)
+        calculus = Calculus(self.scene.symbols.values())
+        velocities = tuple(self.tidy(v) for v in calculus.gradient(H, p))
         L = momenta = M = F = None
         zero_momentum = dict.fromkeys(p, sympy.S.Zero)
         quadratic = _degree_at_most(H, p, 2)
         # from dH/dp (small), not H (the whole system) differentiated n**2 times
-        W = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(velocities[i], p[j]))
+        W = sympy.Matrix([calculus.gradient(v, p) for v in velocities])
         small = self.n <= SYMBOLIC_INVERSE_LIMIT or _is_diagonal(W)
         invertible = quadratic and small and self._regular(W)
         if invertible:
@@ -493,21 +487,25 @@ class _Context:
             else:
                 Winv = W.inv(method="ADJ")
             momenta_vec = Winv * (sympy.Matrix(qd) - b)
-            momenta = tuple(_tidy(e) for e in momenta_vec)
+            momenta = tuple(self.tidy(e) for e in momenta_vec)
             to_momenta = dict(zip(p, momenta, strict=True))
-            L = _tidy(sum(m * v for m, v in zip(momenta, qd, strict=True)) - H.xreplace(to_momenta))
-            M = sympy.Matrix(self.n, self.n, lambda i, j: sympy.diff(momenta[i], qd[j]))
-            F = self.forcing(L, momenta, forces)
+            L = self.tidy(
+                sum(m * v for m, v in zip(momenta, qd, strict=True)) - H.xreplace(to_momenta)
+            )
+            _, hessian, gradient, rest = self.lagrangian_parts(L)
+            M = sympy.Matrix(hessian)
+            F = sympy.Matrix([gradient[i] + forces[i] - rest[i] for i in range(self.n)])
         to_velocities = dict(zip(qd, velocities, strict=True))
+        force = calculus.gradient(H, q)
         pdot = tuple(
-            _tidy(-sympy.diff(H, q[i]) + forces[i].xreplace(to_velocities)) for i in range(self.n)
+            self.tidy(-force[i] + forces[i].xreplace(to_velocities)) for i in range(self.n)
         )
         H0 = H.xreplace(zero_momentum)
         kinetic_p, potential = H - H0, H0
         natural = quadratic and self.vanishes(_homogeneous_part(kinetic_p, p, 2) - kinetic_p)
         kinetic = None
         if momenta is not None:
-            kinetic = _tidy(kinetic_p.xreplace(dict(zip(p, momenta, strict=True))))
+            kinetic = self.tidy(kinetic_p.xreplace(dict(zip(p, momenta, strict=True))))
         cyclic = tuple(
             name for name, qi in zip(self.scene.coordinates, q, strict=True) if not H.has(qi)
         )
@@ -592,7 +590,7 @@ class _Context:
         if separable:
             zero_p = dict.fromkeys(p, sympy.S.Zero)
             V = H.xreplace(zero_p)
-            separable_parts = (_tidy(H - V), _tidy(V))
+            separable_parts = (self.tidy(H - V), self.tidy(V))
         classification = Classification(
             time_dependent=bool(time_dependent),
             conservative=bool(conservative),
@@ -605,7 +603,7 @@ class _Context:
         if H_conserved:
             if momenta is not None:
                 to_p = dict(zip(p, momenta, strict=True))
-                conserved["H"] = _tidy(H.xreplace(to_p))
+                conserved["H"] = self.tidy(H.xreplace(to_p))
             else:
                 conserved["H"] = H
         for name in cyclic:
