@@ -20,6 +20,7 @@ SCRIPTS = (
     "compile_latency",
     "gui_latency",
     "max_speed",
+    "large_systems",
 )
 
 
