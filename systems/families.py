@@ -50,6 +50,9 @@ def pendulum_chain(n: int, *, start: float = 0.4, drawing: bool = True) -> str:
         f'potential = "-m*g*l*({potential})"',
         "[initial]",
         *(f"{x} = {start * (1 + i / n):.6g}" for i, x in enumerate(q)),
+        "[view]",
+        "t_end = 20",
+        'phase = ["q1", "p_q1"]',
     ]
     if drawing:
         points, x, y = [], "0", "0"
@@ -71,7 +74,14 @@ def _pairs(names: list[str]) -> list[tuple[str, str]]:
     return list(zip(names, names[1:], strict=False))
 
 
-def fpu_chain(n: int, *, form: str = "tv", mode: int = 1, amplitude: float = 1.0) -> str:
+def fpu_chain(
+    n: int,
+    *,
+    form: str = "tv",
+    mode: int = 1,
+    amplitude: float = 1.0,
+    drawing: bool = True,
+) -> str:
     """The Fermi-Pasta-Ulam-Tsingou alpha chain of ``n`` unit masses with fixed ends.
 
     V = sum over the n + 1 bonds of d**2/2 + alpha*d**3/3 with d = q_{i+1} - q_i.
@@ -85,6 +95,9 @@ def fpu_chain(n: int, *, form: str = "tv", mode: int = 1, amplitude: float = 1.0
     mode : int
         The linear normal mode that carries all the energy at the start, as in FPU's
         experiment: q_i = amplitude * sin(pi * mode * i / (n + 1)).
+    drawing : bool
+        Add a ``[drawing]``: particle i at x = i + q_i (less (n + 1)/2, to centre the
+        chain) on a line between the two fixed walls, joined by the springs.
     """
     q = _names("q", n)
 
@@ -121,10 +134,26 @@ def fpu_chain(n: int, *, form: str = "tv", mode: int = 1, amplitude: float = 1.0
                 *start,
                 "[view]",
                 "t_end = 2000",
+                'phase = ["q1", "p_q1"]',
+                *(_fpu_drawing(q) if drawing else []),
             ]
         )
         + "\n"
     )
+
+
+def _fpu_drawing(q: list[str]) -> list[str]:
+    """The ``[view]`` area of the drawing and the ``[drawing]``: particle i at x = i + q_i,
+    shifted to centre the chain on the origin, on a line between two fixed walls, with
+    the springs between neighbours."""
+    centre = (len(q) + 1) / 2
+    points = [f'p{i} = ["{i - centre:g} + {x}", "0"]' for i, x in enumerate(q, start=1)]
+    points = [f'left = ["{-centre:g}", "0"]', *points, f'right = ["{centre:g}", "0"]']
+    names = ["left", *(f"p{i}" for i in range(1, len(q) + 1)), "right"]
+    links = ", ".join(f'["{a}", "{b}"]' for a, b in _pairs(names))
+    # the area of the drawing ([view] x and y): the chain across the whole width
+    area = f"ranges = {{ x = [{-centre - 1:g}, {centre + 1:g}], y = [-1, 1] }}"
+    return [area, "[drawing]", f"points = {{ {', '.join(points)} }}", f"links = [{links}]"]
 
 
 def pendulum_ring(n: int, *, start: float = 0.8) -> str:
@@ -141,7 +170,8 @@ def pendulum_ring(n: int, *, start: float = 0.8) -> str:
             [
                 f'title = "Ring of {n} coupled pendulums"',
                 f'description = "{n} pendulums on a circle, each joined to its neighbours by a '
-                'torsion spring; one starts displaced and its swing spreads around the ring."',
+                "torsion spring; one starts displaced and its swing spreads around the ring. "
+                'Drawn in a row: the last is coupled to the first."',
                 "[system]",
                 f"coordinates = {_toml_list(q)}",
                 "parameters = { m = 1.0, l = 1.0, g = 9.81, k = 2.0 }",
@@ -152,6 +182,21 @@ def pendulum_ring(n: int, *, start: float = 0.8) -> str:
                 "[view]",
                 f"angles = {_toml_list(q)}",
                 "t_end = 200",
+                'phase = ["q1", "p_q1"]',
+                "[drawing]",
+                "points = { "
+                + ", ".join(
+                    f'a{i + 1} = ["{2.5 * i:g}*l", "0"], '
+                    f'b{i + 1} = ["{2.5 * i:g}*l + l*sin({x})", "-l*cos({x})"]'
+                    for i, x in enumerate(q)
+                )
+                + " }",
+                "links = ["
+                + ", ".join(
+                    [f'["a{i + 1}", "a{i + 2}"]' for i in range(n - 1)]
+                    + [f'["a{i + 1}", "b{i + 1}"]' for i in range(n)]
+                )
+                + "]",
             ]
         )
         + "\n"
