@@ -86,7 +86,17 @@ def scalar_twin(native: ModuleType) -> ModuleType:
     if NUMBA_IMPORT not in source:
         raise RuntimeError(f"{path} does not import numba as systems.codegen writes it")
     source = source.replace(NUMBA_IMPORT, SCALAR_PRELUDE, 1)
-    return _execute(source, native.__name__ + "_scalar", path)
+    module = _execute(source, native.__name__ + "_scalar", path)
+    if hasattr(module, "solve_augmented"):
+        # the velocity solve of a system in matrix form: LAPACK instead of the kernels'
+        # loops, which in plain Python cost milliseconds a call for ten coordinates
+        module.solve_augmented = _solve_augmented_numpy
+    return module
+
+
+def _solve_augmented_numpy(W: np.ndarray, n: int) -> None:
+    """``systems.matrix_solve.solve_augmented`` by numpy (same result to round-off)."""
+    W[:, n] = np.linalg.solve(W[:, :n], W[:, n])
 
 
 def vector_twin(native: ModuleType, system_source: str) -> ModuleType:
