@@ -42,6 +42,41 @@ if symengine is not None:
             return (SceneSymbol, (str(self), self.original))
 
 
+_SYMPY_NODES = {
+    "Add": sympy.Add,
+    "Mul": sympy.Mul,
+    "Pow": sympy.Pow,
+    "sin": sympy.sin,
+    "cos": sympy.cos,
+    "tan": sympy.tan,
+    "log": sympy.log,
+    "sinh": sympy.sinh,
+    "cosh": sympy.cosh,
+    "tanh": sympy.tanh,
+    "asin": sympy.asin,
+    "acos": sympy.acos,
+    "atan": sympy.atan,
+    "atan2": sympy.atan2,
+    "Abs": sympy.Abs,
+}
+
+
+def _converted(value, memo: dict) -> sympy.Expr:
+    """``sympy.sympify(value)``, remembering every subexpression converted: a chain's
+    equations repeat the same products of sines and cosines hundreds of times, and
+    sympify converted each occurrence anew (two thirds of a twenty-link derivation)."""
+    found = memo.get(value)
+    if found is not None:
+        return found
+    node = _SYMPY_NODES.get(type(value).__name__)
+    if node is None or isinstance(value, SceneSymbol):
+        result = sympy.sympify(value)
+    else:
+        result = node(*(_converted(a, memo) for a in value.args))
+    memo[value] = result
+    return result
+
+
 class Calculus:
     """Derivatives of expressions in a fixed set of symbols.
 
@@ -54,6 +89,7 @@ class Calculus:
 
     def __init__(self, symbols: Iterable[sympy.Symbol]):
         self.symbols = tuple(symbols)
+        self._memo: dict = {}
         if symengine is not None:
             self._own = {s: SceneSymbol(s.name, s) for s in self.symbols}
             self._plain = {symengine.Symbol(s.name): self._own[s] for s in self.symbols}
@@ -72,7 +108,7 @@ class Calculus:
 
     def to_sympy(self, value) -> sympy.Expr:
         """A symengine result as sympy, in the scene's symbols."""
-        expr = sympy.sympify(value)
+        expr = _converted(value, self._memo)
         if expr.has(sympy.Derivative, sympy.Subs):
             raise Unsupported("a derivative symengine left unevaluated")
         return expr
@@ -184,3 +220,24 @@ def numeric_evaluator(expr: sympy.Expr):
         return complex(expr.xreplace({s: sympy.Float(v) for s, v in values.items()}).evalf(20))
 
     return evaluate_sympy
+
+
+def numeric_matrix(matrix: sympy.Matrix, values: dict) -> list[list[complex]]:
+    """The entries of ``matrix`` at the symbol values of a dict, as complex numbers.
+
+    symengine substitutes all entries at once (sympy's ``xreplace(...).evalf()`` of a
+    twenty-link chain's mass matrix took a second). Raises TypeError or ValueError where
+    an entry is not a number.
+    """
+    rows, cols = matrix.shape
+    if symengine is not None:
+        try:
+            engine = symengine.Matrix(matrix.tolist())
+        except (RuntimeError, TypeError, ValueError, NotImplementedError):
+            engine = None
+        if engine is not None:
+            plain = {symengine.Symbol(s.name): float(v) for s, v in values.items()}
+            numeric = engine.subs(plain)
+            return [[complex(numeric[i, j]) for j in range(cols)] for i in range(rows)]
+    numeric = matrix.xreplace(values).evalf()
+    return [[complex(numeric[i, j]) for j in range(cols)] for i in range(rows)]

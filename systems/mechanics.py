@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import sympy
 
-from systems.calculus import Calculus, Unsupported, numeric_evaluator
+from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix
 from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
 from systems.expressions import as_expr
 from systems.scene import Scene
@@ -411,10 +411,9 @@ class _Context:
         """Refuse a Lagrangian whose velocity Hessian is singular everywhere sampled."""
         for _ in range(3):
             values = self._random_state()
-            numeric = M.xreplace(values).evalf()
             try:
-                matrix = [[complex(numeric[i, j]) for j in range(self.n)] for i in range(self.n)]
-            except (TypeError, ValueError):
+                matrix = numeric_matrix(M, values)
+            except (TypeError, ValueError, RuntimeError):
                 continue
             if _well_conditioned(matrix):
                 return
