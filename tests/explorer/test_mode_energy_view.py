@@ -1,0 +1,90 @@
+"""The normal-mode energy view: shown with its curves for a lattice, hidden for a pendulum,
+a reason instead of numbers where modes do not apply, and cheap curves however long the run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from explorer.panels.mode_energy_view import MAX_CURVES, PeakBuckets
+from systems.families import fpu_chain
+from systems.scene import parse_scene
+from tests.explorer.conftest import wait_for_points
+
+
+def _opened(qtbot, window, scene) -> None:
+    """Open ``scene`` and wait until it runs and its modes are analysed."""
+    request = window.open_scene(scene)
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=120000
+    )
+    qtbot.waitUntil(lambda: window.mode_view.analysis is not None, timeout=30000)
+
+
+def _drawn(view) -> list[int]:
+    return [0 if c.xData is None else len(c.xData) for c in view._curves]
+
+
+@pytest.fixture
+def lattice_window(qtbot):
+    """The main window opened on an FPU chain of 8 particles, shown; closed after."""
+    from explorer.app import create_window
+
+    win = create_window(parse_scene(fpu_chain(8)))
+    win.show()
+    qtbot.waitUntil(lambda: win.compiled is not None, timeout=120000)
+    qtbot.waitUntil(lambda: win.mode_view.analysis is not None, timeout=30000)
+    yield win
+    win.close()
+    win.deleteLater()
+    qtbot.wait(10)
+
+
+def test_a_lattice_shows_its_mode_energies_and_a_pendulum_hides_them(qtbot, lattice_window):
+    window = lattice_window
+    dock, view = window.docks["modes"], window.mode_view
+    action = dock.toggleViewAction()
+    assert view.analysis.applies, view.analysis.reason
+    assert dock.isVisible() and action.isEnabled()
+    assert len(view._curves) == MAX_CURVES and len(view.legend.entries()) == MAX_CURVES
+    wait_for_points(qtbot, window, 30)
+    qtbot.waitUntil(lambda: min(_drawn(view)) >= 10, timeout=20000)
+    # at the start all the energy is in mode 1, and the energies add up to about H
+    main = window.store.main
+    energies = view.modes.energies(main.y.data[:1])[0]
+    H0 = window.compiled.hamiltonian(0.0, main.y.data[:1])[0]
+    assert energies[0] == pytest.approx(H0, rel=1e-3) and np.all(energies[1:] < 1e-12 * H0)
+    x, y = view._dots.getData()
+    assert len(x) == 8 and np.all(np.isfinite(y))
+    view.log_box.setChecked(True)  # the other scale redraws at once, without errors
+    assert min(_drawn(view)) >= 10
+    _opened(qtbot, window, "simple_pendulum")
+    assert dock.isHidden() and not action.isEnabled()
+    wait_for_points(qtbot, window, 5)
+    assert window.error_details == ""
+
+
+def test_where_modes_do_not_apply_the_view_says_why(qtbot, window):
+    dock, view = window.docks["modes"], window.mode_view
+    _opened(qtbot, window, "planetary_motion")
+    assert not view.analysis.applies
+    assert dock.isHidden() and not dock.toggleViewAction().isEnabled()
+    window.reset_layout()  # every dock comes back: this one with the reason, not numbers
+    assert not dock.isHidden()
+    assert view.stack.currentWidget() is view.message
+    assert "does not depend on theta" in view.message.text()
+    assert view._curves == []
+
+
+def test_peak_buckets_keep_two_points_per_column_and_every_extreme():
+    buckets = PeakBuckets(2, target=100)
+    t = np.linspace(0.0, 1000.0, 200001)
+    values = np.stack([np.sin(t), np.cos(3 * t)], axis=1)
+    values[123456, 0] = 5.0  # a single spike survives any merging
+    for start in range(0, len(t), 997):  # frames of any size
+        buckets.add(t[start : start + 997], values[start : start + 997])
+    assert 100 <= len(buckets) <= 200
+    x, y = buckets.points(0)
+    assert len(x) == 2 * len(buckets) and np.all(np.diff(x) >= 0)
+    assert y.max() == 5.0 and y.min() == pytest.approx(-1.0, abs=1e-6)
+    assert x[-1] <= 1000.0
