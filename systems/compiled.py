@@ -426,9 +426,16 @@ class _KernelWriter:
         lines += [f"v_{name} = W[{i}, {n}]" for i, name in enumerate(self.scene.velocity_names)]
         return lines + after, printed[len(entries) :]
 
+    def _body_for(self, signature: str, exprs) -> tuple[list[str], list[str]]:
+        """Functions of the state y = (q, p) solve for the velocities of a system in
+        matrix form; functions given (q, qdot) (momenta, the Lagrangian) take them as is."""
+        if "qdot" in signature:
+            return self.body(exprs)
+        return self.solved_body(exprs)
+
     def function(self, signature, unpack, exprs, pairs=False) -> str:
         lines = self.header(signature, unpack)
-        temps, values = self.solved_body(exprs)
+        temps, values = self._body_for(signature, exprs)
         lines += temps
         for i, value in enumerate(values):
             target = f"out[{i // 2}, {i % 2}]" if pairs else f"out[{i}]"
@@ -437,7 +444,7 @@ class _KernelWriter:
 
     def scalar(self, signature, unpack, expr) -> str:
         lines = self.header(signature, unpack)
-        temps, values = self.solved_body([expr])
+        temps, values = self._body_for(signature, [expr])
         return _indent(lines + temps + [f"return {values[0]}"])
 
 

@@ -17,6 +17,11 @@ import sympy
 
 from systems.expressions import as_expr
 
+try:
+    import symengine
+except ImportError:  # pragma: no cover - a dependency; sympy alone is only slower
+    symengine = None
+
 
 def solve_augmented(W, n):
     """Solve ``M x = b`` in place for the augmented array ``W = [M | b | diag(M)]``.
@@ -89,6 +94,27 @@ def kernel_source() -> str:
     return inspect.getsource(solve_augmented)
 
 
+def lambdify_cse(exprs):
+    """``sympy.cse`` for ``sympy.lambdify(..., cse=lambdify_cse)``, by symengine where it
+    can: sympy's took seconds on a chain's Hamilton's equations.
+
+    symengine names its temporaries ``x<k>`` avoiding every name in the expressions and
+    gives back plain symbols; ``lambdify`` prints symbols by name, so they need not be
+    turned back into the scene's (an ``xreplace`` cost more than the elimination).
+    """
+    exprs = [as_expr(e) for e in (exprs if isinstance(exprs, (list, tuple)) else [exprs])]
+    if symengine is not None:
+        try:
+            temporaries, reduced = symengine.cse([symengine.sympify(e) for e in exprs])
+            return (
+                [(sympy.sympify(t), sympy.sympify(e)) for t, e in temporaries],
+                [sympy.sympify(e) for e in reduced],
+            )
+        except (RuntimeError, TypeError, ValueError, NotImplementedError):
+            pass
+    return sympy.cse(exprs, list=False)
+
+
 def state_function(
     mechanics, exprs: Sequence[sympy.Expr], parameters: dict
 ) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -112,18 +138,80 @@ def state_function(
     n = mechanics.n
     q, qd, p, t = mechanics.q, mechanics.qdot, mechanics.p, mechanics.t
     values = [as_expr(e).xreplace(parameters) for e in exprs]
-    f = sympy.lambdify((t, q, qd, p), values, modules="math", cse=True)
+    f = sympy.lambdify((t, q, qd, p), values, modules="math", cse=lambdify_cse)
     form = mechanics.matrix_form
     if form is None:
         return lambda time, y: np.array(f(time, y[:n], np.zeros(n), y[n:]), dtype=float)
-    blocks = [form.mass_matrix.xreplace(parameters), form.shift.xreplace(parameters)]
-    g = sympy.lambdify((t, q), blocks, modules="math", cse=True)
+    # flat lists: a Matrix would be printed as ImmutableDenseMatrix, unknown to "math"
+    blocks = [as_expr(e).xreplace(parameters) for e in (*form.mass_matrix, *form.shift)]
+    g = sympy.lambdify((t, q), blocks, modules="math", cse=lambdify_cse)
 
     def evaluate(time: float, y: np.ndarray) -> np.ndarray:
-        M, a = g(time, y[:n])
-        M = np.array(M, dtype=float).reshape(n, n)
-        a = np.array(a, dtype=float).reshape(n)
+        values = np.array(g(time, y[:n]), dtype=float)
+        M = values[: n * n].reshape(n, n)
+        a = values[n * n :]
         velocities = np.linalg.solve(M, y[n:] - a)
         return np.array(f(time, y[:n], velocities, y[n:]), dtype=float)
 
     return evaluate
+
+
+def batch_velocities(
+    mechanics, parameters: dict
+) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """The velocities of many states of a system in matrix form, solved numerically.
+
+    Parameters
+    ----------
+    mechanics : systems.mechanics.Mechanics
+        With ``matrix_form`` set.
+    parameters : dict
+        Parameter symbol -> value, substituted before lambdifying.
+
+    Returns
+    -------
+    callable
+        ``f(t, Q, P) -> Qdot``: ``t`` scalar or shape (K,), ``Q`` and ``P`` shape (K, n),
+        ``Qdot`` shape (K, n), solving ``M(q, t) qdot = p - a(q, t)`` state by state with
+        one stacked ``numpy.linalg.solve``. A state whose M is singular or not finite
+        gets nan velocities.
+    """
+    form = mechanics.matrix_form
+    if form is None:
+        raise ValueError("batch_velocities: the system is not in matrix form")
+    n = mechanics.n
+    upper = [(i, j) for i in range(n) for j in range(i, n)]
+    entries = [as_expr(form.mass_matrix[i, j]).xreplace(parameters) for i, j in upper]
+    entries += [as_expr(e).xreplace(parameters) for e in form.shift]
+    g = sympy.lambdify((mechanics.t, *mechanics.q), entries, modules="numpy", cse=lambdify_cse)
+    rows = np.array([i for i, _ in upper])
+    cols = np.array([j for _, j in upper])
+
+    def velocities(t, Q: np.ndarray, P: np.ndarray) -> np.ndarray:
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        K = len(Q)
+        t = np.broadcast_to(np.asarray(t, dtype=float), (K,))
+        with np.errstate(all="ignore"):
+            values = g(t, *Q.T)
+            columns = np.empty((len(entries), K))
+            for k, value in enumerate(values):
+                columns[k] = np.broadcast_to(np.asarray(value, dtype=float), (K,))
+        M = np.empty((K, n, n))
+        M[:, rows, cols] = columns[: len(upper)].T
+        M[:, cols, rows] = columns[: len(upper)].T
+        rhs = P - columns[len(upper) :].T
+        out = np.full((K, n), np.nan)
+        good = np.all(np.isfinite(M), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=1)
+        if np.any(good):
+            try:
+                out[good] = np.linalg.solve(M[good], rhs[good][..., None])[..., 0]
+            except np.linalg.LinAlgError:  # some M singular: one by one
+                for k in np.flatnonzero(good):
+                    try:
+                        out[k] = np.linalg.solve(M[k], rhs[k])
+                    except np.linalg.LinAlgError:
+                        pass
+        return out
+
+    return velocities

@@ -8,16 +8,37 @@ scene's own names.
 
 from __future__ import annotations
 
+import random
 import re
+import weakref
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
 import sympy
 
+from systems.calculus import Calculus, Unsupported
 from systems.display import display_names, for_display
+
+try:
+    import symengine
+except ImportError:  # pragma: no cover - a dependency; sympy alone is only slower
+    symengine = None
 
 if TYPE_CHECKING:
     from systems.mechanics import Mechanics
     from systems.scene import Scene
+
+PRETTY_NODES = 300
+"""Expressions with more nodes are shown on one line: sympy's two-dimensional layout costs
+more than linear time, and a twenty-link chain's equations are thousands of nodes."""
+
+PRETTY_CHARS = 600
+"""The same limit for a symengine expression, by the length of its text."""
+
+SORTED_NODES = 2000
+"""Expressions with more nodes are printed without sorting their terms (``order="none"``):
+sorting a sum of thousands of products cost seconds."""
 
 
 def one_line(expression: sympy.Basic) -> str:
@@ -34,7 +55,12 @@ def one_line(expression: sympy.Basic) -> str:
         ``sympy.sstr`` with squares, cubes and fourth powers as superscripts, π, ``·`` for
         products and ``−`` for minus.
     """
-    text = sympy.sstr(expression)
+    text = sympy.sstr(expression, order="none" if _larger(expression, SORTED_NODES) else None)
+    return _glyphs(text)
+
+
+def _glyphs(text: str) -> str:
+    """Powers as superscripts, π, ``·`` and ``−`` in the text of an expression."""
     for power, glyph in (("**2", "²"), ("**3", "³"), ("**4", "⁴")):
         text = text.replace(power, glyph)
     text = re.sub(r"\bpi\b", "π", text)
@@ -59,6 +85,14 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         Title, coordinates and parameters, L, Lagrange's equations, accelerations, momenta,
         H, Hamilton's equations, classification, conserved quantities and (optionally)
         equilibria, one block each.
+
+        For a system in matrix form (``Mechanics.matrix_form``) Lagrange's equations are
+        ``M q̈ = F`` with M's entries on and above the diagonal and F entry by entry, H is
+        ``½ (p − a)ᵀ M⁻¹ (p − a) − L₀`` with a and L₀, and a sentence
+        (``matrix_form_sentence``) says that the velocities are solved numerically at
+        every step; those parts are tidied (``_Compact``), checked against the
+        derivation. Expressions beyond ``PRETTY_NODES`` nodes are printed on one line, so
+        a twenty-link chain is laid out in about a second.
     """
     scene = mechanics.scene
     shown = display_names(scene)
@@ -70,6 +104,30 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
     lines.append(f"coordinates: {coordinates}; parameters: {params}")
     if scene.enabled_effects():
         lines.append(f"effects on: {', '.join(scene.enabled_effects())}")
+    if mechanics.matrix_form is not None:
+        lines += _matrix_form_lines(mechanics, shown)
+    else:
+        lines += _closed_form_lines(mechanics, shown)
+    lines += ["", "Classification", "--------------"]
+    lines += [f"- {sentence}" for sentence in mechanics.classification.describe()]
+    cyclic = ", ".join(shown[q] for q in mechanics.cyclic) or "none"
+    lines.append(f"- cyclic coordinates: {cyclic}")
+    if mechanics.conserved:
+        conserved = dict(mechanics.conserved)
+        if mechanics.matrix_form is not None:
+            conserved.update(_compact(mechanics).conserved)
+        rows = [(shown.get(name, name), expr) for name, expr in conserved.items()]
+        lines += _block("Conserved quantities", rows, scene)
+    if equilibria:
+        lines += _equilibria_lines(mechanics)
+    return "\n".join(lines)
+
+
+def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]:
+    """L, Lagrange's equations, accelerations, momenta, H and Hamilton's equations, each
+    in closed form."""
+    scene = mechanics.scene
+    lines: list[str] = []
     if mechanics.lagrangian is not None:
         lines += _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
         equations = [(f"({i + 1})", eq) for i, eq in enumerate(mechanics.lagrange_equations())]
@@ -90,16 +148,71 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         for name, expr in zip(names, mechanics.hamilton_equations, strict=True)
     ]
     lines += _block("Hamilton's equations", rows, scene)
-    lines += ["", "Classification", "--------------"]
-    lines += [f"- {sentence}" for sentence in mechanics.classification.describe()]
-    cyclic = ", ".join(shown[q] for q in mechanics.cyclic) or "none"
-    lines.append(f"- cyclic coordinates: {cyclic}")
-    if mechanics.conserved:
-        rows = [(shown.get(name, name), expr) for name, expr in mechanics.conserved.items()]
-        lines += _block("Conserved quantities", rows, scene)
-    if equilibria:
-        lines += _equilibria_lines(mechanics)
-    return "\n".join(lines)
+    return lines
+
+
+def matrix_form_sentence(mechanics: Mechanics) -> str:
+    """Why a system in matrix form has no closed-form velocities, in one sentence."""
+    return (
+        "The velocities q̇ = M⁻¹(p − a) are solved numerically at every step (a Cholesky "
+        f"factorisation of M), because their closed form for {mechanics.n} coordinates "
+        "with a coupled mass matrix would be too large; q̇ below stands for that solution."
+    )
+
+
+def _matrix_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]:
+    """The derivation of a system in matrix form: M and F of ``M q̈ = F`` entry by entry,
+    the momenta, H as ``½ (p − a)ᵀ M⁻¹ (p − a) − L₀`` and Hamilton's equations with the
+    velocities left to the numerical solve."""
+    scene = mechanics.scene
+    compact = _compact(mechanics)
+    n = mechanics.n
+    names = list(scene.coordinates)
+    index = [_subscript(i, n) for i in range(n)]
+    lines = _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
+    title = "Lagrange's equations: M q̈ = F"
+    lines += ["", title, "-" * len(title)]
+    lines.append(
+        "M = ∂²L/∂q̇∂q̇ is symmetric; its entries on and above the diagonal, then F "
+        "(∂L/∂q, less the parts of d/dt ∂L/∂q̇ without accelerations, plus the effects):"
+    )
+    for i in range(n):  # one line each, renamed as text: n (n + 1) / 2 of them
+        for j in range(i, n):
+            entry = _display_text(_text(compact.mass_matrix[i][j]), shown)
+            lines.append(f"M{index[i]},{index[j]} = {entry}")
+    lines += _rows([(f"F{index[i]}", compact.forcing[i]) for i in range(n)], scene)
+    lines.append(
+        f"(the accelerations are not formed symbolically: M, {n} by {n} and coupled, is "
+        "factorised numerically at every step)"
+    )
+    title = "Generalized momenta p = ∂L/∂q̇ = M q̇ + a"
+    lines += ["", title, "-" * len(title)]
+    rows = [(shown[f"p_{q}"], m) for q, m in zip(names, compact.momenta, strict=True)]
+    lines += _rows(rows, scene)
+    lines += ["", "Hamiltonian", "-----------"]
+    lines.append("H = ½ (p − a)ᵀ M⁻¹ (p − a) − L₀, with M as above,")
+    if all(a == 0 for a in compact.shift):
+        lines.append("a = ∂L/∂q̇ at q̇ = 0: zero (no terms linear in the velocities), and")
+    else:
+        lines.append("a = ∂L/∂q̇ at q̇ = 0 (the terms linear in the velocities):")
+        lines += _rows([(f"a{index[i]}", a) for i, a in enumerate(compact.shift)], scene)
+    lines += _rows([("L₀ = L at q̇ = 0", compact.rest)], scene)
+    lines.append(matrix_form_sentence(mechanics))
+    lines += _rows([("H = (p − a)·q̇/2 − L₀", compact.hamiltonian)], scene)
+    title = "Hamilton's equations (q̇ solved from M q̇ = p − a)"
+    lines += ["", title, "-" * len(title)]
+    rows = [(f"d{shown[q]}/dt", sympy.Symbol(f"{q}_dot")) for q in names]
+    rows += [
+        (f"d{shown[f'p_{q}']}/dt = ∂L/∂{shown[q]} + Q{index[i]}", e)
+        for i, (q, e) in enumerate(zip(names, compact.pdot, strict=True))
+    ]
+    lines += _rows(rows, scene)
+    return lines
+
+
+def _subscript(i: int, n: int) -> str:
+    """Subscript digits of coordinate ``i`` (0-based) of ``n``: ₁, ₁₂."""
+    return str(i + 1).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
 
 
 def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[str], str]:
@@ -153,9 +266,21 @@ def derivation_json(mechanics: Mechanics) -> dict:
     dict
         ``title``, ``coordinates``, ``parameters``, ``lagrangian``, ``accelerations``
         (None when M cannot be solved symbolically), ``momenta``, ``hamiltonian``,
-        ``hamilton_equations``, ``cyclic``, ``conserved``, ``classification`` and
-        ``equilibria``, with the scene's own names; every expression is a string that
-        ``sympy.sympify`` reads back.
+        ``hamilton_equations``, ``cyclic``, ``conserved``, ``classification``,
+        ``equilibria``, ``matrix_form`` (bool), and ``mass_matrix``, ``shift`` and
+        ``rest`` (None unless ``matrix_form``), with the scene's own names; every
+        expression is a string that ``sympy.sympify`` reads back.
+
+        For a system in matrix form (``Mechanics.matrix_form``: many coordinates and a
+        coupled mass matrix) the velocities are not solved in closed form:
+        ``mass_matrix`` (n rows of n strings) is M(q, t) = ∂²L/∂q̇∂q̇, ``shift`` (n
+        strings) is a(q, t) = ∂L/∂q̇ at q̇ = 0 and ``rest`` is L0(q, t) = L at q̇ = 0, so
+        that ``L = q̇ᵀ M q̇/2 + a·q̇ + L0``; in ``hamiltonian`` (``(p - a)·q̇/2 - L0``) and
+        ``hamilton_equations`` (``q̇_i`` and ``∂L/∂q_i + Q_i``) each ``<q>_dot`` stands
+        for the solution of ``M q̇ = p - a``, which the integrators compute numerically
+        at every step; ``accelerations`` is None. M, a, the momenta ``M q̇ + a``, the
+        ``p_<q>`` equations and the conserved quantities are tidied for reading (sines
+        and cosines combined) where that was checked to give the same values.
     """
     from systems.mechanics import DerivationError
     from systems.textbook import equilibria_json
@@ -168,6 +293,21 @@ def derivation_json(mechanics: Mechanics) -> dict:
     except DerivationError:
         accelerations = None
     names = list(scene.coordinates) + list(scene.momentum_names)
+    momenta = mechanics.momenta
+    equations = list(mechanics.hamilton_equations)
+    conserved = dict(mechanics.conserved)
+    hamiltonian = mechanics.hamiltonian
+    form = mechanics.matrix_form
+    matrix = {"matrix_form": form is not None, "mass_matrix": None, "shift": None, "rest": None}
+    if form is not None:
+        compact = _compact(mechanics)
+        momenta = compact.momenta
+        equations[mechanics.n :] = compact.pdot
+        conserved.update(compact.conserved)
+        hamiltonian = compact.hamiltonian
+        matrix["mass_matrix"] = [[_text(e) for e in row] for row in compact.mass_matrix]
+        matrix["shift"] = [_text(e) for e in compact.shift]
+        matrix["rest"] = _text(compact.rest)
     return {
         "title": scene.title,
         "coordinates": list(scene.coordinates),
@@ -175,33 +315,413 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "lagrangian": _text(mechanics.lagrangian),
         "accelerations": accelerations,
         "momenta": None
-        if mechanics.momenta is None
-        else dict(zip(scene.coordinates, map(_text, mechanics.momenta), strict=True)),
-        "hamiltonian": _text(mechanics.hamiltonian),
-        "hamilton_equations": dict(
-            zip(names, map(_text, mechanics.hamilton_equations), strict=True)
-        ),
+        if momenta is None
+        else dict(zip(scene.coordinates, map(_text, momenta), strict=True)),
+        "hamiltonian": _text(hamiltonian),
+        "hamilton_equations": dict(zip(names, map(_text, equations), strict=True)),
         "cyclic": list(mechanics.cyclic),
-        "conserved": {name: _text(expr) for name, expr in mechanics.conserved.items()},
+        "conserved": {name: _text(expr) for name, expr in conserved.items()},
         "classification": mechanics.classification.as_dict(),
         "equilibria": equilibria_json(mechanics),
+        **matrix,
     }
 
 
-def _text(expr: sympy.Basic | None) -> str | None:
-    return None if expr is None else str(expr)
+def _text(expr) -> str | None:
+    """An expression (sympy, or symengine from ``_Compact``) as text sympify reads back."""
+    if expr is None:
+        return None
+    if not isinstance(expr, sympy.Basic):
+        return str(expr)
+    return sympy.sstr(expr, order="none") if _larger(expr, SORTED_NODES) else str(expr)
+
+
+def _display_text(text: str, names: dict[str, str]) -> str:
+    """The text of an expression with the scene's names replaced by display names
+    (``systems.display``) and ``_glyphs``: ``one_line`` without sympy."""
+    text = re.sub(r"\b[A-Za-z_]\w*\b", lambda m: names.get(m[0], m[0]), text)
+    return _glyphs(text)
+
+
+def _larger(expr: sympy.Basic, limit: int) -> bool:
+    """True if ``expr`` has more than ``limit`` nodes (counting stops there)."""
+    if not isinstance(expr, sympy.Basic):
+        return False
+    for count, _ in enumerate(sympy.preorder_traversal(expr)):
+        if count >= limit:
+            return True
+    return False
 
 
 def _block(title: str, rows: list[tuple[str, object]], scene: Scene) -> list[str]:
-    lines = ["", title, "-" * len(title)]
+    return ["", title, "-" * len(title), *_rows(rows, scene)]
+
+
+def _rows(rows: list[tuple[str, object]], scene: Scene) -> list[str]:
+    """``label = expression`` lines: sympy's pretty printer for small expressions, one
+    line of text for large ones (``PRETTY_NODES``)."""
+    lines = []
+    names = None
     for label, expr in rows:
+        if not isinstance(expr, sympy.Basic):  # symengine, from ``_Compact``
+            text = str(expr)
+            if len(text) > PRETTY_CHARS:  # renamed as text: no sympy at all
+                names = names or display_names(scene)
+                lines.append(f"{label} = {_display_text(text, names)}")
+                continue
+            expr = sympy.sympify(expr)
         shown = for_display(expr, scene)
-        art = sympy.pretty(shown, use_unicode=True, wrap_line=False).splitlines() or [""]
         head = f"{label}: " if isinstance(expr, sympy.Eq) else f"{label} = "
+        if _larger(shown, PRETTY_NODES):
+            if isinstance(shown, sympy.Eq):
+                lines.append(head + f"{one_line(shown.lhs)} = {one_line(shown.rhs)}")
+            else:
+                lines.append(head + one_line(shown))
+            continue
+        art = sympy.pretty(shown, use_unicode=True, wrap_line=False).splitlines() or [""]
         middle = len(art) // 2
         for i, line in enumerate(art):
             lines.append((head if i == middle else " " * len(head)) + line)
     return lines
+
+
+# -- a system in matrix form, for reading ------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Compact:
+    """The parts of a system in matrix form, tidied for reading and checked numerically
+    against the derivation's (an entry that does not agree is shown as derived).
+
+    ``mass_matrix`` (n lists of n), ``shift`` and ``rest`` are M, a and L0 of
+    ``L = q̇ᵀ M q̇/2 + a·q̇ + L0``; ``forcing`` is F of ``M q̈ = F``, written from M, a and
+    L0 (Christoffel symbols: a few terms per entry where the derivation's F, the
+    unexpanded derivative of L, has thousands); ``momenta`` is M q̇ + a; ``pdot`` is
+    ∂L/∂q + Q; ``conserved`` holds H in (q, q̇) as ``q̇ᵀ M q̇/2 − L0`` and the cyclic
+    momenta, when they are conserved; ``hamiltonian`` is ``(p − a)·q̇/2 − L0`` (with q̇
+    standing for ``M⁻¹ (p − a)``). M, a and L0 are sympy expressions; the others are
+    symengine expressions (sympy where symengine is missing, or where the derived form
+    is shown instead): ``_rows`` and ``_text`` print either.
+    """
+
+    mass_matrix: list[list[sympy.Expr]]
+    shift: list[sympy.Expr]
+    rest: sympy.Expr
+    forcing: list
+    momenta: list
+    pdot: list
+    conserved: dict
+    hamiltonian: sympy.Expr
+
+
+_COMPACT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _compact(mechanics: Mechanics) -> _Compact:
+    """``_Compact`` of a system in matrix form, formed once per ``Mechanics``."""
+    try:
+        return _COMPACT[mechanics]
+    except KeyError:
+        pass
+    except TypeError:  # not weak-referenceable
+        return _form_compact(mechanics)
+    compact = _COMPACT[mechanics] = _form_compact(mechanics)
+    return compact
+
+
+def _form_compact(mechanics: Mechanics) -> _Compact:
+    form = mechanics.matrix_form
+    n, q, t = mechanics.n, mechanics.q, mechanics.t
+    upper = [(i, j) for i in range(n) for j in range(i, n)]
+    checker = _Checker(mechanics)
+    chosen = checker.choose(
+        [(form.mass_matrix[i, j], combine_trig(form.mass_matrix[i, j])) for i, j in upper]
+        + [(e, _tidy_small(e)) for e in (*form.shift, form.rest)]
+    )
+    M = [[None] * n for _ in range(n)]
+    for (i, j), entry in zip(upper, chosen, strict=False):
+        M[i][j] = M[j][i] = entry
+    a, L0 = chosen[len(upper) : len(upper) + n], chosen[-1]
+    arguments = (M, a, L0, mechanics.generalized_forces, q, mechanics.qdot, t)
+    try:
+        forcing, pdot, momenta, energy = _compact_parts(_Algebra(mechanics), *arguments)
+    except Unsupported:
+        forcing, pdot, momenta, energy = _compact_parts(
+            _Algebra(mechanics, engine=False), *arguments
+        )
+    conserved = {}
+    for name in mechanics.conserved:
+        if name == "H":
+            conserved[name] = energy
+        elif name.startswith("p_") and name[2:] in mechanics.scene.coordinates:
+            conserved[name] = momenta[mechanics.scene.coordinates.index(name[2:])]
+    derived_momenta = mechanics.momenta or [None] * n
+    derived = [
+        *mechanics.forcing,
+        *derived_momenta,
+        *mechanics.hamilton_equations[n:],
+        *(mechanics.conserved[name] for name in conserved),
+    ]
+    shifted = [p - e for p, e in zip(mechanics.p, a, strict=True)]
+    hamiltonian = sympy.Add(*[s * v for s, v in zip(shifted, mechanics.qdot, strict=True)]) / 2
+    derived.append(mechanics.hamiltonian)
+    tidy = [*forcing, *momenta, *pdot, *conserved.values(), hamiltonian - L0]
+    chosen = checker.choose(
+        [
+            (None if d is not None and _larger(d, VERIFY_NODES) else d, e)
+            for d, e in zip(derived, tidy, strict=True)
+        ]
+    )
+    return _Compact(
+        mass_matrix=M,
+        shift=a,
+        rest=L0,
+        forcing=chosen[:n],
+        momenta=chosen[n : 2 * n],
+        pdot=chosen[2 * n : 3 * n],
+        conserved=dict(zip(conserved, chosen[3 * n : -1], strict=True)),
+        hamiltonian=chosen[-1],
+    )
+
+
+VERIFY_NODES = 2000
+"""Derived expressions up to this size are compared numerically with their tidy forms. A
+larger one (a long chain's F, ∂L/∂q, momenta, energy: hundreds of thousands of nodes in
+all) is not: converting it for evaluation cost seconds. Its tidy form is written from M
+and a, which are always compared, by identities of any L quadratic in the velocities."""
+
+
+def _compact_parts(algebra, M, a, L0, forces, q, v, t):
+    """F of ``M q̈ = F``, ∂L/∂q + Q, the momenta M q̇ + a and the energy function
+    q̇ᵀ M q̇/2 − L0 of ``L = q̇ᵀ M q̇/2 + a·q̇ + L0``, from M, a and L0 (sympy lists).
+
+    F_i = Σ_{j≤k} C_ijk q̇_j q̇_k + Σ_j (∂_i a_j − ∂_j a_i − ∂_t M_ij) q̇_j + ∂_i L0 − ∂_t a_i
+    + Q_i, with C_ijj = ½ ∂_i M_jj − ∂_j M_ij and C_ijk = ∂_i M_jk − ∂_k M_ij − ∂_j M_ik
+    (j < k): Lagrange's equations less M q̈, by the Christoffel symbols of M.
+    """
+    n = len(q)
+    to = algebra.to
+    Ms = [[to(M[i][j]) if j >= i else None for j in range(n)] for i in range(n)]
+    for i in range(n):
+        for j in range(i):
+            Ms[i][j] = Ms[j][i]
+    As = [to(e) for e in a]
+    L0s, Qs = to(L0), [to(e) for e in forces]
+    vs = [to(e) for e in v]
+    variables = (*q, t)
+    T = n  # index of t in ``variables``
+    dM = []  # dM[k][i][j] = ∂M_ij/∂x_k for x = (q..., t)
+    for x in variables:
+        rows = [[None] * n for _ in range(n)]
+        for i in range(n):
+            for j in range(i, n):
+                rows[i][j] = rows[j][i] = algebra.diff(Ms[i][j], x)
+        dM.append(rows)
+    da = [[algebra.diff(e, x) for e in As] for x in variables]
+    dL0 = [algebra.diff(L0s, x) for x in q]
+    zero = algebra.zero
+    forcing, pdot = [], []
+    for i in range(n):
+        f_terms, g_terms = [], []
+        for j in range(n):
+            for k in range(j, n):
+                if j == k:
+                    g = dM[i][j][j] / 2
+                    c = g - dM[j][i][j]
+                else:
+                    g = dM[i][j][k]
+                    c = g - dM[k][i][j] - dM[j][i][k]
+                if c != zero:
+                    f_terms.append(c * vs[j] * vs[k])
+                if g != zero:
+                    g_terms.append(g * vs[j] * vs[k])
+            b = da[i][j] - da[j][i] - dM[T][i][j]
+            if b != zero:
+                f_terms.append(b * vs[j])
+            if da[i][j] != zero:
+                g_terms.append(da[i][j] * vs[j])
+        f_terms += [dL0[i], -da[T][i], Qs[i]]
+        g_terms += [dL0[i], Qs[i]]
+        forcing.append(algebra.add(f_terms))
+        pdot.append(algebra.add(g_terms))
+    momenta = [algebra.add([Ms[i][j] * vs[j] for j in range(n)] + [As[i]]) for i in range(n)]
+    energy = algebra.add([Ms[i][j] * vs[i] * vs[j] for i in range(n) for j in range(n)]) / 2 - L0s
+    return forcing, pdot, momenta, energy
+
+
+class _Algebra:
+    """Differentiation and sums in symengine (``systems.calculus``), or in sympy."""
+
+    def __init__(self, mechanics: Mechanics, engine: bool = True):
+        self.engine = engine and symengine is not None
+        if self.engine:
+            self.calculus = Calculus(mechanics.scene.symbols.values())
+            self.zero = symengine.Integer(0)
+        else:
+            self.zero = sympy.S.Zero
+
+    def to(self, expr):
+        return self.calculus.to_engine(sympy.sympify(expr)) if self.engine else sympy.sympify(expr)
+
+    def diff(self, expr, x):
+        if self.engine:
+            return expr.diff(self.calculus.variable(x))
+        return sympy.diff(expr, x) if x in expr.free_symbols else sympy.S.Zero
+
+    def add(self, terms):
+        return symengine.add(*terms) if self.engine else sympy.Add(*terms)
+
+
+class _Checker:
+    """Chooses the tidied form of an expression where it equals the derived one at random
+    real points (every symbol in (0.3, 1.7), as the derivation's zero tests do); the
+    derived one otherwise, and wherever the values cannot be computed."""
+
+    def __init__(self, mechanics: Mechanics):
+        rng = random.Random(4321)
+        self.symbols = list(mechanics.scene.symbols.values())
+        self.points = [[rng.uniform(0.3, 1.7) for _ in self.symbols] for _ in range(2)]
+
+    def choose(self, pairs: list[tuple]) -> list:
+        """For each ``(derived, tidy)``: tidy if it checks out (or derived is None), else
+        derived. All are evaluated at once (symengine's Lambdify)."""
+        result = [tidy if derived is None else derived for derived, tidy in pairs]
+        checked = [k for k, (d, e) in enumerate(pairs) if d is not None and e is not d]
+        if not checked:
+            return result
+        values = self._values([pairs[k][0] for k in checked] + [pairs[k][1] for k in checked])
+        if values is None:
+            return result
+        m = len(checked)
+        for index, k in enumerate(checked):
+            a, b = values[:, index], values[:, m + index]
+            close = np.abs(a - b) <= 1e-9 * np.maximum(1.0, np.abs(a))
+            if np.all(np.isfinite(a)) and np.all(close):
+                result[k] = pairs[k][1]
+        return result
+
+    def _values(self, exprs: list):
+        """(points, len(exprs)) complex values, or None if they cannot be computed."""
+        if symengine is None:
+            return None
+        try:
+            f = symengine.Lambdify(
+                [symengine.Symbol(s.name) for s in self.symbols],
+                [symengine.sympify(e) for e in exprs],
+                real=False,
+            )
+            with np.errstate(all="ignore"):
+                return np.array([np.ravel(f(point)) for point in self.points], dtype=complex)
+        except (RuntimeError, TypeError, ValueError, NotImplementedError):
+            return None
+
+
+EXPAND_TERMS = 400
+"""a and L0 are expanded before ``combine_trig`` when that gives at most this many terms
+(a rotating frame's a_i is a sum of products of sums of sines and cosines)."""
+
+
+def _tidy_small(expr: sympy.Expr) -> sympy.Expr:
+    """The shortest of ``expr``, ``combine_trig(expr)`` and, when its expansion is small,
+    ``combine_trig(expand(expr))`` with common factors pulled out."""
+    from systems.mechanics import expanded_terms
+
+    expr = sympy.sympify(expr)
+    candidates = [expr, combine_trig(expr)]
+    if expanded_terms(expr) <= EXPAND_TERMS:
+        candidates.append(sympy.factor_terms(combine_trig(sympy.expand(expr))))
+    return min(candidates, key=lambda e: len(str(e)))
+
+
+def combine_trig(expr: sympy.Expr) -> sympy.Expr:
+    """Products of sines and cosines combined where a sum allows it, cheaply:
+    ``c sin a sin b + c cos a cos b -> c cos(a - b)``, ``c cos a cos b - c sin a sin b ->
+    c cos(a + b)``, ``c sin a cos b ∓ c cos a sin b -> c sin(a ∓ b)``,
+    ``c sin² a + c cos² a -> c``.
+
+    The terms of a pendulum chain's mass matrix; ``sympy.trigsimp`` finds the same at a
+    hundred times the cost (27 s for a twenty-link chain's 210 entries).
+    """
+    expr = sympy.sympify(expr)
+    if expr.is_Atom:
+        return expr
+    args = [combine_trig(a) for a in expr.args]
+    if any(new is not old for new, old in zip(args, expr.args, strict=True)):
+        expr = expr.func(*args)
+    if expr.is_Add:
+        return _combine_sum(expr)
+    return expr
+
+
+def _trig_term(term: sympy.Expr):
+    """``(kind, args, coefficient)`` of ``c·f(a)·g(b)`` or ``c·f(a)²`` with f, g in sin,
+    cos; None for any other term. kinds: ``ss``, ``cc``, ``sc`` (sin a cos b), ``s2``,
+    ``c2``."""
+    trig, rest = [], []
+    for factor in sympy.Mul.make_args(term):
+        base, power = factor.as_base_exp()
+        if isinstance(base, (sympy.sin, sympy.cos)) and power in (1, 2):
+            trig += [base] * int(power)
+        else:
+            rest.append(factor)
+    if len(trig) != 2:
+        return None
+    c = sympy.Mul(*rest)
+    (f, g) = trig
+    if f == g:
+        return ("s2" if isinstance(f, sympy.sin) else "c2", (f.args[0],), c)
+    if isinstance(f, sympy.sin) and isinstance(g, sympy.sin):
+        return ("ss", tuple(sorted((f.args[0], g.args[0]), key=sympy.default_sort_key)), c)
+    if isinstance(f, sympy.cos) and isinstance(g, sympy.cos):
+        return ("cc", tuple(sorted((f.args[0], g.args[0]), key=sympy.default_sort_key)), c)
+    if isinstance(f, sympy.cos):
+        f, g = g, f
+    return ("sc", (f.args[0], g.args[0]), c)
+
+
+def _combine_sum(expr: sympy.Add) -> sympy.Expr:
+    terms = list(expr.args)
+    parsed = [_trig_term(term) for term in terms]
+    index: dict = {}
+    for k, entry in enumerate(parsed):
+        if entry is not None:
+            index.setdefault((entry[0], entry[1]), []).append(k)
+    used: set[int] = set()
+    combined = []
+
+    def partner(kind, args, coefficient) -> int | None:
+        for k in index.get((kind, args), []):
+            if k not in used and parsed[k][2] == coefficient:
+                return k
+        return None
+
+    for k, entry in enumerate(parsed):
+        if entry is None or k in used:
+            continue
+        kind, args, c = entry
+        found = None
+        if kind == "ss":
+            found = (partner("cc", args, c), c * sympy.cos(args[0] - args[1]))
+            if found[0] is None:
+                found = (partner("cc", args, -c), -c * sympy.cos(args[0] + args[1]))
+        elif kind == "cc":
+            found = (partner("ss", args, c), c * sympy.cos(args[0] - args[1]))
+            if found[0] is None:
+                found = (partner("ss", args, -c), c * sympy.cos(args[0] + args[1]))
+        elif kind == "sc":
+            swapped = (args[1], args[0])
+            found = (partner("sc", swapped, -c), c * sympy.sin(args[0] - args[1]))
+            if found[0] is None:
+                found = (partner("sc", swapped, c), c * sympy.sin(args[0] + args[1]))
+        elif kind in ("s2", "c2"):
+            found = (partner("c2" if kind == "s2" else "s2", args, c), c)
+        if found is None or found[0] is None:
+            continue
+        used.update((k, found[0]))
+        combined.append(found[1])
+    if not used:
+        return expr
+    return sympy.Add(*[term for k, term in enumerate(terms) if k not in used], *combined)
 
 
 def _equilibria_lines(mechanics: Mechanics) -> list[str]:

@@ -103,12 +103,21 @@ def _numbers(values) -> str:
 
 
 def _mass_matrix(compiled, t0: float, y0: np.ndarray) -> np.ndarray | None:
+    """d2L/dqdot2 at the start, or None where it cannot be evaluated.
+
+    For a system in matrix form ``velocities`` are the velocity symbols themselves (their
+    values come from solving with this very matrix), and L is quadratic in them, so M is
+    evaluated at any velocity: zero.
+    """
     mech = compiled.mechanics
     n = compiled.n
     try:
         with np.errstate(all="ignore"):
-            v = compiled._lambdified("velocities", (mech.t, mech.q, mech.p), mech.velocities)
-            qdot = np.array(v(t0, y0[:n], y0[n:]), dtype=float).reshape(n)
+            if mech.matrix_form is not None:
+                qdot = np.zeros(n)
+            else:
+                v = compiled._lambdified("velocities", (mech.t, mech.q, mech.p), mech.velocities)
+                qdot = np.array(v(t0, y0[:n], y0[n:]), dtype=float).reshape(n)
             f = compiled._lambdified("mass_matrix", (mech.t, mech.q, mech.qdot), mech.mass_matrix)
             raw = np.array(f(t0, y0[:n], qdot), dtype=complex).reshape(n, n)
     except (ArithmeticError, ValueError, TypeError):

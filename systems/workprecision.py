@@ -137,10 +137,18 @@ def settings_for(compiled, method: str, y0: np.ndarray, t_end: float, levels: in
 
 
 def linear_reference(compiled, y0: np.ndarray, t_end: float) -> np.ndarray | None:
-    """exp(J t) y0 when Hamilton's equations are linear with constant coefficients."""
+    """exp(J t) y0 when Hamilton's equations are linear with constant coefficients.
+
+    None otherwise, and at once for a system in matrix form: its mass matrix depends on q
+    or t (``mechanics.needs_matrix_form``), so its equations are not linear with constant
+    coefficients (and the velocity symbols in them are not functions of (q, p) that a
+    Jacobian could differentiate).
+    """
     from scipy.linalg import expm
 
     mech = compiled.mechanics
+    if mech.matrix_form is not None:
+        return None
     variables = (*mech.q, *mech.p)
     rhs = sympy.Matrix([as_expr(e) for e in mech.hamilton_equations])
     J = rhs.jacobian(variables)

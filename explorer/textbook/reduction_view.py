@@ -93,6 +93,10 @@ class ReductionView(TextbookTabView):
             return
         setup, curves = result
         self.setup = setup
+        if setup.reduction is None and setup.needs_closed_form:
+            self.splitter.setVisible(False)
+            self.summary.setText(f"<b>Not available:</b> {setup.reason}.")
+            return
         if setup.reduction is None:
             self.splitter.setVisible(False)
             self.summary.setText(

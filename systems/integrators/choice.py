@@ -23,10 +23,12 @@ low orders reach only at many times the cost.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 import sympy
 
+from systems import matrix_solve
 from systems.expressions import as_expr
 from systems.integrators.stepsize import DEFAULT_TOL, ENERGY_TARGET, jacobian
 
@@ -62,15 +64,28 @@ def _number(expr, subs: dict) -> float:
 
 
 def _eigenvalues(mechanics) -> np.ndarray:
-    """Eigenvalues of the Jacobian of Hamilton's equations at the start (complex)."""
+    """Eigenvalues of the Jacobian of Hamilton's equations at the start (complex).
+
+    For a system in matrix form the velocities in Hamilton's equations are solved from
+    ``M(q, t) qdot = p - a(q, t)`` at every state (``matrix_solve.state_function``).
+    """
+    try:
+        return _EIGENVALUES[mechanics]
+    except (KeyError, TypeError):
+        pass
     params, y0 = initial_point(mechanics)
-    variables = (*mechanics.q, *mechanics.p)
-    exprs = [as_expr(e).xreplace(params) for e in mechanics.hamilton_equations]
-    f = sympy.lambdify((mechanics.t, variables), exprs, modules="math", cse=True)
+    f = matrix_solve.state_function(mechanics, mechanics.hamilton_equations, params)
     J = jacobian(lambda y: f(0.0, y), y0)
-    if J is None:
-        return np.array([])
-    return np.linalg.eigvals(J)
+    eigenvalues = np.array([]) if J is None else np.linalg.eigvals(J)
+    try:
+        _EIGENVALUES[mechanics] = eigenvalues
+    except TypeError:  # not weak-referenceable
+        pass
+    return eigenvalues
+
+
+_EIGENVALUES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""``_eigenvalues`` per Mechanics: ``stiffness_ratio`` and the choice both ask."""
 
 
 def stiffness_ratio(mechanics) -> float:
@@ -121,11 +136,14 @@ def singular_terms(expr) -> list[sympy.Expr]:
 
 
 def _potential(mechanics):
-    """V(q, t): the separable part, the scene's potential, or H at p = 0."""
+    """V(q, t): the separable part, the scene's potential, -L0 for a system in matrix
+    form (whose H holds velocities: H at p = 0 would not be V), or H at p = 0."""
     if mechanics.separable_parts is not None:
         return mechanics.separable_parts[1]
     if mechanics.potential is not None:
         return mechanics.potential
+    if mechanics.matrix_form is not None:
+        return -as_expr(mechanics.matrix_form.rest)
     return as_expr(mechanics.hamiltonian).xreplace(dict.fromkeys(mechanics.p, sympy.S.Zero))
 
 

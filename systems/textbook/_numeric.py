@@ -1,7 +1,8 @@
 """Shared numeric helpers: lambdified expressions with parameter values, periodicity, roots.
 
-Not the hot path: ``sympy.lambdify`` with numpy and ``cse=True`` is enough here. Every
-function returned by ``vectorize`` broadcasts constant entries to the shape of its inputs.
+Not the hot path: ``sympy.lambdify`` with numpy and symengine's common subexpressions
+(``matrix_solve.lambdify_cse``) is enough here. Every function returned by ``vectorize``
+broadcasts constant entries to the shape of its inputs.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import sympy
 
 from systems.expressions import as_expr
+from systems.matrix_solve import lambdify_cse
 from systems.mechanics import Mechanics
 
 TWO_PI = 2.0 * math.pi
@@ -28,6 +30,26 @@ def cache_for(mechanics: Mechanics) -> dict:
         return _CACHE.setdefault(mechanics, {})
     except TypeError:  # not weak-referenceable: no caching
         return {}
+
+
+class NeedsClosedForm(ValueError):
+    """A textbook feature needs a closed form the derivation did not make (see
+    ``closed_form_reason``); ``str()`` is one sentence for the user."""
+
+
+def closed_form_reason(mechanics: Mechanics, feature: str) -> str:
+    """Why ``feature`` is not available for a system in matrix form ("" otherwise).
+
+    ``"Routh's reduction needs the Legendre transform in closed form, which a system of 6
+    coordinates with a coupled mass matrix leaves to the numerical solver"``.
+    """
+    if mechanics.matrix_form is None:
+        return ""
+    return (
+        f"{feature} needs the Legendre transform in closed form, which a system of "
+        f"{mechanics.n} coordinates with a coupled mass matrix leaves to the numerical solver "
+        "(the velocities q̇ = M⁻¹(p − a) are solved at every step)"
+    )
 
 
 def parameter_values(
@@ -57,11 +79,14 @@ def vectorize(
     The arrays are broadcast together; constant expressions are broadcast to their shape.
     """
     exprs = [as_expr(e) for e in exprs]
-    raw = sympy.lambdify(list(args), exprs, modules="numpy", cse=True)
+    raw = sympy.lambdify(list(args), exprs, modules="numpy", cse=lambdify_cse)
 
     def function(*arrays) -> np.ndarray:
         arrays = [np.asarray(a, dtype=float) for a in arrays]
         shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else ()
+        if not shape:  # one point (a root finder's call): no broadcasting loop
+            with np.errstate(all="ignore"):
+                return np.array(raw(*arrays), dtype=float)
         with np.errstate(all="ignore"):
             values = raw(*arrays)
         out = np.empty((len(exprs), *shape))
@@ -87,6 +112,39 @@ def is_periodic(expr: sympy.Expr, symbol: sympy.Symbol, others: Sequence[sympy.S
         return False
     scale = max(1.0, float(np.max(np.abs(base))))
     return bool(np.max(np.abs(base - moved)) <= 1e-9 * scale)
+
+
+def periodic_symbols(
+    expr: sympy.Expr, candidates: Sequence[sympy.Symbol], others: Sequence[sympy.Symbol]
+) -> set[sympy.Symbol]:
+    """The ``candidates`` in which ``expr`` is 2 pi-periodic: ``is_periodic`` for each,
+    with one lambdify and one evaluation (the shift is applied to the inputs).
+
+    For a chain of twenty links, lambdifying L twice per coordinate took seconds.
+    """
+    present = [s for s in candidates if expr.has(s)]
+    if not present:
+        return set()
+    free = sorted(expr.free_symbols | set(others) | set(present), key=str)
+    f = vectorize([expr], free)
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-2.0, 2.0, size=(len(free), 8))
+    points = np.where(np.abs(points) < 0.2, 0.7, points)
+    blocks = [points]
+    for symbol in present:
+        moved = points.copy()
+        moved[free.index(symbol)] += TWO_PI
+        blocks.append(moved)
+    values = f(*np.concatenate(blocks, axis=1))[0].reshape(len(blocks), points.shape[1])
+    base = values[0]
+    if not np.all(np.isfinite(base)):
+        return set()
+    scale = max(1.0, float(np.max(np.abs(base))))
+    return {
+        symbol
+        for symbol, moved in zip(present, values[1:], strict=True)
+        if np.all(np.isfinite(moved)) and float(np.max(np.abs(base - moved))) <= 1e-9 * scale
+    }
 
 
 def fold_angle(x: float | np.ndarray) -> float | np.ndarray:

@@ -17,6 +17,7 @@ import scipy.linalg
 import scipy.optimize
 import sympy
 
+from systems.calculus import Calculus, Unsupported
 from systems.mechanics import Mechanics
 from systems.textbook._numeric import cache_for, vectorize, with_parameters
 
@@ -244,11 +245,13 @@ def second_variation(
     basis = [sine_variation(t, k, j, n=n) for k in range(1, modes + 1) for j in range(n)]
     E = np.stack([b[0] for b in basis])  # (b, K, n)
     Ed = np.stack([b[1] for b in basis])
+    # optimize: pairwise contractions (b K n^2 + b^2 K n), not one loop over all five
+    # indices (b^2 K n^2: a minute for a twenty-link chain)
     integrand = (
-        np.einsum("aki,kij,bkj->abk", Ed, A, Ed)
-        + np.einsum("aki,kij,bkj->abk", E, B, Ed)
-        + np.einsum("bki,kij,akj->abk", E, B, Ed)
-        + np.einsum("aki,kij,bkj->abk", E, C, E)
+        np.einsum("aki,kij,bkj->abk", Ed, A, Ed, optimize=True)
+        + np.einsum("aki,kij,bkj->abk", E, B, Ed, optimize=True)
+        + np.einsum("bki,kij,akj->abk", E, B, Ed, optimize=True)
+        + np.einsum("aki,kij,bkj->abk", E, C, E, optimize=True)
     )
     matrix = scipy.integrate.simpson(integrand, x=t, axis=-1)
     matrix = (matrix + matrix.T) / 2
@@ -393,9 +396,9 @@ def shoot_two_point(
     t_end = t0 + duration
 
     def rhs(time, y):
-        cols = _columns(np.array([time]), y[None, :n], y[None, n:])
-        M = functions["M"](*cols)[:, 0].reshape(n, n)
-        F = functions["F"](*cols)[:, 0]
+        cols = [np.asarray(time, dtype=float), *np.asarray(y, dtype=float)]  # one point
+        M = functions["M"](*cols).reshape(n, n)
+        F = functions["F"](*cols)
         return np.concatenate([y[n:], np.linalg.solve(M, F)])
 
     def run(v0, dense=False):
@@ -518,16 +521,14 @@ def _functions(mechanics: Mechanics, parameters) -> dict:
         return cache[key]
     args = [mechanics.t, *mechanics.q, *mechanics.qdot]
     L = with_parameters(mechanics.lagrangian, mechanics, parameters)
-    q, v = mechanics.q, mechanics.qdot
-    Lq = [sympy.diff(L, a) for a in q]
-    Lv = [sympy.diff(L, a) for a in v]
+    Lq, Lv, Lvv, Lqv, Lqq = _derivatives(mechanics, L)
     functions = {
         "L": vectorize([L], args),
         "Lq": vectorize(Lq, args),
         "Lv": vectorize(Lv, args),
-        "Lvv": vectorize([sympy.diff(e, b) for e in Lv for b in v], args),
-        "Lqv": vectorize([sympy.diff(e, b) for e in Lq for b in v], args),
-        "Lqq": vectorize([sympy.diff(e, b) for e in Lq for b in q], args),
+        "Lvv": vectorize(Lvv, args),
+        "Lqv": vectorize(Lqv, args),
+        "Lqq": vectorize(Lqq, args),
     }
     if mechanics.mass_matrix is not None:
         M = with_parameters(mechanics.mass_matrix, mechanics, parameters)
@@ -538,6 +539,36 @@ def _functions(mechanics: Mechanics, parameters) -> dict:
         functions["F"] = vectorize(list(F), args)
     cache[key] = functions
     return functions
+
+
+def _derivatives(mechanics: Mechanics, L: sympy.Expr) -> tuple[list, ...]:
+    """dL/dq, dL/dqdot and the n*n blocks d2L/dqdot dqdot, d2L/dq dqdot, d2L/dq dq (row
+    major), by symengine where it can (sympy took seconds for a five-link chain)."""
+    q, v = mechanics.q, mechanics.qdot
+    engine = Calculus(mechanics.scene.symbols.values())
+    try:
+        e = engine.to_engine(L)
+        qs, vs = [engine.variable(a) for a in q], [engine.variable(a) for a in v]
+        Lq = [e.diff(a) for a in qs]
+        Lv = [e.diff(a) for a in vs]
+        blocks = (
+            [d.diff(b) for d in Lv for b in vs],
+            [d.diff(b) for d in Lq for b in vs],
+            [d.diff(b) for d in Lq for b in qs],
+        )
+        back = engine.to_sympy
+        return [back(d) for d in Lq], [back(d) for d in Lv], *([back(d) for d in b] for b in blocks)
+    except Unsupported:
+        pass
+    Lq = [sympy.diff(L, a) for a in q]
+    Lv = [sympy.diff(L, a) for a in v]
+    return (
+        Lq,
+        Lv,
+        [sympy.diff(e, b) for e in Lv for b in v],
+        [sympy.diff(e, b) for e in Lq for b in v],
+        [sympy.diff(e, b) for e in Lq for b in q],
+    )
 
 
 def _hessian_blocks(mechanics, parameters, t, q, qdot):

@@ -17,8 +17,9 @@ import numpy as np
 import scipy.interpolate
 import sympy
 
+from systems import matrix_solve
 from systems.mechanics import Mechanics
-from systems.textbook._numeric import cache_for, vectorize, with_parameters
+from systems.textbook._numeric import cache_for, parameter_values, vectorize, with_parameters
 
 
 @dataclass(frozen=True)
@@ -93,13 +94,24 @@ def energy_balance(
 
 
 def _functions(mechanics: Mechanics, parameters):
+    """``f(t, q_1.., p_1..) -> (H, partial, power, energy)``, each shape (K,), cached.
+
+    For a system in matrix form H, its partial t-derivative, the power and T + V are
+    formed in (q, qdot, p, t) and the velocities of every sample are solved numerically
+    from ``M(q, t) qdot = p - a(q, t)`` (``matrix_solve.batch_velocities``). The partial
+    derivative is then -dL/dt at the solved velocities, which holds the time dependence of
+    M(t) and a(t) as well as that of L0: H's expression with qdot left unsolved does not.
+    """
     key = ("conservation", tuple(sorted((parameters or {}).items())))
     cache = cache_for(mechanics)
     if key in cache:
         return cache[key]
+    form = mechanics.matrix_form
     to_velocities = dict(zip(mechanics.qdot, mechanics.velocities, strict=True))
     if mechanics.lagrangian is not None:
         partial = -sympy.diff(mechanics.lagrangian, mechanics.t).xreplace(to_velocities)
+    elif form is not None:  # never: matrix form comes from a Lagrangian
+        raise ValueError("a system in matrix form without a Lagrangian")
     else:
         partial = sympy.diff(mechanics.hamiltonian, mechanics.t)
     power = sum(
@@ -115,6 +127,31 @@ def _functions(mechanics: Mechanics, parameters):
         energy = sympy.S.Zero
     exprs = [mechanics.hamiltonian, partial, power, energy]
     exprs = [with_parameters(e, mechanics, parameters) for e in exprs]
-    f = vectorize(exprs, [mechanics.t, *mechanics.q, *mechanics.p])
+    if form is None:
+        f = vectorize(exprs, [mechanics.t, *mechanics.q, *mechanics.p])
+    else:
+        f = _solved(mechanics, exprs, parameters)
     cache[key] = f
     return f
+
+
+def _solved(mechanics: Mechanics, exprs, parameters):
+    """``vectorize`` over (t, q, p) of expressions in (t, q, qdot, p), for a system in
+    matrix form: qdot is solved at every sample."""
+    n = mechanics.n
+    raw = vectorize(exprs, [mechanics.t, *mechanics.q, *mechanics.qdot, *mechanics.p])
+    solve = matrix_solve.batch_velocities(mechanics, parameter_values(mechanics, parameters))
+
+    def function(t, *columns) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        Q = np.stack([np.asarray(c, dtype=float) for c in columns[:n]], axis=-1)
+        P = np.stack([np.asarray(c, dtype=float) for c in columns[n:]], axis=-1)
+        shape = np.broadcast_shapes(t.shape, Q.shape[:-1], P.shape[:-1])
+        Q = np.broadcast_to(Q, (*shape, n)).reshape(-1, n)
+        P = np.broadcast_to(P, (*shape, n)).reshape(-1, n)
+        ts = np.broadcast_to(t, shape).reshape(-1)
+        V = solve(ts, Q, P)
+        out = raw(ts, *Q.T, *V.T, *P.T)
+        return out.reshape(len(exprs), *shape)
+
+    return function

@@ -25,13 +25,14 @@ import scipy.linalg
 import scipy.optimize
 import sympy
 
+from systems.calculus import Calculus, Unsupported
 from systems.deadline import TimeLimitExceeded, time_limit
 from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
 from systems.textbook._numeric import (
     cache_for,
     fold_angle,
-    is_periodic,
     parameter_values,
+    periodic_symbols,
     run_bounded,
     vectorize,
     with_parameters,
@@ -243,13 +244,8 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
     unknowns = [symbol_of[name] for name in searched]
     everything = [*mechanics.q, *mechanics.qdot, *mechanics.p]
     numeric_expression = with_parameters(expression, mechanics, parameters)
-    periodic = tuple(
-        name
-        for name in searched
-        if is_periodic(
-            numeric_expression, symbol_of[name], [s for s in everything if s != symbol_of[name]]
-        )
-    )
+    angles = periodic_symbols(numeric_expression, unknowns, everything)
+    periodic = tuple(name for name in searched if symbol_of[name] in angles)
     region = _region(searched, periodic, box, mechanics.scene.view)
     U_numeric = with_parameters(U, mechanics, parameters)
     problem = _Problem(mechanics, U_numeric, unknowns, searched, free, periodic, region, parameters)
@@ -276,8 +272,9 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
                     )
     numeric = problem.scan()
     added = False
+    known = [point for point, _ in found]
     for point in numeric:
-        if not any(problem.same(point, other) for other, _ in found):
+        if problem.index(point, known) < 0:
             found.append((point, {}))
             added = True
     if method == "symbolic" and added:
@@ -373,8 +370,7 @@ class _Problem:
         self.unknowns = unknowns
         m = len(unknowns)
         self.is_periodic = np.array([name in periodic for name in searched])
-        gradient = [sympy.diff(U, u) for u in unknowns]
-        hessian = [sympy.diff(g, u) for g in gradient for u in unknowns]
+        gradient, hessian = _derivatives(mechanics, U, unknowns)
         self.gradient = vectorize(gradient, unknowns)
         self._hessian = vectorize(hessian, unknowns)
         self.U = vectorize([U], unknowns)
@@ -387,7 +383,12 @@ class _Problem:
         self.hessian_scale = _typical(h)
         self.mass = _mass_function(mechanics, parameters)
         zero = {**dict.fromkeys(mechanics.qdot, 0), mechanics.t: 0}
-        if mechanics.momenta is not None:
+        if mechanics.matrix_form is not None:  # a = p at zero velocity, already formed
+            momenta = [
+                with_parameters(e, mechanics, parameters).xreplace(zero)
+                for e in mechanics.matrix_form.shift
+            ]
+        elif mechanics.momenta is not None:
             momenta = [
                 with_parameters(e, mechanics, parameters).xreplace(zero) for e in mechanics.momenta
             ]
@@ -431,7 +432,7 @@ class _Problem:
                 except (ValueError, np.linalg.LinAlgError, FloatingPointError):
                     continue
             x = self.accept(sol.x, inside_only=True)
-            if x is not None and not any(self.same(x, y) for y in found):
+            if x is not None and self.index(x, found) < 0:
                 found.append(x)
         return found
 
@@ -471,6 +472,16 @@ class _Problem:
         d = np.abs(a - b)
         d = np.where(self.is_periodic, np.minimum(d, 2 * math.pi - d), d)
         return bool(np.all(d <= 1e-6 * (1.0 + np.abs(a))))
+
+    def index(self, a: np.ndarray, points) -> int:
+        """The first ``i`` with ``same(a, points[i])``, or -1; one array operation (a
+        chain of ten links has hundreds of equilibria, and pairwise calls cost seconds)."""
+        if len(points) == 0:
+            return -1
+        d = np.abs(np.asarray(points, dtype=float).reshape(len(points), -1) - a)
+        d = np.where(self.is_periodic, np.minimum(d, 2 * math.pi - d), d)
+        hits = np.flatnonzero(np.all(d <= 1e-6 * (1.0 + np.abs(a)), axis=1))
+        return int(hits[0]) if hits.size else -1
 
     def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> Equilibrium:
         n, m = len(self.names), self.m
@@ -532,16 +543,33 @@ class _Problem:
         )
 
 
+def _derivatives(mechanics: Mechanics, U: sympy.Expr, unknowns) -> tuple[list, list]:
+    """dU/dq and d2U/dq2 (row major) over ``unknowns``, by symengine where it can (sympy's
+    diff took half a second for a five-link chain's 25 second derivatives)."""
+    engine = Calculus(mechanics.scene.symbols.values())
+    try:
+        e = engine.to_engine(U)
+        xs = [engine.variable(u) for u in unknowns]
+        first = [e.diff(x) for x in xs]
+        second = [g.diff(x) for g in first for x in xs]
+        return [engine.to_sympy(g) for g in first], [engine.to_sympy(h) for h in second]
+    except Unsupported:
+        gradient = [sympy.diff(U, u) for u in unknowns]
+        return gradient, [sympy.diff(g, u) for g in gradient for u in unknowns]
+
+
 def _unique(found, problem: _Problem):
     unique = []
+    points = []
     for point, exact in found:
-        for i, (other, other_exact) in enumerate(unique):
-            if problem.same(point, other):
-                if exact and not other_exact:
-                    unique[i] = (point, exact)
-                break
+        i = problem.index(point, points)
+        if i >= 0:
+            if exact and not unique[i][1]:
+                unique[i] = (point, exact)
+                points[i] = point
         else:
             unique.append((point, exact))
+            points.append(point)
     return unique
 
 

@@ -19,8 +19,10 @@ import sympy
 
 from systems.mechanics import Mechanics
 from systems.textbook._numeric import (
+    NeedsClosedForm,
     bracket_around,
     cache_for,
+    closed_form_reason,
     level_crossings,
     vectorize,
     with_parameters,
@@ -133,6 +135,9 @@ def reduce(mechanics: Mechanics, cyclic: Sequence[str] | None = None) -> Reducti
     ValueError
         If a named coordinate is not cyclic or its momentum is not conserved (a force acts
         on it), or there is nothing left to reduce to.
+    NeedsClosedForm
+        (a ValueError) For a system in matrix form (``Mechanics.matrix_form``): its H and
+        Hamilton's equations hold the velocities unsolved, so there is no reduced H.
     """
     names = mechanics.scene.coordinates
     conserved = [name for name in mechanics.cyclic if f"p_{name}" in mechanics.conserved]
@@ -145,6 +150,9 @@ def reduce(mechanics: Mechanics, cyclic: Sequence[str] | None = None) -> Reducti
     rest = tuple(name for name in names if name not in cyclic)
     if not rest:
         raise ValueError("every coordinate is cyclic: nothing is left after reduction")
+    reason = closed_form_reason(mechanics, "Routh's reduction")
+    if reason:  # H_red and the reduced equations would hold unsolved velocities
+        raise NeedsClosedForm(reason)
     ci = [names.index(name) for name in cyclic]
     ri = [names.index(name) for name in rest]
     p_c = tuple(mechanics.p[i] for i in ci)

@@ -33,3 +33,30 @@ def test_one_line_for_people():
     m, r, k, p = sympy.symbols("m r k p_θ", positive=True)
     assert one_line(p**2 / (2 * m * r**2) - k / r) == "−k/r + p_θ²/(2·m·r²)"
     assert one_line(sympy.pi * r**5) == "π·r^5"
+
+
+def test_combine_trig_joins_sums_of_products_of_sines_and_cosines():
+    from systems.report import combine_trig
+
+    a, b, c, m = sympy.symbols("a b c m", real=True)
+    sin, cos = sympy.sin, sympy.cos
+    chain = m * (38 * sin(a) * sin(b) + 38 * cos(a) * cos(b)) / 2
+    assert combine_trig(chain) == 19 * m * cos(a - b)
+    assert combine_trig(c * cos(a) * cos(b) - c * sin(a) * sin(b)) == c * cos(a + b)
+    assert combine_trig(sin(a) * cos(b) - cos(a) * sin(b)) == sin(a - b)
+    assert combine_trig(2 * sin(a) ** 2 + 2 * cos(a) ** 2 + c) == c + 2
+    unmatched = sin(a) * sin(b) + 2 * cos(a) * cos(b)  # coefficients differ: left alone
+    assert combine_trig(unmatched) == unmatched
+
+
+def test_a_large_expression_is_shown_on_one_line():
+    from systems import report
+
+    mechanics = derive(parse_scene(PENDULUM))
+    x = sympy.Symbol("theta", real=True)
+    large = sum(sympy.cos(k * x) / k for k in range(1, 200))
+    small = sympy.cos(x) ** 2 / 3
+    (line,) = report._rows([("S", large)], mechanics.scene)
+    assert line.startswith("S = ") and "cos(199·θ)/199" in line
+    art = report._rows([("s", small)], mechanics.scene)
+    assert len(art) > 1 and any(row.startswith("s = ───") for row in art)  # two-dimensional

@@ -12,6 +12,7 @@ import sympy
 
 from systems.display import for_display
 from systems.report import one_line
+from systems.textbook._numeric import NeedsClosedForm
 from systems.textbook.jobs._cancel import NEVER, Cancel
 from systems.textbook.jobs._run import names_of, parameters_of
 from systems.textbook.routhian import Reduction, reduce, turning_points
@@ -46,6 +47,10 @@ class ReductionSetup:
         first remaining momentum p (the other remaining coordinates and momenta at the
         state's values), so level sets are solved for p exactly; None if H_red is not
         quadratic in p.
+    needs_closed_form : bool
+        True when the system has cyclic coordinates but the reduction needs closed forms
+        its derivation left to the numerical solver (a system in matrix form): ``reason``
+        says so, and no advice about cyclic coordinates applies.
     """
 
     reduction: Reduction | None
@@ -58,6 +63,7 @@ class ReductionSetup:
     p_range: tuple[float, float] = (-1.0, 1.0)
     expression: str = ""
     quadratic: Callable | None = None
+    needs_closed_form: bool = False
 
 
 def reduction_setup(compiled: CompiledSystem, cancel: Cancel = NEVER) -> ReductionSetup:
@@ -66,6 +72,8 @@ def reduction_setup(compiled: CompiledSystem, cancel: Cancel = NEVER) -> Reducti
     mechanics = compiled.mechanics
     try:
         reduction = reduce(mechanics)
+    except NeedsClosedForm as exc:
+        return ReductionSetup(None, str(exc), needs_closed_form=True)
     except ValueError as exc:
         return ReductionSetup(None, str(exc))
     cancel.check()
