@@ -90,8 +90,8 @@ method, _ = choose_method(mechanics)
 compiled = compile_system(mechanics, required_wants(method, ("H",)), interpreted_start=True)
 compile_in_background(compiled, method, ("H",))
 block = next(stream(compiled, method=method, t_end=1e12, diagnostics=("H",)))
-print(json.dumps({{"first_block": time.perf_counter() - start, "method": method,
-                   "steps": int(block.steps)}}))
+print(json.dumps({"first_block": time.perf_counter() - start, "method": method,
+                   "steps": int(block.steps)}))
 """
 
 FPU = r"""

@@ -204,7 +204,9 @@ class CompiledSystem:
         if key not in self._numeric:
             params = tuple(self.mechanics.params[name] for name in self.parameter_names)
             exprs = [as_expr(e) for e in exprs]
-            self._numeric[key] = sympy.lambdify((*args, params), exprs, modules="numpy", cse=True)
+            self._numeric[key] = sympy.lambdify(
+                (*args, params), exprs, modules="numpy", cse=matrix_solve.lambdify_cse
+            )
         function = self._numeric[key]
         return lambda *values: function(*values, self.parameters)
 

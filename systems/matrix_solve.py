@@ -15,12 +15,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy
 
+from systems import calculus
 from systems.expressions import as_expr
-
-try:
-    import symengine
-except ImportError:  # pragma: no cover - a dependency; sympy alone is only slower
-    symengine = None
 
 
 def solve_augmented(W, n):
@@ -96,23 +92,14 @@ def kernel_source() -> str:
 
 def lambdify_cse(exprs):
     """``sympy.cse`` for ``sympy.lambdify(..., cse=lambdify_cse)``, by symengine where it
-    can: sympy's took seconds on a chain's Hamilton's equations.
+    can (``systems.calculus.cse``): sympy's took seconds on a chain's Hamilton's equations.
 
     symengine names its temporaries ``x<k>`` avoiding every name in the expressions and
     gives back plain symbols; ``lambdify`` prints symbols by name, so they need not be
     turned back into the scene's (an ``xreplace`` cost more than the elimination).
     """
     exprs = [as_expr(e) for e in (exprs if isinstance(exprs, (list, tuple)) else [exprs])]
-    if symengine is not None:
-        try:
-            temporaries, reduced = symengine.cse([symengine.sympify(e) for e in exprs])
-            return (
-                [(sympy.sympify(t), sympy.sympify(e)) for t, e in temporaries],
-                [sympy.sympify(e) for e in reduced],
-            )
-        except (RuntimeError, TypeError, ValueError, NotImplementedError):
-            pass
-    return sympy.cse(exprs, list=False)
+    return calculus.cse(exprs)
 
 
 def state_function(
