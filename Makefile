@@ -1,6 +1,8 @@
 # Quick start: `make run` launches the app, `make test` runs the whole suite.
 PYTHON ?= python3
 VENV := .venv
+# pytest-xdist processes for `make test` (each file runs whole in one; 0: no workers)
+TEST_WORKERS ?= 2
 BIN := $(VENV)/bin
 
 .PHONY: run test lint bench clean
@@ -24,7 +26,7 @@ test: $(VENV)/.installed-test
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
 
 bench: $(VENV)/.installed-test
 	$(BIN)/pip install -e ".[bench]"

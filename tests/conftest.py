@@ -1,12 +1,28 @@
 """Test-wide setup. Qt must be told to render offscreen before anything imports it, and
 every cache the program writes, and the window's preferences, go to a temporary folder,
-never the user's."""
+never the user's.
+
+Under pytest-xdist (``make test`` runs two workers) each worker gets a folder of its own
+inside that one, named after the worker (``gw0``, ``gw1``): the workers never share a
+kernel cache, a derivation cache or preferences.
+
+``PHASE_EXPLORER_THOROUGH=1`` runs the slow property tests with their full example counts
+(``examples``); by default they run fewer, still dozens.
+"""
 
 import os
 import shutil
 import tempfile
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+THOROUGH = os.environ.get("PHASE_EXPLORER_THOROUGH", "") == "1"
+
+
+def examples(default: int, thorough: int) -> int:
+    """A property test's example count: ``thorough`` with PHASE_EXPLORER_THOROUGH=1."""
+    return thorough if THOROUGH else default
+
 
 _OWN_CACHE = None
 if not os.environ.get("PHASE_EXPLORER_CACHE"):
@@ -16,6 +32,12 @@ if not os.environ.get("PHASE_EXPLORER_CACHE"):
 if not os.environ.get("PHASE_EXPLORER_CONFIG"):
     _OWN_CACHE = _OWN_CACHE or tempfile.mkdtemp(prefix="phase-explorer-tests-")
     os.environ["PHASE_EXPLORER_CONFIG"] = os.path.join(_OWN_CACHE, "config")
+# An xdist worker inherits the folders the controller set (or the caller's): it takes a
+# subfolder of its own; the controller removes the whole folder at the end.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER:
+    for _name in ("PHASE_EXPLORER_CACHE", "PHASE_EXPLORER_CONFIG"):
+        os.environ[_name] = os.path.join(os.environ[_name], _WORKER)
 
 
 def pytest_sessionfinish(session, exitstatus):
