@@ -14,6 +14,8 @@ from collections.abc import Iterable, Sequence
 
 import sympy
 
+from systems.expressions import FUNCTIONS
+
 try:
     import symengine
 except ImportError:  # pragma: no cover - a dependency; sympy alone is only slower
@@ -42,23 +44,8 @@ if symengine is not None:
             return (SceneSymbol, (str(self), self.original))
 
 
-_SYMPY_NODES = {
-    "Add": sympy.Add,
-    "Mul": sympy.Mul,
-    "Pow": sympy.Pow,
-    "sin": sympy.sin,
-    "cos": sympy.cos,
-    "tan": sympy.tan,
-    "log": sympy.log,
-    "sinh": sympy.sinh,
-    "cosh": sympy.cosh,
-    "tanh": sympy.tanh,
-    "asin": sympy.asin,
-    "acos": sympy.acos,
-    "atan": sympy.atan,
-    "atan2": sympy.atan2,
-    "Abs": sympy.Abs,
-}
+# symengine's type names -> sympy constructors; sqrt and exp arrive as Pow
+_SYMPY_NODES = {"Add": sympy.Add, "Mul": sympy.Mul, "Pow": sympy.Pow} | FUNCTIONS
 
 
 def _converted(value, memo: dict) -> sympy.Expr:
