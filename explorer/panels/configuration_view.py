@@ -17,6 +17,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from explorer.labels import coordinate_label
 from explorer.panels.curves import (
     ANGLE_RANGE,
+    PacedLayoutWidget,
     RangeKeeper,
     TrailCurve,
     WrappedSeries,
@@ -26,6 +27,9 @@ from explorer.panels.curves import (
 from explorer.trajectories import backfill_points
 from systems.angles import angle_flags, wrap
 
+REPAINT_GAP_SECONDS = 0.015
+"""Time left free after each paint: the mechanism is animated at every redraw (a paint
+costs a few ms), bursts of changes are gathered."""
 ROD_PEN = pg.mkPen("#333333", width=3)
 TRACE_POINTS = 4000
 
@@ -51,7 +55,7 @@ class ConfigurationView(QWidget):
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.compiled = None
-        self.layout_widget = pg.GraphicsLayoutWidget()
+        self.layout_widget = PacedLayoutWidget(gap=REPAINT_GAP_SECONDS)
         self.layout_widget.setBackground("w")
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)

@@ -6,9 +6,10 @@ titles, legends, the momentum plot (there is none without a conserved momentum) 
 curves. The time axes fit the data (a few percent of room ahead, so they are not redrawn
 every frame); legends sit beside the plots, never on the curves.
 
-Curves against time are drawn from their finite rows only (``FiniteSeries``): a gap row
-of a thinned trajectory (NaN) would otherwise blank whole pixel columns, since pyqtgraph's
-peak downsampling takes the min and max of each column with NaN included.
+Curves against time are drawn from their finite rows only (``FiniteSeries``), as
+``EnvelopeCurve``: at most four rows per pixel column, so a long energy record costs no
+more to draw than a short one (a gap row of a thinned trajectory, NaN, would spoil its
+column's lowest and highest value).
 """
 
 from __future__ import annotations
@@ -20,9 +21,10 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from explorer.buffers import GrowingArray
 from explorer.labels import momentum_label
 from explorer.panels.curves import (
+    EnvelopeCurve,
     OutsideLegend,
+    PacedLayoutWidget,
     RangeKeeper,
-    TrailCurve,
     add_outside_legend,
     set_title,
     style_plot,
@@ -30,6 +32,9 @@ from explorer.panels.curves import (
 from explorer.trajectories import backfill_energy
 
 FLOOR = 1e-17
+REPAINT_GAP_SECONDS = 0.1
+"""Time left free after each paint: a record over time shows as well at ten frames a
+second as at forty."""
 
 
 class FiniteSeries:
@@ -67,7 +72,7 @@ class ConservedView(QWidget):
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.compiled = None
-        self.layout_widget = pg.GraphicsLayoutWidget()
+        self.layout_widget = PacedLayoutWidget(gap=REPAINT_GAP_SECONDS)
         self.layout_widget.setBackground("w")
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
@@ -80,8 +85,8 @@ class ConservedView(QWidget):
         )
         self.momentum_plot: pg.PlotItem | None = None
         self.momentum_legend: OutsideLegend | None = None
-        self._energy_curves: dict[int, TrailCurve] = {}
-        self._momentum_curves: dict[int, TrailCurve] = {}
+        self._energy_curves: dict[int, EnvelopeCurve] = {}
+        self._momentum_curves: dict[int, EnvelopeCurve] = {}
         self._reference: dict[int, float] = {}
         self._values: dict[int, GrowingArray] = {}
         self._energy_series: dict[int, FiniteSeries] = {}
@@ -147,9 +152,7 @@ class ConservedView(QWidget):
         self.momentum_range = RangeKeeper(self.momentum_plot, time_axis=True)
         for k, i in enumerate(self.conserved_momenta):
             pen = pg.mkPen(MOMENTUM_COLOURS[k % len(MOMENTUM_COLOURS)], width=1.5)
-            curve = TrailCurve(
-                self.momentum_plot, pen, ranges=self.momentum_range, monotonic_x=True
-            )
+            curve = EnvelopeCurve(self.momentum_plot, pen, ranges=self.momentum_range)
             self._momentum_curves[i] = curve
             self.momentum_legend.addItem(curve.tail, momentum_label(scene.coordinates[i]))
         self.momentum_legend.updateSize()
@@ -199,8 +202,8 @@ class ConservedView(QWidget):
             energy = backfill_energy(trajectory, self.compiled)
             if key not in self._energy_curves:
                 pen = pg.mkPen(trajectory.colour, width=1.3)
-                self._energy_curves[key] = TrailCurve(
-                    self.energy_plot, pen, ranges=self.energy_range, monotonic_x=True
+                self._energy_curves[key] = EnvelopeCurve(
+                    self.energy_plot, pen, ranges=self.energy_range
                 )
                 self._reference[key] = float(energy[0])
                 self._values[key] = GrowingArray(())

@@ -1,61 +1,96 @@
-"""A long curve drawn as frozen chunks plus a live tail, so a redraw costs O(new points).
+"""Long curves drawn so that a frame costs about the same however long they have grown.
 
-pyqtgraph re-processes the whole array on ``setData``, and an antialiased path of a million
-points takes seconds to stroke; neither may happen every frame. ``TrailCurve`` hands each
-completed chunk to a static item once (drawn without antialiasing and cached as pixels by
-Qt until the view changes) and only updates the short tail. Curves against time also get
-``clipToView`` and ``autoDownsample``; phase-space curves cannot (pyqtgraph's clipping
-and downsampling assume sorted x and would drop or distort parts of a closed orbit).
+pyqtgraph re-processes the whole array on ``setData``, and Qt strokes an antialiased or
+wide pen along a long path slowly (a pen wider than a pixel along a self-crossing path
+of thousands of rows takes hundreds of ms); neither may happen every frame.
+
+- ``TrailCurve`` (orbits, paths: any shape) hands completed rows to frozen items, drawn
+  without antialiasing and cached as pixels by Qt until the view changes, and redraws
+  only a short tail (``TAIL_POINTS``) every frame. Phase-space curves are never clipped
+  or downsampled (pyqtgraph's clipping and downsampling assume sorted x and would drop
+  or distort parts of a closed orbit).
+- ``EnvelopeCurve`` (curves against time) draws at most four rows per pixel column
+  (``column_envelope``), which covers the same pixels as every row.
 """
 
 from __future__ import annotations
 
 import math
+import time
 import weakref
 from collections.abc import Callable, Iterable
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QGraphicsGridLayout, QGraphicsItem
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtGui import QPixmapCache
+from PySide6.QtWidgets import QGraphicsGridLayout, QGraphicsItem, QGraphicsView
 
 from explorer.buffers import GrowingArray
 from systems.angles import break_at_wraps
 
-CHUNK = 16384
+TAIL_POINTS = 1024
+"""Rows of a curve's live tail, at most: redrawn (antialiased) at every frame."""
+FROZEN_POINTS = 16384
+"""Rows of one frozen item, at most: it grows by whole tails, each time drawn once more."""
+PIXMAP_CACHE_KB = 64 * 1024
+"""Room for the pixels Qt keeps of cached items (frozen chunks, settled curves, axes): its
+default, 10 MB, holds a few plots' worth, and an item whose pixels were evicted is drawn
+again at every frame."""
+SETTLE_POINTS = 128
+"""Rows of an ``EnvelopeCurve``'s live item, about, before they go to its settled item."""
+REPAINT_GAP_SECONDS = 0.025
+"""Time a live plot leaves free after each of its paints before it paints again."""
 ANGLE_RANGE = (-1.06 * math.pi, 1.06 * math.pi)
 """The axis of an angle coordinate: (-pi, pi] with a little room to see the edges."""
 
 
 class TrailCurve:
-    """A polyline in ``plot`` that follows growing ``x``/``y`` arrays."""
+    """A polyline in ``plot`` that follows growing ``x``/``y`` arrays.
+
+    The newest rows (up to ``chunk``) are the tail, redrawn at every frame with ``pen``
+    antialiased; older rows go into frozen items of up to ``FROZEN_POINTS`` rows, drawn
+    without antialiasing and kept as pixels until the view changes. A frozen item grows
+    by whole tails (each growth draws it once more), so a long trace is a few items.
+
+    Parameters
+    ----------
+    plot : pyqtgraph.PlotItem
+    pen : QPen
+    name : str, optional
+        The tail's name (legends).
+    chunk : int
+        Rows of the tail, at most.
+    ranges : RangeKeeper, optional
+        Grown to show every new row.
+    frozen : int
+        Rows of one frozen item, at most.
+    """
 
     def __init__(
         self,
         plot: pg.PlotItem,
         pen,
         name: str | None = None,
-        chunk: int = CHUNK,
+        chunk: int = TAIL_POINTS,
         ranges: RangeKeeper | None = None,
-        monotonic_x: bool = False,
+        frozen: int = FROZEN_POINTS,
     ):
         self.plot = plot
-        self.monotonic_x = monotonic_x
         self.ranges = ranges
         self._seen = 0
         self.pen = pen
-        self.chunk = chunk
+        self.chunk = max(int(chunk), 1)
+        self.frozen = max(int(frozen), self.chunk)
         self._frozen: list[pg.PlotDataItem] = []
+        self._frozen_from = 0  # the first row of the last frozen item
         self._frozen_until = 0
         self.tail = self._item(name)
+        reserve_pixmap_cache()
 
     def _item(self, name=None) -> pg.PlotDataItem:
-        """A new item, already in the plot (clip-to-view needs its view box at once)."""
         item = pg.PlotDataItem(pen=self.pen, name=name, connect="finite")
         self.plot.addItem(item)
-        if self.monotonic_x:  # pyqtgraph clips and downsamples assuming sorted x
-            item.setClipToView(True)
-            item.setDownsampling(auto=True, method="peak")
         return item
 
     @property
@@ -63,28 +98,44 @@ class TrailCurve:
         return [*self._frozen, self.tail]
 
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Show ``x[i], y[i]`` for all i; only rows past the frozen chunks are re-sent."""
+        """Show ``x[i], y[i]`` for all i; only rows past the frozen items are re-sent."""
         size = len(x)
         if size < self._frozen_until or size < self._seen:  # the data was replaced
             self.reset()
         if self.ranges is not None and size > self._seen:
             self.ranges.include(x[self._seen :], y[self._seen :])
         self._seen = size
-        while size - self._frozen_until > self.chunk:
-            start, stop = self._frozen_until, self._frozen_until + self.chunk
-            item = self._item()
-            item.setData(x[start : stop + 1].copy(), y[start : stop + 1].copy(), antialias=False)
-            # a finished chunk never changes: Qt keeps its pixels until the view moves
-            item.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-            self._frozen.append(item)
-            self._frozen_until = stop
+        unfrozen = size - self._frozen_until
+        if unfrozen > self.chunk:
+            # whole tails are frozen: the tail keeps 1 to ``chunk`` rows
+            self._freeze(x, y, self._frozen_until + self.chunk * ((unfrozen - 1) // self.chunk))
         self.tail.setData(x[self._frozen_until :], y[self._frozen_until :])
+
+    def _freeze(self, x: np.ndarray, y: np.ndarray, until: int) -> None:
+        """Move rows up to ``until`` into frozen items, each set once."""
+        start = self._frozen_from
+        if not self._frozen or self._frozen_until - start >= self.frozen:
+            start = self._frozen_until  # a new item
+        while start < until:
+            stop = min(until, start + self.frozen)
+            if self._frozen and start == self._frozen_from:
+                item = self._frozen[-1]
+            else:
+                item = self._item()
+                self._frozen.append(item)
+            # one row more: the next item (or the tail) starts where this one ends
+            item.setData(x[start : stop + 1].copy(), y[start : stop + 1].copy(), antialias=False)
+            # a frozen item only changes when it grows: Qt keeps its pixels until then or
+            # until the view moves
+            item.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+            self._frozen_from, self._frozen_until = start, stop
+            start = stop
 
     def reset(self) -> None:
         for item in self._frozen:
             self.plot.removeItem(item)
         self._frozen.clear()
-        self._frozen_until = 0
+        self._frozen_from = self._frozen_until = 0
         self._seen = 0
         self.tail.setData([], [])
 
@@ -94,6 +145,242 @@ class TrailCurve:
 
     def point_count(self) -> int:
         return sum(len(item.xData) for item in self.items if item.xData is not None)
+
+
+def reserve_pixmap_cache() -> None:
+    """Let Qt's pixmap cache hold ``PIXMAP_CACHE_KB`` (never lowered)."""
+    if QPixmapCache.cacheLimit() < PIXMAP_CACHE_KB:
+        QPixmapCache.setCacheLimit(PIXMAP_CACHE_KB)
+
+
+def column_envelope(
+    x: np.ndarray, y: np.ndarray, x0: float, x1: float, columns: int, start: int = 0
+) -> tuple[np.ndarray, int]:
+    """The rows to draw of a curve against time, at most four per pixel column.
+
+    The view ``[x0, x1]`` is cut into ``columns`` columns; of the rows in one column the
+    first, the lowest, the highest and the last are kept, in their order. A polyline
+    through them covers the same pixels as through every row: within a column it spans
+    the same heights, and the lines between columns join the same rows. Of the rows left
+    of the view only the last is kept, of those right of it only the first (the lines
+    into the view).
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (k,)
+        Finite; ``x`` nondecreasing.
+    x0, x1 : float
+        The view, ``x0 < x1``.
+    columns : int
+        Pixel columns of the view.
+    start : int
+        The first row to look at (rows before it were drawn already).
+
+    Returns
+    -------
+    rows : ndarray of int
+        Increasing indices of the rows to draw, all ``>= start``.
+    open_start : int
+        The first row of the last column drawn: rows after it may still join that
+        column, so the next call starts there (``len(x)`` if no row was drawn).
+    """
+    k = len(x)
+    first = max(start, int(np.searchsorted(x, x0, side="left")) - 1)
+    stop = min(k, int(np.searchsorted(x, x1, side="right")) + 1)
+    if first >= stop:
+        return np.empty(0, dtype=np.intp), max(start, min(first, k))
+    scale = columns / (x1 - x0)
+    column = np.floor((x[first:stop] - x0) * scale)
+    np.clip(column, -1, columns, out=column)
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(column)) + 1])
+    values = y[first:stop]
+    lows = np.minimum.reduceat(values, starts)
+    highs = np.maximum.reduceat(values, starts)
+    group = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(values))))
+    index = np.arange(len(values))
+    beyond = len(values)
+    low_at = np.minimum.reduceat(np.where(values == lows[group], index, beyond), starts)
+    high_at = np.minimum.reduceat(np.where(values == highs[group], index, beyond), starts)
+    ends = np.append(starts[1:], len(values)) - 1
+    kept = np.sort(np.stack([starts, low_at, high_at, ends], axis=1), axis=1).ravel()
+    rows = kept[np.append(True, kept[1:] != kept[:-1])]
+    return first + rows, first + int(starts[-1])
+
+
+class EnvelopeCurve:
+    """A curve against time (x nondecreasing, finite) drawn at the view's resolution.
+
+    What is handed to pyqtgraph is ``column_envelope`` of the data: at most four rows per
+    pixel column, however many rows the curve has. New rows redo only the last column; a
+    change of the view's x range or width redoes the whole envelope (O(rows), a few ms).
+    The columns that no longer change go to a settled item, kept as pixels by Qt until
+    the view moves (or ``SETTLE_POINTS`` more rows of the envelope have settled); only the
+    live item, the last columns, is drawn at every frame. The pen is drawn as separate
+    line segments: Qt strokes a pen wider than a pixel along a self-crossing path (a
+    dense curve's zigzag) in time that grows much faster than the path, the segments in
+    linear time.
+
+    Parameters
+    ----------
+    plot : pyqtgraph.PlotItem
+    pen : QPen
+    name : str, optional
+        The live item's name (legends).
+    ranges : RangeKeeper, optional
+        Grown to show every new row.
+    """
+
+    def __init__(
+        self,
+        plot: pg.PlotItem,
+        pen,
+        name: str | None = None,
+        ranges: RangeKeeper | None = None,
+    ):
+        self.plot = plot
+        self.pen = pen
+        self.ranges = ranges
+        self.settled = pg.PlotDataItem(pen=pen)
+        self.settled.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        reserve_pixmap_cache()
+        self.tail = pg.PlotDataItem(pen=pen, name=name)
+        for item in self.items:
+            item.curve.opts["segmentedLineMode"] = "on"
+            plot.addItem(item)
+        self._x = np.empty(0)
+        self._y = np.empty(0)
+        self._grid: tuple[float, float, int] | None = None
+        self._rows = np.empty(0, dtype=np.intp)  # the rows drawn
+        self._open_row = 0  # the first row of the last column drawn
+        self._open_at = 0  # where that column's rows begin in ``_rows``
+        self._settled = 0  # rows of ``_rows`` in the settled item
+        self._updating = False
+        self._view = plot.getViewBox()
+        self._view.sigXRangeChanged.connect(self._on_view_changed)
+        self._view.sigResized.connect(self._on_view_changed)
+
+    @property
+    def items(self) -> list[pg.PlotDataItem]:
+        return [self.settled, self.tail]
+
+    def _current_grid(self) -> tuple[float, float, int] | None:
+        (x0, x1), _ = self._view.viewRange()
+        columns = int(round(self._view.width()))
+        if not (math.isfinite(x0) and math.isfinite(x1) and x1 > x0) or columns < 1:
+            return None
+        return (float(x0), float(x1), columns)
+
+    def _on_view_changed(self, *_args) -> None:
+        if not self._updating and self._current_grid() != self._grid:
+            self._redo(0)
+
+    def update(self, x: np.ndarray, y: np.ndarray) -> None:
+        """Show ``x[i], y[i]`` for all i (``x`` nondecreasing, every row finite)."""
+        size = len(x)
+        seen = len(self._x)
+        replaced = size < seen
+        self._updating = True  # a range grown here is taken below, not redone twice
+        try:
+            if self.ranges is not None:
+                if replaced:
+                    self.ranges.include(x, y)
+                elif size > seen:
+                    self.ranges.include(x[seen:], y[seen:])
+        finally:
+            self._updating = False
+        self._x, self._y = x, y
+        if replaced or self._current_grid() != self._grid:
+            self._redo(0)
+        elif size > seen:
+            self._redo(self._open_row)
+
+    def _redo(self, start: int) -> None:
+        """Draw the envelope again from row ``start`` (0: all of it, for a new grid)."""
+        grid = self._current_grid()
+        if grid != self._grid:
+            start = 0
+        self._grid = grid
+        x, y = self._x, self._y
+        kept = self._rows[: self._open_at] if start else self._rows[:0]  # the open column is redone
+        if grid is None:
+            rows, open_row = np.arange(start, len(x)), len(x)
+        else:
+            rows, open_row = column_envelope(x, y, *grid, start=start)
+        self._open_at = len(kept) + int(np.searchsorted(rows, open_row))
+        self._open_row = open_row
+        self._rows = np.concatenate([kept, rows])
+        if not start or len(self._rows) - self._settled > SETTLE_POINTS:
+            # the columns before the open one never change again (until the view does)
+            self._settled = self._open_at
+            shown = self._rows[: self._settled] if self._settled > 1 else self._rows[:0]
+            self.settled.setData(x[shown], y[shown])
+        # one row back: the live item goes on from the settled item's last row
+        live = self._rows[max(self._settled - 1, 0) :]
+        self.tail.setData(x[live], y[live])
+
+    def reset(self) -> None:
+        self._x = self._y = np.empty(0)
+        self._rows = np.empty(0, dtype=np.intp)
+        self._open_row = self._open_at = self._settled = 0
+        self._grid = None
+        for item in self.items:
+            item.setData([], [])
+
+    def remove(self) -> None:
+        self.reset()
+        self._view.sigXRangeChanged.disconnect(self._on_view_changed)
+        self._view.sigResized.disconnect(self._on_view_changed)
+        for item in self.items:
+            self.plot.removeItem(item)
+
+    def point_count(self) -> int:
+        """Rows of data the curve shows (drawn: ``column_envelope`` of them)."""
+        return len(self._x)
+
+
+class PacedLayoutWidget(pg.GraphicsLayoutWidget):
+    """A ``GraphicsLayoutWidget`` that paints at most once per ``gap`` after its last paint.
+
+    Every change to its scene (new data, a pan with the mouse, a range grown) asks for a
+    repaint; those that come within ``gap`` seconds of the end of the last paint are
+    gathered into one, painted when the gap is over. So a plot fed frames at full speed
+    leaves the GUI thread free for ``gap`` between two paints, however long a paint takes
+    (a slower machine paints less often instead of never catching up). Rendering it
+    (export, ``grab``) is not delayed.
+
+    Parameters
+    ----------
+    gap : float
+        Seconds between the end of a paint and the next, at least.
+    """
+
+    def __init__(self, *args, gap: float = REPAINT_GAP_SECONDS, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.gap = float(gap)
+        self._painted = -math.inf
+        self._later = QTimer(self)
+        self._later.setSingleShot(True)
+        self._later.timeout.connect(self._on_later_timeout)
+        # Qt then leaves every repaint to this widget: changes arrive as scene.changed
+        self.setViewportUpdateMode(QGraphicsView.ViewportUpdateMode.NoViewportUpdate)
+        self.scene().changed.connect(self._on_scene_changed)
+
+    def _on_scene_changed(self, _regions) -> None:
+        if self._later.isActive():
+            return
+        wait = self._painted + self.gap - time.perf_counter()
+        if wait <= 0:
+            self.viewport().update()
+        else:
+            self._later.start(max(1, math.ceil(1000 * wait)))
+
+    def _on_later_timeout(self) -> None:
+        self.viewport().update()
+
+    def paintEvent(self, event) -> None:  # noqa: N802 - Qt override
+        super().paintEvent(event)
+        self._painted = time.perf_counter()
+        self._later.stop()  # what it waited for is painted; later changes ask again
 
 
 def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
@@ -299,23 +586,42 @@ class OutsideLegend(pg.LegendItem):
         for sample, label in self.items:
             self._removeItemFromLayout(sample, label)
         self.items = []
+        self._new_grid()
+        self.updateSize()
+
+    def _new_grid(self) -> None:
         self.rowCount = 1
         spacing = (self.layout.horizontalSpacing(), self.layout.verticalSpacing())
         self.layout = QGraphicsGridLayout()
         self.layout.setHorizontalSpacing(spacing[0])
         self.layout.setVerticalSpacing(spacing[1])
         self.setLayout(self.layout)
-        self.updateSize()
 
     def set_entries(self, entries: Iterable[tuple[object, str]]) -> None:
         """Show exactly ``entries``, a list of (item, name), in order (nothing is redone
-        when they are what is shown)."""
+        when they are what is shown).
+
+        Entries already shown keep their sample and label (laying out a label's text
+        takes ms), laid out again in a new grid as ``clear`` and ``addItem`` would.
+        """
         entries = list(entries)
         if [(s.item, label.text) for s, label in self.items] == entries:
             return
-        self.clear()
-        for item, name in entries:
-            self.addItem(item, name)
+        shown = {(sample.item, label.text): (sample, label) for sample, label in self.items}
+        kept = [shown.pop(entry, None) for entry in entries]
+        for sample, label in shown.values():
+            self._removeItemFromLayout(sample, label)
+        for pair in kept:
+            for part in pair or ():
+                self.layout.removeItem(part)
+        self.items = []
+        self._new_grid()
+        for (item, name), pair in zip(entries, kept, strict=True):
+            if pair is None:
+                self.addItem(item, name)
+            else:
+                self.items.append(pair)
+                self._addItemToLayout(*pair)
         self.updateSize()
 
     def entries(self) -> list[str]:

@@ -17,6 +17,7 @@ the panel emits ``orbit_delete_requested(key)`` and the owner removes it.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -27,6 +28,7 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QCompleter,
+    QGraphicsItem,
     QHBoxLayout,
     QLabel,
     QVBoxLayout,
@@ -37,6 +39,7 @@ from explorer import level_sets, poincare
 from explorer.labels import coordinate_label, momentum_label
 from explorer.panels.curves import (
     ANGLE_RANGE,
+    PacedLayoutWidget,
     RangeKeeper,
     TrailCurve,
     WrappedSeries,
@@ -57,6 +60,9 @@ LEGEND_ORBITS = 6
 """Orbits named in the legend (their colours tell the others apart)."""
 PICK_PIXELS = 8.0
 """How close (in pixels) a right-click must be to an orbit to offer deleting it."""
+REPAINT_GAP_SECONDS = 0.04
+"""Time left free after each paint: at full speed a paint costs about ten ms, and twenty
+paints a second show the orbits growing as well as forty."""
 FIT_GRID = 121
 FIT_MARGIN = 0.12
 PAIR_TIP = (
@@ -73,6 +79,12 @@ POINCARE_TIP = (
 
 def _pen(colour: str, width: float = 1.6, style=Qt.PenStyle.SolidLine):
     return pg.mkPen(colour, width=width, style=style)
+
+
+@functools.cache
+def _brush(colour: str):
+    """``pg.mkBrush(colour)``, made once per colour (it parses the colour: most of a ms)."""
+    return pg.mkBrush(colour)
 
 
 def _preferred_index(scene) -> int:
@@ -132,7 +144,7 @@ class PhaseView(QWidget):
         self._curves: dict[int, TrailCurve] = {}
         self._series: dict[int, WrappedSeries] = {}
         self._shown: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._heads: dict[int, pg.ScatterPlotItem] = {}
+        self._heads: dict[int, tuple[float, float]] = {}  # each orbit's last point
         self._energy_items: dict[int, pg.PlotDataItem] = {}
         self._section_points: dict[int, np.ndarray] = {}
         self._section_scatter: dict[int, pg.ScatterPlotItem] = {}
@@ -144,7 +156,7 @@ class PhaseView(QWidget):
         self._store = None
         self._generation = -1
 
-        self.plot_widget = pg.GraphicsLayoutWidget()
+        self.plot_widget = PacedLayoutWidget(gap=REPAINT_GAP_SECONDS)
         self.plot_widget.setBackground("w")
         self.plot = self.plot_widget.addPlot(row=0, col=0)
         self.view_box = self.plot.getViewBox()
@@ -157,6 +169,10 @@ class PhaseView(QWidget):
         style_plot(self.plot)
         self.legend = add_outside_legend(self.plot_widget.ci, row=1, col=0, columns=4)
         self.ranges = RangeKeeper(self.plot, margin=0.15, on_grow=self._on_ranges_grown)
+        # every orbit's head in one item (a scatter item costs most of a ms to draw)
+        self._head_item = pg.ScatterPlotItem(size=9, pen="w")
+        self._head_item.setZValue(5)
+        self.plot.addItem(self._head_item)
         self.plot.scene().sigMouseClicked.connect(self._on_scene_clicked)
 
         self.pair_combo = QComboBox()
@@ -457,6 +473,8 @@ class PhaseView(QWidget):
             x, y = level_sets.contour(self.grid, energy)
             item = pg.PlotDataItem(x, y, pen=SEPARATRIX_PEN, connect="finite")
             item.setZValue(-5)
+            # a wide antialiased pen costs ms to stroke: kept as pixels until the view moves
+            item.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             self._add_static(item, f"separatrix (H = {energy:.4g})" if k == 0 else None)
         if self.saddles:
             marks = pg.ScatterPlotItem(
@@ -466,6 +484,7 @@ class PhaseView(QWidget):
                 size=12,
                 pen=pg.mkPen("#e6550d", width=2),
             )
+            marks.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             self._add_static(marks)
         for key, item in self._energy_items.items():  # the orbits' own level sets
             item.setData(*self._energy_contour(self._orbit_energy(key)))
@@ -478,6 +497,7 @@ class PhaseView(QWidget):
     def _clear_dynamic(self) -> None:
         for key in list({*self._curves, *self._section_scatter, *self._heads}):
             self._forget(key, update_legend=False)
+        self._show_heads()
         self._series.clear()
         self._shown.clear()
         self._colours.clear()
@@ -488,7 +508,9 @@ class PhaseView(QWidget):
         curve = self._curves.pop(key, None)
         if curve is not None:
             curve.remove()
-        for table in (self._heads, self._energy_items, self._section_scatter):
+        if self._heads.pop(key, None) is not None:
+            self._show_heads()
+        for table in (self._energy_items, self._section_scatter):
             item = table.pop(key, None)
             if item is not None:
                 self.plot.removeItem(item)
@@ -533,11 +555,21 @@ class PhaseView(QWidget):
                 added |= self._refresh_section(trajectory)
             else:
                 added |= self._refresh_phase(trajectory)
+        if self.mode == "phase":
+            self._show_heads()
         if self._static_stale:
             self._draw_static()
             added = True
         if added:
             self._update_legend()
+
+    def _show_heads(self) -> None:
+        keys = list(self._heads)
+        self._head_item.setData(
+            [self._heads[k][0] for k in keys],
+            [self._heads[k][1] for k in keys],
+            brush=[_brush(self._colours[k]) for k in keys],
+        )
 
     def _orbit_energy(self, key: int) -> float:
         return self._orbit_energies.get(key, math.nan)
@@ -553,9 +585,6 @@ class PhaseView(QWidget):
         if added:
             self._colours[key] = trajectory.colour
             self._curves[key] = TrailCurve(self.plot, _pen(trajectory.colour), ranges=self.ranges)
-            head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush(trajectory.colour), pen="w")
-            self.plot.addItem(head)
-            self._heads[key] = head
             if self.angles[i]:
                 self._series[key] = WrappedSeries((True, False))
             if self.level_sets_available:
@@ -575,7 +604,7 @@ class PhaseView(QWidget):
         self._shown[key] = (q, p)
         self._curves[key].update(q, p)
         last_q = data[-1, i]
-        self._heads[key].setData([wrap(last_q) if self.angles[i] else last_q], [data[-1, n + i]])
+        self._heads[key] = (wrap(last_q) if self.angles[i] else last_q, data[-1, n + i])
         return added
 
     def _refresh_section(self, trajectory) -> bool:

@@ -2,8 +2,9 @@
 
 Closed orbits stay curves at full speed, the store keeps a bounded number of samples
 however long a run lasts, every command acts within a couple of turns of the worker's
-loop, and the steps a frame reports are the integrator's real steps, so the rate shown is
-the true one.
+loop, the steps a frame reports are the integrator's real steps, so the rate shown is
+the true one, and what the panels draw at every frame stays short however long the
+curves grow (the timings are in benchmarks/max_speed.py).
 """
 
 from __future__ import annotations
@@ -14,8 +15,15 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from PySide6.QtWidgets import QGraphicsItem
 from scipy.special import ellipk
 
+from explorer.panels.curves import (
+    EnvelopeCurve,
+    PacedLayoutWidget,
+    TrailCurve,
+    column_envelope,
+)
 from explorer.trajectories import (
     MAX_LEVEL,
     Trajectory,
@@ -113,6 +121,35 @@ def test_a_closed_orbit_is_a_curve_at_max_speed(qtbot, pendulum):
     assert np.ptp(y[last], axis=0).max() > 0.9 * size
     # and H came along for the rows kept
     assert np.isfinite(main.energy.data[1:][~is_gap(y[1:])]).all()
+
+
+def test_a_closed_orbit_stays_a_curve_while_the_gui_thread_holds_the_gil(qtbot, pendulum):
+    # a GUI thread busy in Python (long paints hold the GIL) slows some of the worker's
+    # blocks: the next ones must still keep every stride-th step, not skip turns
+    from PySide6.QtCore import QTimer
+
+    built, compiled = pendulum
+    period = pendulum_period(compiled)
+    settings = RunSettings(method=built.method, speed=math.inf, diagnostics=("H",))
+
+    rng = np.random.default_rng(1)
+    shuffled = rng.random(300_000).tolist()
+
+    def busy():  # one C call that keeps the GIL for tens of ms, as QPainter's do
+        sorted(shuffled[: int(len(shuffled) * rng.random() ** 0.5)])
+
+    timer = QTimer()
+    timer.timeout.connect(busy)
+    timer.start(20)
+    try:
+        with Feed(compiled, settings) as feed:
+            main = feed.store.main
+            qtbot.waitUntil(lambda: main.last_t > 5000 * period, timeout=120000)
+    finally:
+        timer.stop()
+    y = main.y.data
+    size = np.ptp(y[~is_gap(y)], axis=0).max()
+    assert connected_steps(y).max() < 0.06 * size
 
 
 def test_arc_keep_keeps_neighbours_close_and_drops_the_rest():
@@ -393,3 +430,179 @@ def test_panels_draw_a_store_with_gaps_through_a_thinning(qtbot, pendulum):
     assert np.isfinite(energy[real]).all() and np.isnan(energy[~real]).all()
     points = trajectory.points.data
     assert np.isfinite(points[-1]).all() and np.isnan(points[~real]).all()
+
+
+# -- drawing costs the same however long the curves --------------------------------------
+
+
+def test_column_envelope_keeps_four_rows_a_column_and_the_lines_into_the_view():
+    rng = np.random.default_rng(3)
+    x = np.sort(rng.uniform(0.0, 100.0, 20_000))
+    x[5000:5100] = x[5000]  # rows at one time
+    y = np.cumsum(rng.normal(size=len(x)))
+    x0, x1, columns = 10.0, 90.0, 300
+    rows, open_start = column_envelope(x, y, x0, x1, columns)
+    assert np.all(np.diff(rows) > 0) and len(rows) <= 4 * (columns + 2)
+    inside = (x >= x0) & (x <= x1)
+    # the last row left of the view and the first right of it draw the lines into it
+    left, right = np.flatnonzero(x < x0)[-1], np.flatnonzero(x > x1)[0]
+    assert rows[0] == left and rows[-1] == right
+    assert set(rows) - {left, right} <= set(np.flatnonzero(inside))
+    column = np.floor((x - x0) * columns / (x1 - x0))
+    for c in np.unique(column[inside])[::7]:
+        where = np.flatnonzero(inside & (column == c))
+        drawn = rows[np.isin(rows, where)]
+        # the column's first and last rows, and its lowest and highest values
+        assert drawn[0] == where[0] and drawn[-1] == where[-1]
+        assert y[drawn].min() == y[where].min() and y[drawn].max() == y[where].max()
+    # the last column drawn is open: from its first row on, more rows redo only it
+    assert open_start == right
+    again, _ = column_envelope(x, y, x0, x1, columns, start=int(rows[-5]))
+    assert np.array_equal(again, rows[-5:])
+    # rows past a sparse stretch are kept whole; an empty input draws nothing
+    few = x[::200]
+    sparse, _ = column_envelope(few, y[::200], x0, x1, columns)
+    left, right = np.flatnonzero(few < x0)[-1], np.flatnonzero(few > x1)[0]
+    assert np.array_equal(sparse, np.arange(left, right + 1))
+    assert len(column_envelope(np.empty(0), np.empty(0), x0, x1, columns)[0]) == 0
+
+
+def _plot(qtbot, width=400, height=200):
+    """A shown plot (its widget is kept as ``plot.widget``: it owns the plot)."""
+    import pyqtgraph as pg
+
+    widget = pg.PlotWidget()
+    qtbot.addWidget(widget)
+    widget.resize(width, height)
+    widget.show()
+    qtbot.waitExposed(widget)
+    plot = widget.getPlotItem()
+    plot.widget = widget
+    return plot
+
+
+def pg_pen():
+    import pyqtgraph as pg
+
+    return pg.mkPen("#1f77b4", width=1.3)
+
+
+def _drawn(items) -> tuple[np.ndarray, np.ndarray]:
+    """The polyline of consecutive items (each begins at the last row of the one before)."""
+    parts = [item.getData() for item in items if item.xData is not None and len(item.xData)]
+    x = np.concatenate([p[0][1 if k else 0 :] for k, p in enumerate(parts)])
+    y = np.concatenate([p[1][1 if k else 0 :] for k, p in enumerate(parts)])
+    return x, y
+
+
+def test_an_envelope_curve_fed_in_pieces_draws_the_envelope_of_all_rows(qtbot):
+    plot = _plot(qtbot)
+    plot.disableAutoRange()
+    plot.setXRange(0.0, 50.0, padding=0)
+    plot.setYRange(-100.0, 100.0, padding=0)
+    curve = EnvelopeCurve(plot, pg_pen())
+    rng = np.random.default_rng(5)
+    x = np.cumsum(rng.exponential(0.002, 40_000))
+    y = np.cumsum(rng.normal(size=len(x)))
+
+    def envelope(size):
+        (x0, x1), _ = plot.getViewBox().viewRange()
+        rows, _ = column_envelope(x[:size], y[:size], x0, x1, round(plot.getViewBox().width()))
+        return x[rows], y[rows]
+
+    for size in (1, 2, 500, 4000, 4001, 9000, 25_000, 40_000):
+        curve.update(x[:size], y[:size])
+        shown = _drawn(curve.items)
+        assert all(np.array_equal(a, b) for a, b in zip(shown, envelope(size), strict=True))
+        assert curve.point_count() == size
+    assert len(curve.tail.xData) < len(x) // 20  # what is drawn at every frame is short
+    assert curve.settled.curve.cacheMode() == QGraphicsItem.CacheMode.DeviceCoordinateCache
+    # a new view (a pan, a wider window) draws the envelope again at its resolution
+    plot.setXRange(20.0, 30.0, padding=0)
+    assert all(
+        np.array_equal(a, b) for a, b in zip(_drawn(curve.items), envelope(40_000), strict=True)
+    )
+    curve.update(x[:100], y[:100])  # replaced data start afresh
+    assert np.array_equal(_drawn(curve.items)[0], envelope(100)[0])
+    curve.remove()
+    assert not any(item.scene() for item in curve.items)
+
+
+def test_a_trail_curve_redraws_a_short_tail_and_freezes_the_rest_in_few_items(qtbot):
+    plot = _plot(qtbot)
+    curve = TrailCurve(plot, pg_pen(), chunk=100, frozen=350)
+    angle = np.linspace(0.0, 40 * np.pi, 2345)
+    x, y = np.cos(angle), np.sin(angle)
+    for size in (1, 50, 101, 250, 999, 1000, 1001, 1760, 2345):
+        curve.update(x[:size], y[:size])
+        assert 1 <= len(curve.tail.xData) <= 100
+        shown = _drawn(curve.items)  # every row, in order, once: no row left out
+        assert np.array_equal(shown[0], x[:size]) and np.array_equal(shown[1], y[:size])
+    frozen = curve.items[:-1]
+    assert len(frozen) == 7 and all(len(item.xData) <= 351 for item in frozen)
+    for item in frozen:
+        assert item.curve.cacheMode() == QGraphicsItem.CacheMode.DeviceCoordinateCache
+        assert not item.curve.opts["antialias"]
+    assert curve.point_count() == 2345 + len(frozen)  # each item repeats one row
+    curve.update(x[:10], y[:10])  # replaced data start afresh
+    assert curve.items == [curve.tail] and len(curve.tail.xData) == 10
+
+
+def test_a_legend_keeps_the_entries_it_still_shows(qtbot):
+    import pyqtgraph as pg
+
+    from explorer.panels.curves import add_outside_legend
+
+    widget = pg.GraphicsLayoutWidget()
+    qtbot.addWidget(widget)
+    plot = widget.addPlot(row=0, col=0)
+    legend = add_outside_legend(widget.ci, row=1, col=0, columns=4)
+    items = {name: plot.plot([0, 1], [0, 1]) for name in "abcde"}
+    legend.set_entries((items[name], name) for name in "abcde")
+    labels = {label.text: label for _, label in legend.items}
+    height = legend.maximumHeight()
+    legend.set_entries((items[name], name) for name in "ace")
+    assert legend.entries() == ["a", "c", "e"]
+    assert all(label is labels[label.text] for _, label in legend.items)  # not made again
+    # laid out afresh: one row, no holes where b and d were
+    cells = [legend.layout.itemAt(0, col) for col in range(6)]
+    assert cells == [part for pair in legend.items for part in pair]
+    assert legend.maximumHeight() < height
+    legend.set_entries((items[name], name) for name in "acbde")
+    assert legend.entries() == ["a", "c", "b", "d", "e"]
+
+
+def test_a_paced_plot_leaves_the_gap_free_after_each_paint_and_paints_the_last_change(qtbot):
+    import pyqtgraph as pg
+
+    gap = 0.05
+    widget = PacedLayoutWidget(gap=gap)
+    qtbot.addWidget(widget)
+    widget.resize(300, 200)
+    widget.show()
+    qtbot.waitExposed(widget)
+    curve = widget.addPlot().plot([0.0], [0.0])
+    paints = []
+    original = widget.paintEvent
+
+    def paint(event):
+        start = time.perf_counter()
+        original(event)
+        paints.append((start, time.perf_counter(), len(curve.xData)))
+
+    widget.paintEvent = paint
+    changes = [0]
+
+    def change():
+        changes[0] += 1
+        curve.setData(np.arange(changes[0] + 1.0), np.arange(changes[0] + 1.0) ** 0.5)
+
+    timer = pg.QtCore.QTimer()
+    timer.timeout.connect(change)
+    timer.start(2)
+    qtbot.wait(600)
+    timer.stop()
+    qtbot.waitUntil(lambda: paints and paints[-1][2] == changes[0] + 1, timeout=2000)
+    assert len(paints) >= 3 and changes[0] > 2 * len(paints)  # changes were gathered
+    for (_, end, _), (start, _, _) in zip(paints[:-1], paints[1:], strict=True):
+        assert start - end >= gap - 0.003
