@@ -22,7 +22,9 @@ Responsive at any speed
   (making one probes the default step: tens of ms).
 - At most ``MAX_IN_FLIGHT`` frames are on their way to the GUI thread: the worker waits
   (still answering commands) until the GUI has taken one, so a busy GUI never finds a
-  backlog of frames queued ahead of a click.
+  backlog of frames queued ahead of a click. At a finite speed each frame's time is
+  waited out whatever the GUI does (only a command ends the wait early), so 1x is real
+  time however fast the GUI takes the frames.
 - The store takes a bounded number of rows that keep closed orbits curves. Every step
   is sampled (a block keeps up to ``FINE_POINTS`` states, so no stride skips a turn of
   the orbit; ``stride`` grows only while ``OVERSAMPLING`` or more samples are taken per
@@ -212,6 +214,7 @@ class _Track:
     owed_steps: int = 0  # counts of blocks not handed over yet
     owed_evaluations: int = 0
     owed_events: list = dataclasses.field(default_factory=list)
+    origin: tuple[float, np.ndarray] | None = None  # where its first run began
 
 
 def default_runs() -> Callable:
@@ -379,7 +382,7 @@ class SimulationWorker(QObject):
         with self._lock:
             if settings.run_options() != self._settings.run_options():
                 self._restart = True  # applied by the worker thread, between chunks
-                self._changed = True
+            self._changed = True  # a paced wait ends: the new speed applies at once
             self._settings = settings
         self._wake.set()
 
@@ -495,7 +498,7 @@ class SimulationWorker(QObject):
                     )
                     self.blocks_ready.emit(frame)
             if paced:
-                self._idle(settings.frame_seconds - (time.perf_counter() - start))
+                self._wait_out(start + settings.frame_seconds)
 
     def _interrupted(self) -> bool:
         return self._abort or self._paused or self._changed
@@ -551,7 +554,17 @@ class SimulationWorker(QObject):
             if self._made_run:
                 return None
             self._made_run = True
-            track.run = self._runs(self.compiled, y0=track.y, t0=track.t, **settings.run_options())
+            if track.origin is None:
+                track.origin = (track.t, track.y)
+            # a restart (another method or step) probes from where the orbit began: that
+            # probe is remembered, one from here would cost tens of ms while a click waits
+            track.run = self._runs(
+                self.compiled,
+                y0=track.y,
+                t0=track.t,
+                probe_start=track.origin,
+                **settings.run_options(),
+            )
             track.run_steps = track.run_evaluations = 0
             track.fresh = True
         if track.seconds_per_step > 0:
@@ -560,6 +573,15 @@ class SimulationWorker(QObject):
             seconds = min(seconds, 0.8 * points * track.stride * track.seconds_per_step)
             if hasattr(track.run, "max_points"):
                 steps = seconds / track.seconds_per_step
+                planned = getattr(track.run, "nsteps", None)
+                if isinstance(planned, int):
+                    # a run takes the steps it planned from its last block, whatever
+                    # ``seconds`` says now (a block slowed by the GUI thread holding the
+                    # GIL plans few, the next is fast): keep every ``stride``-th of them,
+                    # and plan no more than fit, or the run would stride further itself
+                    # and join states a good part of an orbit apart (chords)
+                    steps = max(1, min(planned, int(points * track.stride)))
+                    track.run.nsteps = steps
                 track.run.max_points = int(min(points, steps / track.stride + 2))
         before = track.y
         started = time.perf_counter()
@@ -692,6 +714,19 @@ class SimulationWorker(QObject):
     def _idle(self, seconds: float) -> None:
         if seconds > 0 and not self._abort:
             self._wake.wait(seconds)
+            self._wake.clear()
+
+    def _wait_out(self, deadline: float) -> None:
+        """Paced playback: wait until ``deadline`` (``time.perf_counter()``), or until a
+        command comes. The GUI taking a frame wakes the loop too (so that a full-speed
+        loop waiting for room goes on at once); here that must not end the wait, or the
+        frames, and with them the simulated time, would come as fast as the GUI takes
+        them instead of once per frame time."""
+        while not self._interrupted():
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                return
+            self._wake.wait(left)
             self._wake.clear()
 
     def _take_changes(self) -> None:

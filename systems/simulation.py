@@ -158,6 +158,10 @@ class Run:
     max_steps : int or None
         Stop with ``"budget"`` after this many steps (a fixed-step run that would need
         more is refused at once). None: no budget.
+    probe_start : (t, y), optional
+        Where the default step's probe runs from, if not ``(t0, y0)``: a run restarted
+        part way along an orbit (another method) passes where the orbit began, so the
+        probe run there is remembered, not run again (``stepsize.default_step``).
     """
 
     def __init__(
@@ -176,6 +180,7 @@ class Run:
         energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
         compensated: bool = True,
         max_steps: int | None = None,
+        probe_start: tuple[float, np.ndarray] | None = None,
     ):
         if method is None:
             method, _ = choose_method(compiled.mechanics)
@@ -215,7 +220,7 @@ class Run:
             return
         value = dt if dt is not None else tol
         if value is None:
-            value = stepper.default_setting(compiled, t0, self.y0, t_end)
+            value = stepper.default_setting(compiled, t0, self.y0, t_end, probe_start)
         self.setting_value = float(value)
         sec = None if section is None else np.array(section, dtype=float)
         self.section_period = _section_period(compiled, section)

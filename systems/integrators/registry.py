@@ -49,7 +49,7 @@ class Family:
         A runner class of ``systems.integrators.runners``.
     coefficients : callable(stepper, compiled, t0, y0, compensated) -> tuple
         The kernel's ``coef`` tuple.
-    default_setting : callable(compiled, stepper, t0, y0, t_end) -> float
+    default_setting : callable(compiled, stepper, t0, y0, t_end, *, probe_start) -> float
     applies : callable(mechanics, stepper) -> str or None
     wants : frozenset of str
         What ``compile_system`` must provide besides ``rhs``.
@@ -124,9 +124,17 @@ class Stepper:
         """None if this method integrates ``mechanics`` as derived, else why it cannot."""
         return self.family.applies(mechanics, self)
 
-    def default_setting(self, compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
-        """The step or tolerance used when none is given, for a run from ``(t0, y0)``."""
-        return self.family.default_setting(compiled, self, t0, y0, t_end)
+    def default_setting(
+        self,
+        compiled,
+        t0: float,
+        y0: np.ndarray,
+        t_end: float,
+        probe_start: tuple[float, np.ndarray] | None = None,
+    ) -> float:
+        """The step or tolerance used when none is given, for a run from ``(t0, y0)``
+        (``probe_start``: see ``stepsize.default_step``)."""
+        return self.family.default_setting(compiled, self, t0, y0, t_end, probe_start=probe_start)
 
     def setting_error(
         self,
@@ -279,7 +287,7 @@ def _dop853_coef(stepper, compiled, t0, y0, compensated):
     )
 
 
-def _adaptive_tol(compiled, stepper, t0, y0, t_end):
+def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
     return stepsize.STIFF_TOL if stepper.stiff else stepsize.DEFAULT_TOL
 
 

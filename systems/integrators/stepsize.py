@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import weakref
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,6 +33,11 @@ PROBE_SAMPLES = 64
 PROBE_JACOBIAN_BUDGET = 640
 """Most Jacobian columns the probe forms along its run: all 64 samples up to 10 state
 variables, fewer beyond (a 20-variable system samples every other state)."""
+
+PROBE_MEMORY = 32
+"""Probed rates kept per compiled system: a change of method (only the steps per period
+differ) or a restart from the same state finds the probe's answer instead of running it
+again (tens of ms, in the worker's loop, while a click waits)."""
 
 DEFAULT_TOL = 1e-12
 STIFF_TOL = 1e-6
@@ -77,6 +83,7 @@ def default_step(
     t_end: float,
     probe: bool = True,
     per_period: int | None = None,
+    probe_start: tuple[float, np.ndarray] | None = None,
 ) -> float:
     """A fixed step for ``stepper``: ``STEPS_PER_PERIOD`` steps per fastest period.
 
@@ -86,6 +93,10 @@ def default_step(
     that fails (the state stops being finite) is repeated with half the step.
     Falls back to 0.01 when the linearisation has no rate (free motion); never more than
     a tenth of a finite run. For time-transformed steppers see ``fictitious_step``.
+
+    ``probe_start`` (t, y): where the probe runs from instead (a run restarted part way
+    along an orbit with another method probes from where the orbit began, so the probe
+    already run there is found again, not run once more).
     """
     if per_period is None:
         per_period = STEPS_PER_PERIOD.get(stepper.order, 300)
@@ -95,22 +106,51 @@ def default_step(
         dt = min(dt, (t_end - t0) / 10.0)
     if not probe or rate <= 0.0 or stepper.setting != "dt" or stepper.family.adaptive:
         return dt
+    start = (t0, y0) if probe_start is None else probe_start
+    rate = max(rate, _probed_rate(compiled, float(start[0]), np.asarray(start[1], float), t_end))
+    return min(dt, 2.0 * math.pi / rate / per_period)
+
+
+_probed: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
+    """The fastest rate at ``(t0, y0)`` and along the probe's run from there (0.0: none).
+
+    Remembered per compiled system (its parameters, the start and ``t_end`` are the
+    key), since it does not depend on the method.
+    """
+    parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
+    key = (t0, y0.tobytes(), parameters.tobytes(), t_end)
+    try:
+        memory = _probed.setdefault(compiled, {})
+    except TypeError:  # not weakly referenceable: nothing is remembered
+        memory = {}
+    if key in memory:
+        return memory[key]
+    rate = fastest_rate(compiled, t0, y0)
+    if rate <= 0.0:
+        return rate
     probe_dt = 2.0 * math.pi / rate / PROBE_STEPS_PER_PERIOD
     if math.isfinite(t_end) and t_end > t0:
         probe_dt = min(probe_dt, (t_end - t0) / 10.0)
+    found = rate
     for _ in range(6):
         states = _probe(compiled, t0, y0, probe_dt, 20 * PROBE_STEPS_PER_PERIOD)
         if states is not None:
             break
         probe_dt /= 2.0
     else:
-        return dt
+        states = []
     # a Jacobian costs 2 * len(y) evaluations: fewer samples for large systems keep the
     # probe's cost bounded (a ten-link chain's took a second while still interpreted)
-    every = max(1, len(y0) * len(states) // PROBE_JACOBIAN_BUDGET)
+    every = max(1, len(y0) * max(len(states), 1) // PROBE_JACOBIAN_BUDGET)
     for t, y in states[every - 1 :: every]:
-        rate = max(rate, fastest_rate(compiled, t, y))
-    return min(dt, 2.0 * math.pi / rate / per_period)
+        found = max(found, fastest_rate(compiled, t, y))
+    if len(memory) >= PROBE_MEMORY:
+        memory.pop(next(iter(memory)))
+    memory[key] = found
+    return found
 
 
 def _probe(compiled, t0, y0, dt, nsteps, samples=PROBE_SAMPLES):
@@ -144,8 +184,11 @@ def _probe(compiled, t0, y0, dt, nsteps, samples=PROBE_SAMPLES):
     return states
 
 
-def fictitious_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float) -> float:
+def fictitious_step(
+    compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end: float, probe_start=None
+) -> float:
     """Fictitious-time step ``ds`` of a log-H stepper: ``dt * |V(q0)|`` for the default dt.
+    (No probe: ``probe_start`` is not used.)
 
     In log-H stepping dt = ds / (-V), so ``ds`` matches ``dt`` where the motion starts.
     """
@@ -154,7 +197,10 @@ def fictitious_step(compiled, stepper: Stepper, t0: float, y0: np.ndarray, t_end
     return dt * max(abs(V), 1e-300)
 
 
-def time_transformed_step(compiled, stepper: Stepper, t0: float, y0, t_end: float) -> float:
-    """Fictitious-time step of a Sundman-transformed method (g = 1 at the start)."""
+def time_transformed_step(
+    compiled, stepper: Stepper, t0: float, y0, t_end: float, probe_start=None
+) -> float:
+    """Fictitious-time step of a Sundman-transformed method (g = 1 at the start; no probe,
+    ``probe_start`` is not used)."""
     per_period = TIME_TRANSFORMED_PER_PERIOD.get(stepper.order, 60)
     return default_step(compiled, stepper, t0, y0, t_end, probe=False, per_period=per_period)

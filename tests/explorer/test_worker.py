@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,6 +85,26 @@ def test_paced_frames_advance_by_speed_times_frame_time(qtbot):
     assert len(runs.calls) == 1  # one run for the trajectory, throttled, never restarted
     spans = [until - t for t, until in runs.runs[0].untils[:4]]
     assert spans == pytest.approx([0.04] * 4)
+
+
+def test_paced_playback_keeps_to_wall_time_when_the_gui_takes_frames_at_once(qtbot):
+    # each frame the GUI takes wakes the worker (it may send the next): at a finite
+    # speed that must not shorten the frame's time, or 1x runs many times faster
+    runs = fake_runs(points_per_block=3)
+    worker = SimulationWorker(None, RunSettings(speed=1.0, t_end=1e9), runs=runs)
+    worker.add_trajectory(0, np.zeros(2))
+    runner = WorkerThread(worker)
+    runner.start()
+    try:
+        qtbot.waitUntil(lambda: worker.frames >= 3, timeout=5000)
+        start, frames, begun = runs.runs[-1].t, worker.frames, time.perf_counter()
+        qtbot.wait(1000)
+        simulated, wall = runs.runs[-1].t - start, time.perf_counter() - begun
+        made = worker.frames - frames
+    finally:
+        runner.stop()
+    assert simulated / wall == pytest.approx(1.0, rel=0.35)
+    assert made <= 1.2 * wall / RunSettings().frame_seconds
 
 
 def test_a_speed_change_keeps_the_run_and_a_method_change_restarts_it(qtbot):
