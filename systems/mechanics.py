@@ -11,7 +11,6 @@ is never inverted symbolically to get the accelerations of a large system (see
 
 from __future__ import annotations
 
-import math
 import random
 from dataclasses import dataclass, field
 
@@ -19,6 +18,8 @@ import sympy
 
 from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix
 from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
+from systems.display import EXPANSION_LIMIT, expanded_terms
+from systems.display import tidied as _tidy
 from systems.expressions import as_expr
 from systems.scene import Scene
 
@@ -259,10 +260,11 @@ class _Context:
         self.rng = random.Random(1234)
 
     def tidy(self, expr: sympy.Expr) -> sympy.Expr:
-        """``_tidy`` for systems of up to ``SYMBOLIC_INVERSE_LIMIT`` coordinates; larger
-        ones keep their expressions as derived (simplifying each of a 32-particle
-        lattice's 64 equations cost 8 s, for a display no one reads in full)."""
-        return _tidy(expr) if self.n <= SYMBOLIC_INVERSE_LIMIT else as_expr(expr)
+        """``expr`` as derived: nothing is simplified on the derivation path. The kernels
+        take the expressions as they are (their CSE finds what cancelling would), and
+        what is shown is tidied when it is laid out (``systems.display.tidied``, after
+        the first block): tidying was 94% of a double pendulum's derivation."""
+        return as_expr(expr)
 
     def fail(self, reason: str, field: str | None = None) -> DerivationError:
         return DerivationError(reason, source=self.scene.source, field=field)
@@ -632,61 +634,6 @@ class _Context:
             separable_parts=separable_parts,
             matrix_form=matrix_form,
         )
-
-
-def _tidy(expr: sympy.Expr) -> sympy.Expr:
-    """A cheap, predictable simplification: cancel fractions, pull out common factors.
-
-    No ``trigsimp``: across the catalogue it changed one expression out of ~100 (for the
-    worse) and cost half of the double pendulum's derivation time. Nothing is done to an
-    expression whose expansion would be large: ``cancel`` expands numerator and
-    denominator, and a 40-term sum to the 20th power has 10**14 terms.
-    """
-    expr = as_expr(expr)
-    if _nodes_exceed(expr, 4000) or expr.count_ops() > 400:
-        return expr
-    if expanded_terms(expr) > EXPANSION_LIMIT:
-        return expr
-    tidy = sympy.cancel(sympy.together(expr))
-    candidates = [expr, tidy, sympy.factor_terms(tidy)]
-    return min(candidates, key=lambda e: (e.count_ops(), len(str(e))))
-
-
-def _nodes_exceed(expr: sympy.Expr, limit: int) -> bool:
-    """True if ``expr`` has more than ``limit`` nodes; stops counting there (count_ops
-    of a large expression costs more than the rest of its derivation)."""
-    for count, _ in enumerate(sympy.preorder_traversal(expr)):
-        if count >= limit:
-            return True
-    return False
-
-
-EXPANSION_LIMIT = 2000
-"""Most terms an expression may expand to before the derivation stops expanding it."""
-
-
-def expanded_terms(expr: sympy.Expr, cap: int = 10**12) -> int:
-    """An upper bound on the number of terms of ``expand(expr)``, counted without expanding.
-
-    A sum adds its terms' counts, a product multiplies them, an integer power n of a sum
-    of k terms has at most C(k + n - 1, n); anything else counts as one term.
-    """
-    if expr.is_Add:
-        return min(cap, sum(expanded_terms(a, cap) for a in expr.args))
-    if expr.is_Mul:
-        total = 1
-        for a in expr.args:
-            total = min(cap, total * expanded_terms(a, cap))
-        return total
-    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 1:
-        k = expanded_terms(expr.base, cap)
-        n = int(expr.exp)
-        if k == 1:
-            return 1
-        if n > 10**4 or k > 10**4:
-            return cap
-        return min(cap, math.comb(k + n - 1, n))
-    return 1
 
 
 def _polynomial_degree(expr: sympy.Expr, gens) -> int | None:

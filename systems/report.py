@@ -18,7 +18,7 @@ import numpy as np
 import sympy
 
 from systems.calculus import Calculus, Unsupported
-from systems.display import display_names, for_display
+from systems.display import display_names, for_display, tidied
 
 try:
     import symengine
@@ -286,9 +286,13 @@ def derivation_json(mechanics: Mechanics) -> dict:
     from systems.textbook import equilibria_json
 
     scene = mechanics.scene
+
+    def read(expr) -> str | None:
+        return _text(expr, scene)
+
     try:
         accelerations = dict(
-            zip(scene.coordinates, map(_text, mechanics.accelerations()), strict=True)
+            zip(scene.coordinates, map(read, mechanics.accelerations()), strict=True)
         )
     except DerivationError:
         accelerations = None
@@ -312,27 +316,44 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "title": scene.title,
         "coordinates": list(scene.coordinates),
         "parameters": scene.parameter_values,
-        "lagrangian": _text(mechanics.lagrangian),
+        "lagrangian": read(mechanics.lagrangian),
         "accelerations": accelerations,
         "momenta": None
         if momenta is None
-        else dict(zip(scene.coordinates, map(_text, momenta), strict=True)),
-        "hamiltonian": _text(hamiltonian),
-        "hamilton_equations": dict(zip(names, map(_text, equations), strict=True)),
+        else dict(zip(scene.coordinates, map(read, momenta), strict=True)),
+        "hamiltonian": read(hamiltonian),
+        "hamilton_equations": dict(zip(names, map(read, equations), strict=True)),
         "cyclic": list(mechanics.cyclic),
-        "conserved": {name: _text(expr) for name, expr in conserved.items()},
+        "conserved": {name: read(expr) for name, expr in conserved.items()},
         "classification": mechanics.classification.as_dict(),
         "equilibria": equilibria_json(mechanics),
         **matrix,
     }
 
 
-def _text(expr) -> str | None:
-    """An expression (sympy, or symengine from ``_Compact``) as text sympify reads back."""
+def _for_reading(expr: sympy.Basic, scene: Scene) -> sympy.Basic:
+    """``expr`` (or both sides of an equation) tidied for reading: the derivation keeps
+    its expressions as derived. Systems of more than ``SYMBOLIC_INVERSE_LIMIT``
+    coordinates are shown as derived (tidying each of a 32-particle lattice's 64
+    equations took 8 s, for a display no one reads in full)."""
+    from systems.mechanics import SYMBOLIC_INVERSE_LIMIT
+
+    if len(scene.coordinates) > SYMBOLIC_INVERSE_LIMIT:
+        return expr
+    if isinstance(expr, sympy.Eq):
+        return sympy.Eq(tidied(expr.lhs), tidied(expr.rhs), evaluate=False)
+    return tidied(expr) if isinstance(expr, sympy.Expr) else expr
+
+
+def _text(expr, scene: Scene | None = None) -> str | None:
+    """An expression (sympy, or symengine from ``_Compact``) as text sympify reads back;
+    with ``scene``, tidied for reading first (``_for_reading``)."""
     if expr is None:
         return None
     if not isinstance(expr, sympy.Basic):
         return str(expr)
+    if scene is not None:
+        expr = _for_reading(expr, scene)
     return sympy.sstr(expr, order="none") if _larger(expr, SORTED_NODES) else str(expr)
 
 
@@ -370,7 +391,7 @@ def _rows(rows: list[tuple[str, object]], scene: Scene) -> list[str]:
                 lines.append(f"{label} = {_display_text(text, names)}")
                 continue
             expr = sympy.sympify(expr)
-        shown = for_display(expr, scene)
+        shown = for_display(_for_reading(expr, scene), scene)
         head = f"{label}: " if isinstance(expr, sympy.Eq) else f"{label} = "
         if _larger(shown, PRETTY_NODES):
             if isinstance(shown, sympy.Eq):
