@@ -301,7 +301,9 @@ class _KernelWriter:
     def __init__(self, mechanics: Mechanics):
         self.mech = mechanics
         self.scene = mechanics.scene
-        self.printer = _Printer({"fully_qualified_modules": True, "standard": "python3"})
+        self.printer = _Printer(
+            {"fully_qualified_modules": True, "standard": "python3", "order": "none"}
+        )
         names = [
             "t",
             *self.scene.coordinates,
@@ -384,8 +386,7 @@ class _KernelWriter:
         return lines + unpack + params
 
     def body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
-        renamed = [as_expr(e).xreplace(self.rename) for e in exprs]
-        temporaries, reduced = calculus.cse(renamed)
+        temporaries, reduced = calculus.cse([as_expr(e) for e in exprs], self.rename)
         lines = [f"{s} = {self.printer.doprint(e)}" for s, e in temporaries]
         return lines, [self.printer.doprint(e) for e in reduced]
 
@@ -403,8 +404,7 @@ class _KernelWriter:
         n = self.mech.n
         upper = [(i, j) for i in range(n) for j in range(i, n)]
         entries = [form.mass_matrix[i, j] for i, j in upper] + list(form.shift)
-        renamed = [as_expr(e).xreplace(self.rename) for e in [*entries, *exprs]]
-        temporaries, reduced = calculus.cse(renamed)
+        temporaries, reduced = calculus.cse([as_expr(e) for e in [*entries, *exprs]], self.rename)
         velocity_names = {sympy.Symbol(self.rename[v].name) for v in qd}
         before, after = [], []
         for symbol, expr in temporaries:
