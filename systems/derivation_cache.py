@@ -27,8 +27,11 @@ from pathlib import Path
 import sympy
 
 import systems.calculus
+import systems.classification
+import systems.display
 import systems.expressions
 import systems.mechanics
+import systems.particles
 import systems.scene
 from systems.cache_integrity import (
     MAGIC,
@@ -43,7 +46,15 @@ from systems.cache_integrity import (
 @cache
 def _code_version() -> str:
     digest = hashlib.sha256(MAGIC + sympy.__version__.encode())  # MAGIC: the file format
-    for module in (systems.expressions, systems.scene, systems.mechanics, systems.calculus):
+    for module in (
+        systems.expressions,
+        systems.scene,
+        systems.mechanics,
+        systems.calculus,
+        systems.classification,
+        systems.display,
+        systems.particles,
+    ):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import sympy
 
 from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix
+from systems.classification import Classification, classify
 from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
 from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
@@ -39,39 +40,6 @@ class DerivationError(ValueError):
     def __str__(self) -> str:
         where = f"{self.field}: " if self.field else ""
         return f"{self.source}: {where}{self.reason}"
-
-
-@dataclass(frozen=True)
-class Classification:
-    """The textbook's classification of a mechanical system."""
-
-    time_dependent: bool
-    conservative: bool
-    hamiltonian_conserved: bool
-    hamiltonian_is_energy: bool
-    natural: bool
-    separable: bool
-
-    def as_dict(self) -> dict[str, bool]:
-        return {
-            "time_dependent": self.time_dependent,
-            "conservative": self.conservative,
-            "hamiltonian_conserved": self.hamiltonian_conserved,
-            "hamiltonian_is_energy": self.hamiltonian_is_energy,
-            "natural": self.natural,
-            "separable": self.separable,
-        }
-
-    def describe(self) -> list[str]:
-        """The classification in the textbook's words, one sentence each."""
-        return [
-            "rheonomic (time-dependent)" if self.time_dependent else "scleronomic (no explicit t)",
-            "conservative" if self.conservative else "not conservative",
-            "H is conserved" if self.hamiltonian_conserved else "H is not conserved",
-            "H = T + V" if self.hamiltonian_is_energy else "H differs from T + V",
-            "natural (T quadratic in velocities)" if self.natural else "not natural",
-            "separable: H = T(p) + V(q)" if self.separable else "not separable",
-        ]
 
 
 @dataclass(frozen=True, eq=False)
@@ -241,10 +209,7 @@ def _derive(scene: Scene) -> Mechanics:
     if scene.kind == "hamiltonian":
         return ctx.from_hamiltonian(scene.expression("system.hamiltonian"), forces, params)
     if scene.kind == "energies":
-        kinetic = scene.expression("system.kinetic")
-        potential = (
-            scene.expression("system.potential") if scene.potential is not None else sympy.S.Zero
-        )
+        kinetic, potential = scene.energies()  # from T and V, or from [particles]
         lagrangian = kinetic - potential
     else:
         lagrangian = scene.expression("system.lagrangian")
@@ -311,7 +276,7 @@ class _Context:
     # -- from a Lagrangian -------------------------------------------------------------------
 
     def from_lagrangian(self, L, kinetic, potential, forces, params) -> Mechanics:
-        q, qd, t = self.q, self.qd, self.t
+        q, qd = self.q, self.qd
         if not any(L.has(v) for v in qd):
             raise self.fail(
                 "the Lagrangian does not depend on any velocity, so there are no equations "
@@ -354,9 +319,6 @@ class _Context:
         natural = quadratic and self.vanishes(
             _homogeneous_part(velocity_part, qd, 2) - velocity_part
         )
-        energy = sum(v * m for v, m in zip(qd, momenta, strict=True)) - L if quadratic else None
-        is_energy = energy is not None and self.vanishes(energy - (kinetic + potential))
-        time_dependent = L.has(t) or self.drawing_depends_on_time()
         cyclic = tuple(
             name for name, qi in zip(self.scene.coordinates, q, strict=True) if not L.has(qi)
         )
@@ -374,8 +336,6 @@ class _Context:
             params=params,
             cyclic=cyclic,
             natural=natural,
-            is_energy=is_energy,
-            time_dependent=time_dependent,
             matrix_form=matrix_form,
         )
 
@@ -467,7 +427,7 @@ class _Context:
     # -- from a Hamiltonian ------------------------------------------------------------------
 
     def from_hamiltonian(self, H, forces, params) -> Mechanics:
-        q, qd, p, t = self.q, self.qd, self.p, self.t
+        q, qd, p = self.q, self.qd, self.p
         if not any(H.has(pi) for pi in p):
             raise self.fail(
                 "the Hamiltonian does not depend on any momentum p_<q>", "system.hamiltonian"
@@ -524,8 +484,6 @@ class _Context:
             params=params,
             cyclic=cyclic,
             natural=natural,
-            is_energy=quadratic and self.vanishes(_homogeneous_part(kinetic_p, p, 1)),
-            time_dependent=H.has(t) or self.drawing_depends_on_time(),
         )
 
     def splits(self, H: sympy.Expr) -> bool:
@@ -568,16 +526,6 @@ class _Context:
 
     # -- common ------------------------------------------------------------------------------
 
-    def drawing_depends_on_time(self) -> bool:
-        drawing = self.scene.drawing
-        if drawing is None:
-            return False
-        return any(
-            self.scene.expression(f"drawing.points.{name}.{axis}").has(self.t)
-            for name, _, _ in drawing.points
-            for axis in "xy"
-        )
-
     def finish(
         self,
         *,
@@ -594,16 +542,9 @@ class _Context:
         params,
         cyclic,
         natural,
-        is_energy,
-        time_dependent,
         matrix_form=None,
     ) -> Mechanics:
         q, qd, p, t = self.q, self.qd, self.p, self.t
-        has_effects = any(not self.vanishes(f) for f in forces)
-        H_explicit_t = H.has(t) or (matrix_form is not None and matrix_form.mass_matrix.has(t))
-        potential_t = potential is not None and as_expr(potential).has(t)
-        conservative = not has_effects and not potential_t
-        H_conserved = not has_effects and not H_explicit_t
         # in matrix form M depends on q (needs_matrix_form), so H cannot split
         separable = matrix_form is None and self.splits(H)
         separable_parts = None
@@ -611,14 +552,27 @@ class _Context:
             zero_p = dict.fromkeys(p, sympy.S.Zero)
             V = H.xreplace(zero_p)
             separable_parts = (self.tidy(H - V), self.tidy(V))
-        classification = Classification(
-            time_dependent=bool(time_dependent),
-            conservative=bool(conservative),
-            hamiltonian_conserved=bool(H_conserved),
-            hamiltonian_is_energy=bool(is_energy),
-            natural=bool(natural),
-            separable=bool(separable),
+        # decided from the equations of motion, not from L or H as written
+        classification = classify(
+            self.scene,
+            t=t,
+            q=q,
+            qdot=qd,
+            p=p,
+            lagrangian=L,
+            kinetic=kinetic,
+            potential=potential,
+            hamiltonian=H,
+            mass_matrix=M,
+            forcing=F,
+            momenta=momenta,
+            hamilton_equations=(*velocities, *pdot),
+            forces=forces,
+            natural=natural,
+            separable=separable,
+            matrix_form=matrix_form,
         )
+        H_conserved = classification.hamiltonian_conserved
         conserved: dict[str, sympy.Expr] = {}
         if H_conserved:
             if momenta is not None:

@@ -18,7 +18,7 @@ import numpy as np
 import sympy
 
 from systems.calculus import Calculus, Unsupported
-from systems.display import display_names, for_display, tidied
+from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
 
 try:
     import symengine
@@ -104,6 +104,8 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
     lines.append(f"coordinates: {coordinates}; parameters: {params}")
     if scene.enabled_effects():
         lines.append(f"effects on: {', '.join(scene.enabled_effects())}")
+    if scene.particles:
+        lines += particles_lines(scene)
     if mechanics.matrix_form is not None:
         lines += _matrix_form_lines(mechanics, shown)
     else:
@@ -210,6 +212,87 @@ def _matrix_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]
     return lines
 
 
+def particles_lines(scene: Scene) -> list[str]:
+    """The particles of a scene: transformation equations, velocities, T = T2 + T1 + T0,
+    the gravitational V, and whether the transformation is rheonomic.
+
+    Parameters
+    ----------
+    scene : Scene
+        A scene with ``particles`` (``[]`` for one without).
+
+    Returns
+    -------
+    list of str
+        Lines of text, starting with an empty one.
+    """
+    derived = scene.transformation
+    if derived is None:
+        return []
+
+    def vector(components) -> str:
+        shown = [one_line(for_display(c, scene)) for c in components]
+        return "(" + ", ".join(shown) + ")"
+
+    title = "Particles: transformation equations r = r(q, t)"
+    lines = ["", title, "-" * len(title)]
+    for name, mass, position in zip(derived.names, derived.masses, derived.positions, strict=True):
+        lines.append(f"r_{name} = {vector(position)}, mass {one_line(for_display(mass, scene))}")
+    title = "Velocities v = dr/dt = (∂r/∂q)·q̇ + ∂r/∂t"
+    lines += ["", title, "-" * len(title)]
+    for name, velocity in zip(derived.names, derived.velocities, strict=True):
+        lines.append(f"v_{name} = {vector(velocity)}")
+    T2, T1, T0 = derived.kinetic_parts
+    rows = [("T₂ (quadratic in q̇)", T2), ("T₁ (linear in q̇)", T1), ("T₀ (free of q̇)", T0)]
+    if scene.gravity is not None:
+        rows.append(("V from gravity = −Σ m g·r", derived.potential))
+    lines += _block("Kinetic energy T = Σ m |v|²/2 = T₂ + T₁ + T₀", rows, scene)
+    if derived.depends_on_time:
+        lines.append(
+            "The transformation is rheonomic: some r depends on t explicitly, so T has "
+            "parts T₁ and T₀ as well as T₂ (in general)."
+        )
+    else:
+        lines.append(
+            "The transformation is scleronomic: no r depends on t explicitly, so T = T₂ is "
+            "quadratic in the velocities."
+        )
+    return lines
+
+
+def particles_json(scene: Scene) -> dict | None:
+    """The particles of a scene as JSON-ready data, or None for a scene without them.
+
+    Returns
+    -------
+    dict or None
+        ``positions`` (name -> the components of r(q, t)), ``velocities`` (name -> the
+        components of dr/dt in q, q̇, t), ``masses`` (name -> m), ``kinetic``
+        (``{"T2", "T1", "T0"}``: the parts of T quadratic, linear and free of the
+        velocities), ``gravity_potential`` (V = −Σ m g·r, "0" without gravity) and
+        ``transformation_depends_on_time`` (True exactly when some r depends on t
+        explicitly: a rheonomic transformation).
+    """
+    derived = scene.transformation
+    if derived is None:
+        return None
+    T2, T1, T0 = derived.kinetic_parts
+    return {
+        "positions": {
+            name: [_text(c) for c in r]
+            for name, r in zip(derived.names, derived.positions, strict=True)
+        },
+        "velocities": {
+            name: [_text(c) for c in v]
+            for name, v in zip(derived.names, derived.velocities, strict=True)
+        },
+        "masses": dict(zip(derived.names, map(_text, derived.masses), strict=True)),
+        "kinetic": {"T2": _text(T2), "T1": _text(T1), "T0": _text(T0)},
+        "gravity_potential": _text(derived.potential),
+        "transformation_depends_on_time": derived.depends_on_time,
+    }
+
+
 def _subscript(i: int, n: int) -> str:
     """Subscript digits of coordinate ``i`` (0-based) of ``n``: ₁, ₁₂."""
     return str(i + 1).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
@@ -229,7 +312,9 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
     -------
     sentences : list[str]
         ``"θ = 0: stable, ω = 3.13"`` or ``"θ = 3.14: unstable (maximum)"``, one per
-        equilibrium.
+        equilibrium; a gyroscopically stabilized one, a degenerate one (what decided it)
+        and a set of equilibria (``"the circle x² + y² = 1 (through x = 1, y = 0): a curve
+        of equilibria, neutral along it; stable across it, ω = 1.414"``) say so.
     note : str
         Why there are none, or what the search assumed; empty if nothing to say.
     """
@@ -240,14 +325,42 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
     lines = []
     for eq in search.equilibria:
         where = ", ".join(f"{shown.get(k, k)} = {v:.{digits}g}" for k, v in eq.q.items())
-        if eq.stable and not eq.frequencies:
+        omegas = ", ".join(f"{w:.{digits}g}" for w in eq.frequencies)
+        rates = ", ".join(f"{r:.{digits}g}" for r in eq.growth_rates)
+        gyroscopic = bool(np.any(np.asarray(eq.gyroscopic) != 0))
+        if eq.continuum is not None:
+            what = {1: "a curve", 2: "a surface"}.get(
+                eq.continuum.dimension, f"a {eq.continuum.dimension}-dimensional set"
+            )
+            across = f"stable across it, \u03c9 = {omegas}" if eq.stable else "unstable across it"
+            if not eq.stable and rates:
+                across += f" (growth rate {rates})"
+            through = "" if "through" in eq.continuum.description else f" (through {where})"
+            lines.append(
+                f"{eq.continuum.description}{through}: {what} of equilibria, neutral along it; "
+                f"{across}"
+            )
+        elif eq.kind == "degenerate":
+            verdict = "stable" if eq.stable else "unstable"
+            if eq.verdict == "undecided":
+                verdict = "stability undecided"
+            frequencies = f", \u03c9 = {omegas}" if eq.stable and omegas else ""
+            lines.append(f"{where}: {verdict}{frequencies}; {eq.decided_by}")
+        elif eq.stable and not eq.frequencies:
             lines.append(
                 f"{where}: stable, with no small-oscillation frequency (the inertia there is "
                 "zero or infinite, so the motion is not harmonic)"
             )
+        elif eq.stable and eq.kind != "minimum":
+            lines.append(
+                f"{where}: stable by gyroscopic stabilization (U has a {eq.kind}), "
+                f"\u03c9 = {omegas}"
+            )
         elif eq.stable:
-            omegas = ", ".join(f"{w:.{digits}g}" for w in eq.frequencies)
-            lines.append(f"{where}: stable, \u03c9 = {omegas}")
+            extra = " (with the gyroscopic terms)" if gyroscopic else ""
+            lines.append(f"{where}: stable, \u03c9 = {omegas}{extra}")
+        elif gyroscopic and rates:
+            lines.append(f"{where}: unstable ({eq.kind}), growth rate {rates}")
         else:
             lines.append(f"{where}: unstable ({eq.kind})")
     return lines, search.reason or ""
@@ -267,8 +380,9 @@ def derivation_json(mechanics: Mechanics) -> dict:
         ``title``, ``coordinates``, ``parameters``, ``lagrangian``, ``accelerations``
         (None when M cannot be solved symbolically), ``momenta``, ``hamiltonian``,
         ``hamilton_equations``, ``cyclic``, ``conserved``, ``classification``,
-        ``equilibria``, ``matrix_form`` (bool), and ``mass_matrix``, ``shift`` and
-        ``rest`` (None unless ``matrix_form``), with the scene's own names; every
+        ``equilibria``, ``matrix_form`` (bool), ``mass_matrix``, ``shift`` and
+        ``rest`` (None unless ``matrix_form``), and ``particles`` (``particles_json``:
+        the transformation equations, None without particles), with the scene's own names; every
         expression is a string that ``sympy.sympify`` reads back.
 
         For a system in matrix form (``Mechanics.matrix_form``: many coordinates and a
@@ -328,6 +442,7 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "classification": mechanics.classification.as_dict(),
         "equilibria": equilibria_json(mechanics),
         **matrix,
+        "particles": particles_json(scene),
     }
 
 
@@ -645,104 +760,11 @@ EXPAND_TERMS = 400
 def _tidy_small(expr: sympy.Expr) -> sympy.Expr:
     """The shortest of ``expr``, ``combine_trig(expr)`` and, when its expansion is small,
     ``combine_trig(expand(expr))`` with common factors pulled out."""
-    from systems.mechanics import expanded_terms
-
     expr = sympy.sympify(expr)
     candidates = [expr, combine_trig(expr)]
     if expanded_terms(expr) <= EXPAND_TERMS:
         candidates.append(sympy.factor_terms(combine_trig(sympy.expand(expr))))
     return min(candidates, key=lambda e: len(str(e)))
-
-
-def combine_trig(expr: sympy.Expr) -> sympy.Expr:
-    """Products of sines and cosines combined where a sum allows it, cheaply:
-    ``c sin a sin b + c cos a cos b -> c cos(a - b)``, ``c cos a cos b - c sin a sin b ->
-    c cos(a + b)``, ``c sin a cos b ∓ c cos a sin b -> c sin(a ∓ b)``,
-    ``c sin² a + c cos² a -> c``.
-
-    The terms of a pendulum chain's mass matrix; ``sympy.trigsimp`` finds the same at a
-    hundred times the cost (27 s for a twenty-link chain's 210 entries).
-    """
-    expr = sympy.sympify(expr)
-    if expr.is_Atom:
-        return expr
-    args = [combine_trig(a) for a in expr.args]
-    if any(new is not old for new, old in zip(args, expr.args, strict=True)):
-        expr = expr.func(*args)
-    if expr.is_Add:
-        return _combine_sum(expr)
-    return expr
-
-
-def _trig_term(term: sympy.Expr):
-    """``(kind, args, coefficient)`` of ``c·f(a)·g(b)`` or ``c·f(a)²`` with f, g in sin,
-    cos; None for any other term. kinds: ``ss``, ``cc``, ``sc`` (sin a cos b), ``s2``,
-    ``c2``."""
-    trig, rest = [], []
-    for factor in sympy.Mul.make_args(term):
-        base, power = factor.as_base_exp()
-        if isinstance(base, (sympy.sin, sympy.cos)) and power in (1, 2):
-            trig += [base] * int(power)
-        else:
-            rest.append(factor)
-    if len(trig) != 2:
-        return None
-    c = sympy.Mul(*rest)
-    (f, g) = trig
-    if f == g:
-        return ("s2" if isinstance(f, sympy.sin) else "c2", (f.args[0],), c)
-    if isinstance(f, sympy.sin) and isinstance(g, sympy.sin):
-        return ("ss", tuple(sorted((f.args[0], g.args[0]), key=sympy.default_sort_key)), c)
-    if isinstance(f, sympy.cos) and isinstance(g, sympy.cos):
-        return ("cc", tuple(sorted((f.args[0], g.args[0]), key=sympy.default_sort_key)), c)
-    if isinstance(f, sympy.cos):
-        f, g = g, f
-    return ("sc", (f.args[0], g.args[0]), c)
-
-
-def _combine_sum(expr: sympy.Add) -> sympy.Expr:
-    terms = list(expr.args)
-    parsed = [_trig_term(term) for term in terms]
-    index: dict = {}
-    for k, entry in enumerate(parsed):
-        if entry is not None:
-            index.setdefault((entry[0], entry[1]), []).append(k)
-    used: set[int] = set()
-    combined = []
-
-    def partner(kind, args, coefficient) -> int | None:
-        for k in index.get((kind, args), []):
-            if k not in used and parsed[k][2] == coefficient:
-                return k
-        return None
-
-    for k, entry in enumerate(parsed):
-        if entry is None or k in used:
-            continue
-        kind, args, c = entry
-        found = None
-        if kind == "ss":
-            found = (partner("cc", args, c), c * sympy.cos(args[0] - args[1]))
-            if found[0] is None:
-                found = (partner("cc", args, -c), -c * sympy.cos(args[0] + args[1]))
-        elif kind == "cc":
-            found = (partner("ss", args, c), c * sympy.cos(args[0] - args[1]))
-            if found[0] is None:
-                found = (partner("ss", args, -c), c * sympy.cos(args[0] + args[1]))
-        elif kind == "sc":
-            swapped = (args[1], args[0])
-            found = (partner("sc", swapped, -c), c * sympy.sin(args[0] - args[1]))
-            if found[0] is None:
-                found = (partner("sc", swapped, c), c * sympy.sin(args[0] + args[1]))
-        elif kind in ("s2", "c2"):
-            found = (partner("c2" if kind == "s2" else "s2", args, c), c)
-        if found is None or found[0] is None:
-            continue
-        used.update((k, found[0]))
-        combined.append(found[1])
-    if not used:
-        return expr
-    return sympy.Add(*[term for k, term in enumerate(terms) if k not in used], *combined)
 
 
 def _equilibria_lines(mechanics: Mechanics) -> list[str]:

@@ -7,6 +7,10 @@ A file is read strictly: any problem is a ``SceneError``. The editor reads what 
 is typing with ``drop_unfit=True``: a drawing or a ``[view]`` setting that does not fit
 the system (typically names left over after the coordinates changed) is then left out and
 reported in ``Scene.warnings`` instead of refusing the whole system.
+
+A scene may describe its bodies (``[particles]``) instead of its kinetic energy: the
+table is read here, and ``systems.particles`` builds T and the gravitational V from the
+parsed positions; ``Scene.energies`` hands both on to the derivation.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from typing import Any
 import sympy
 
 from systems.expressions import ExpressionError, check_name, parse_expression
+from systems.particles import Particle, Transformation, depends_on_time, transformation
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "resources" / "scenes"
 SYSTEM_KINDS = ("energies", "lagrangian", "hamiltonian")
@@ -97,11 +102,14 @@ class CatalogueEntry:
 class Scene:
     """A mechanical system with its parameters, effects, initial state and drawing.
 
-    Exactly one of (``kinetic`` and ``potential``), ``lagrangian`` or ``hamiltonian`` is
-    given. Expressions are kept as text (what the user typed); ``symbols`` and
-    ``expression`` give their sympy form. ``warnings`` lists what was left out when the
-    scene was read with ``drop_unfit=True`` (empty otherwise); it takes no part in
-    comparisons.
+    Exactly one of (``kinetic`` and ``potential``), (``particles`` and ``potential``),
+    ``lagrangian`` or ``hamiltonian`` is given. Expressions are kept as text (what the
+    user typed); ``symbols`` and ``expression`` give their sympy form. With
+    ``particles``, ``gravity`` is the uniform field (a magnitude along -y, or a vector of
+    as many components as the positions; None: no field), and ``drawing`` holds the
+    particles' points (their x and y) with whatever ``[drawing]`` added. ``warnings``
+    lists what was left out when the scene was read with ``drop_unfit=True`` (empty
+    otherwise); it takes no part in comparisons.
     """
 
     title: str
@@ -120,6 +128,8 @@ class Scene:
     description: str = ""
     source: str = "<text>"
     name: str = ""
+    particles: tuple[Particle, ...] = ()
+    gravity: str | tuple[str, ...] | None = None
     warnings: tuple[SceneWarning, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
@@ -133,6 +143,68 @@ class Scene:
         if self.lagrangian is not None:
             return "lagrangian"
         return "energies"
+
+    def energies(self) -> tuple[sympy.Expr, sympy.Expr]:
+        """T and V of a scene of kind ``"energies"``, as sympy expressions.
+
+        From ``kinetic`` and ``potential`` (0 if not given), or, for a scene with
+        particles, T from the particles and V = the gravitational potential plus
+        ``potential``.
+
+        Raises
+        ------
+        ValueError
+            For a scene given by a Lagrangian or a Hamiltonian.
+        """
+        if self.kind != "energies":
+            raise ValueError(f"a scene given by its {self.kind} has no T and V")
+        if self.particles:
+            return self.expression("system.kinetic"), self.expression("system.potential")
+        kinetic = self.expression("system.kinetic")
+        return kinetic, self._expressions.get("system.potential", sympy.S.Zero)
+
+    @cached_property
+    def transformation(self) -> Transformation | None:
+        """The particles' transformation equations r_i(q, t), their velocities and T
+        split as T2 + T1 + T0 (``systems.particles``); None without particles."""
+        if not self.particles:
+            return None
+        gravity = None
+        if isinstance(self.gravity, tuple):
+            gravity = tuple(
+                self.expression(f"system.gravity[{i}]") for i in range(len(self.gravity))
+            )
+        elif self.gravity is not None:
+            gravity = self.expression("system.gravity")
+        symbols = self.symbols
+        return transformation(
+            [particle.name for particle in self.particles],
+            [self.expression(f"particles.{particle.name}.mass") for particle in self.particles],
+            self._positions,
+            gravity,
+            tuple(symbols[q] for q in self.coordinates),
+            tuple(symbols[v] for v in self.velocity_names),
+            symbols["t"],
+        )
+
+    @cached_property
+    def transformation_depends_on_time(self) -> bool:
+        """True exactly when some particle's position r_i(q, t) depends on t explicitly
+        (a rheonomic transformation); False for a scene without particles.
+
+        Read off the positions alone, without forming T.
+        """
+        return bool(self.particles) and depends_on_time(self._positions, self.symbols["t"])
+
+    @property
+    def _positions(self) -> tuple[tuple[sympy.Expr, ...], ...]:
+        return tuple(
+            tuple(
+                self.expression(f"particles.{particle.name}.position[{i}]")
+                for i in range(len(particle.position))
+            )
+            for particle in self.particles
+        )
 
     @property
     def parameter_values(self) -> dict[str, float]:
@@ -202,7 +274,25 @@ class Scene:
         return {name: self.symbols[name] for group in groups for name in table[group]}
 
     def expression(self, field_name: str) -> sympy.Expr:
-        """The parsed expression of a field such as ``"system.kinetic"`` or ``"forces.x"``."""
+        """The parsed expression of a field such as ``"system.kinetic"`` or ``"forces.x"``.
+
+        In a scene with particles, ``"system.kinetic"`` is T derived from them and
+        ``"system.potential"`` the gravitational V plus the ``potential`` given; the
+        particles' own fields are ``"particles.<name>.mass"``,
+        ``"particles.<name>.position[<i>]"`` (from 0) and ``"system.gravity"`` (or
+        ``"system.gravity[<i>]"`` for a vector).
+
+        Raises
+        ------
+        KeyError
+            For a field the scene does not have.
+        """
+        if self.particles and field_name in ("system.kinetic", "system.potential"):
+            derived = self.transformation
+            if field_name == "system.kinetic":
+                return derived.kinetic
+            given = self._expressions.get("system.potential", sympy.S.Zero)
+            return derived.potential + given
         return self._expressions[field_name]
 
     @cached_property
@@ -347,24 +437,36 @@ def scene_from_dict(
     reader.check_keys(
         system,
         "system",
-        {"coordinates", "parameters", "kinetic", "potential", "lagrangian", "hamiltonian"},
+        {
+            "coordinates",
+            "parameters",
+            "kinetic",
+            "potential",
+            "lagrangian",
+            "hamiltonian",
+            "gravity",
+        },
     )
     coordinates = reader.names(system.get("coordinates"), "system.coordinates")
     parameters = reader.parameters(system.get("parameters", {}))
+    particles = reader.particles(reader.table(data, "particles"))
+    gravity = reader.gravity(system["gravity"]) if "gravity" in system else None
     effects = reader.table(data, "effects")
     reader.check_keys(effects, "effects", {"dissipation", "forces", "disabled"})
     forces_table = reader.table(effects, "forces", prefix="effects.")
-    top = {"title", "description", "system", "effects", "initial", "drawing", "view"}
+    top = {"title", "description", "system", "particles", "effects", "initial", "drawing", "view"}
     if drop_unfit:
         problems: list[SceneError] = []
-        drawing = reader.drawing(_table_or_problem(reader, data, "drawing", problems), problems)
+        drawing = reader.drawing(
+            _table_or_problem(reader, data, "drawing", problems), problems, particles
+        )
         view = dict(_table_or_problem(reader, data, "view", problems))
         warnings += [_left_out(problem) for problem in problems]
         checked = drawing  # its expressions are checked too, so all is reported at once
         if any((problem.field or "").startswith("drawing") for problem in problems):
-            drawing = None
+            drawing = _particle_drawing(particles)
     else:
-        drawing = reader.drawing(reader.table(data, "drawing"))
+        drawing = reader.drawing(reader.table(data, "drawing"), particles=particles)
         view = dict(reader.table(data, "view"))
     reader.check_keys(data, "", top)
     texts = {}
@@ -390,6 +492,8 @@ def scene_from_dict(
         view=view,
         source=source,
         name=name,
+        particles=particles,
+        gravity=gravity,
         **texts,
     )
     if not drop_unfit:
@@ -407,10 +511,17 @@ def scene_from_dict(
     drawing_problems = _drawing_problems(scene, checked)
     warnings += [_left_out(problem) for problem in drawing_problems]
     if warnings:
-        left_out = {"drawing": None} if drawing_problems else {}
+        left_out = {"drawing": _particle_drawing(particles)} if drawing_problems else {}
         scene = dataclasses.replace(scene, warnings=tuple(warnings), **left_out)
     scene._expressions  # noqa: B018 - the system's errors are the user's to fix: they raise
     return scene
+
+
+def _particle_drawing(particles: tuple[Particle, ...]) -> Drawing | None:
+    """The drawing of the particles alone: a point at each one's x and y, no links."""
+    if not particles:
+        return None
+    return Drawing(tuple((p.name, p.position[0], p.position[1]) for p in particles))
 
 
 def _table_or_problem(reader, data: Mapping, key: str, problems: list) -> Mapping[str, Any]:
@@ -583,6 +694,55 @@ class _Reader:
         except ExpressionError as exc:
             raise self.fail(field, exc.reason) from None
 
+    def particles(self, table: Mapping[str, Any]) -> tuple[Particle, ...]:
+        """The ``[particles]`` table: ``name = { mass = "m", position = ["x", "y"] }``."""
+        if "particles" in self.data and not table:
+            raise self.fail(
+                "particles",
+                'give at least one particle, e.g. bob = { mass = "m", '
+                'position = ["l*sin(theta)", "-l*cos(theta)"] }',
+            )
+        result = []
+        for name, entry in table.items():
+            field = f"particles.{name}"
+            self._name(name, field)
+            if name == "origin":
+                raise self.fail(
+                    field,
+                    "'origin' is the drawing's fixed point (0, 0); give the particle another name",
+                )
+            if not isinstance(entry, Mapping):
+                raise self.fail(field, 'must be a table { mass = "m", position = ["x", "y"] }')
+            self.check_keys(entry, field, {"mass", "position"})
+            for key in ("mass", "position"):
+                if key not in entry:
+                    raise self.fail(f"{field}.{key}", f"the {key} is missing")
+            mass = self.text(entry["mass"], f"{field}.mass")
+            position = entry["position"]
+            if not isinstance(position, list) or len(position) not in (2, 3):
+                raise self.fail(
+                    f"{field}.position",
+                    "must be a list of 2 or 3 expressions (x, y or x, y, z), "
+                    'e.g. ["l*sin(theta)", "-l*cos(theta)"]',
+                )
+            components = tuple(
+                self.text(c, f"{field}.position[{i}]") for i, c in enumerate(position)
+            )
+            result.append(Particle(name, mass, components))
+        return tuple(result)
+
+    def gravity(self, value: Any) -> str | tuple[str, ...]:
+        """``system.gravity``: a magnitude (along -y) or a vector of 2 or 3 expressions."""
+        if isinstance(value, list):
+            if len(value) not in (2, 3):
+                raise self.fail(
+                    "system.gravity",
+                    'must be a magnitude, e.g. "g", or a vector of 2 or 3 expressions, '
+                    'e.g. ["0", "0", "-g"]',
+                )
+            return tuple(self.text(c, f"system.gravity[{i}]") for i, c in enumerate(value))
+        return self.text(value, "system.gravity")
+
     def string_list(self, value: Any, field: str) -> list[str]:
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise self.fail(field, "must be a list of strings")
@@ -619,9 +779,16 @@ class _Reader:
         return float(value)
 
     def drawing(
-        self, table: Mapping[str, Any], problems: list[SceneError] | None = None
+        self,
+        table: Mapping[str, Any],
+        problems: list[SceneError] | None = None,
+        particles: tuple[Particle, ...] = (),
     ) -> Drawing | None:
-        """The ``[drawing]`` table, or None if there is none.
+        """The ``[drawing]`` table with the particles' points, or None if there are none.
+
+        Each particle is a point of its name at its x and y, first and in order; a point
+        of ``[drawing]`` with a particle's name replaces that particle's point, the others
+        follow. Links and the trace may name particles.
 
         With ``problems`` (a list), every problem found is appended to it instead of the
         first being raised, and the parts in error are skipped.
@@ -633,7 +800,7 @@ class _Reader:
             problems.append(self.fail(field, reason))
 
         if not table:
-            return None
+            return _particle_drawing(particles)
         try:
             self.check_keys(table, "drawing", {"points", "links", "trace"})
         except SceneError as exc:
@@ -654,6 +821,10 @@ class _Reader:
                 fail(field, "must be a string (an expression in quotes)")
                 continue
             points.append((name, str(xy[0]), str(xy[1])))
+        given = {name: (name, x, y) for name, x, y in points}
+        own = _particle_drawing(particles)
+        points = [given.pop(name, (name, x, y)) for name, x, y in own.points] if own else []
+        points += given.values()
         known = {name for name, _, _ in points} | {"origin"}
         links = []
         links_raw = table.get("links", [])
@@ -773,17 +944,21 @@ def _validate(scene: Scene) -> None:
                 f"the name {name!r} is used twice (as coordinate, velocity, momentum or parameter)",
             )
         seen.add(name)
+    _validate_particles(scene, fail)
     given = {
-        "energies": scene.kinetic is not None or scene.potential is not None,
+        "energies": scene.kinetic is not None
+        or scene.potential is not None
+        or bool(scene.particles),
         "lagrangian": scene.lagrangian is not None,
         "hamiltonian": scene.hamiltonian is not None,
     }
     if sum(given.values()) != 1:
         raise fail(
             "system",
-            "give either kinetic (and potential), or lagrangian, or hamiltonian: exactly one",
+            "give either kinetic (and potential), or [particles] (and potential), or "
+            "lagrangian, or hamiltonian: exactly one",
         )
-    if given["energies"] and scene.kinetic is None:
+    if given["energies"] and scene.kinetic is None and not scene.particles:
         raise fail("system.kinetic", "the kinetic energy is missing")
     for q, _ in scene.forces:
         if q not in scene.coordinates:
@@ -803,6 +978,54 @@ def _validate(scene: Scene) -> None:
             raise fail(f"initial.{p}", f"give either {v} or {p}, not both")
 
 
+def _validate_particles(scene: Scene, fail) -> None:
+    """Particles with T, L or H, gravity without particles, mixed dimensions."""
+    if not scene.particles:
+        if scene.gravity is not None:
+            raise fail(
+                "system.gravity",
+                "gravity acts on particles: describe the bodies in [particles], or write "
+                "the gravitational energy into the potential",
+            )
+        return
+    if scene.kinetic is not None:
+        raise fail(
+            "system.kinetic",
+            "give either kinetic or [particles], not both: the particles give T",
+        )
+    for key in ("lagrangian", "hamiltonian"):
+        if getattr(scene, key) is not None:
+            raise fail(
+                f"system.{key}",
+                f"[particles] give T and V, so the scene cannot also give a {key}",
+            )
+    seen: set[str] = set()
+    first = scene.particles[0]
+    for particle in scene.particles:
+        if particle.name in seen:
+            raise fail(f"particles.{particle.name}", "the name is used twice")
+        seen.add(particle.name)
+        if len(particle.position) not in (2, 3):
+            raise fail(f"particles.{particle.name}.position", "must have 2 or 3 components")
+        if len(particle.position) != len(first.position):
+            raise fail(
+                f"particles.{particle.name}.position",
+                f"has {len(particle.position)} components, but particles.{first.name} has "
+                f"{len(first.position)}: all particles move in the same plane or space",
+            )
+    dimension = len(first.position)
+    if isinstance(scene.gravity, tuple) and len(scene.gravity) != dimension:
+        raise fail(
+            "system.gravity",
+            f"the vector has {len(scene.gravity)} components, but the positions have {dimension}",
+        )
+
+
+CONSTANT_FIELDS = ("particles.", "system.gravity")
+"""Fields that are constants of the scene (masses, the field of gravity): numbers and
+parameters only."""
+
+
 def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
     fields: list[tuple[str, str | None, tuple[str, ...]]] = [
         ("system.kinetic", scene.kinetic, ("q", "qdot", "t", "params")),
@@ -814,6 +1037,18 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
     fields += [
         (f"effects.forces.{q}", text, ("q", "qdot", "t", "params")) for q, text in scene.forces
     ]
+    for particle in scene.particles:
+        fields.append((f"particles.{particle.name}.mass", particle.mass, ("params",)))
+        fields += [
+            (f"particles.{particle.name}.position[{i}]", text, ("q", "t", "params"))
+            for i, text in enumerate(particle.position)
+        ]
+    if isinstance(scene.gravity, tuple):
+        fields += [
+            (f"system.gravity[{i}]", text, ("params",)) for i, text in enumerate(scene.gravity)
+        ]
+    elif scene.gravity is not None:
+        fields.append(("system.gravity", scene.gravity, ("params",)))
     if scene.drawing:
         for name, x, y in scene.drawing.points:
             fields.append((f"drawing.points.{name}.x", x, ("q", "t", "params")))
@@ -855,6 +1090,9 @@ def _misplaced_name_hint(scene, exc, groups, field_name) -> str | None:
     if not exc.reason.startswith("unknown name"):
         return None
     name = exc.reason.split("'")[1]
+    if groups == ("params",) and name in scene.symbols and field_name.startswith(CONSTANT_FIELDS):
+        what = "a mass" if field_name.endswith(".mass") else "the field of gravity"
+        return f"{what} is a constant: it may use numbers and parameters, not {name!r}"
     if name in scene.velocity_names and "qdot" not in groups:
         if field_name == "system.potential":
             return (
@@ -882,6 +1120,14 @@ def _to_toml(scene: Scene) -> str:
         value = getattr(scene, key)
         if value is not None:
             lines.append(f"{key} = {_str(value)}")
+    if scene.gravity is not None:
+        lines.append(f"gravity = {_value(scene.gravity)}")
+    if scene.particles:
+        lines += ["", "[particles]"]
+        lines += [
+            f"{_key(p.name)} = {_inline({'mass': p.mass, 'position': list(p.position)})}"
+            for p in scene.particles
+        ]
     if scene.dissipation is not None or scene.forces:
         lines += ["", "[effects]"]
         if scene.dissipation is not None:
@@ -892,11 +1138,17 @@ def _to_toml(scene: Scene) -> str:
             lines.append(f"disabled = [{', '.join(_str(k) for k in sorted(scene.disabled))}]")
     if scene.initial:
         lines += ["", "[initial]"] + [f"{k} = {_value(v)}" for k, v in scene.initial]
-    if scene.drawing:
-        d = scene.drawing
+    own = _particle_drawing(scene.particles)
+    own_points = set(own.points) if own else set()
+    d = scene.drawing
+    # the particles' own points come from [particles]; only the others are written
+    points = (
+        {name: [x, y] for name, x, y in d.points if (name, x, y) not in own_points} if d else {}
+    )
+    if d and (own is None or points or d.links or d.trace):
         lines += ["", "[drawing]"]
-        points = {name: [x, y] for name, x, y in d.points}
-        lines.append(f"points = {_inline(points)}")
+        if points or own is None:
+            lines.append(f"points = {_inline(points)}")
         if d.links:
             lines.append(f"links = {_value([list(link) for link in d.links])}")
         if d.trace:
@@ -910,17 +1162,18 @@ def document_toml(data: Mapping[str, Any]) -> str:
     """The tables of a scene document as TOML text, whether or not they make a valid scene.
 
     The layout is that of ``Scene.to_toml``: the top-level keys (``title``,
-    ``description``), then ``[system]``, ``[effects]``, ``[initial]``, ``[drawing]`` and
-    ``[view]`` (and any other table, in its order), one key a line, nested arrays and
-    tables written inline; an empty table other than ``[system]`` is left out. Reading
-    the text with ``read_document`` gives the same tables back (an empty table aside).
+    ``description``), then ``[system]``, ``[particles]``, ``[effects]``, ``[initial]``,
+    ``[drawing]`` and ``[view]`` (and any other table, in its order), one key a line,
+    nested arrays and tables written inline; an empty table other than ``[system]`` is
+    left out. Reading the text with ``read_document`` gives the same tables back (an
+    empty table aside).
 
     Raises
     ------
     TypeError
         For a value TOML cannot hold (None, an object).
     """
-    order = ["system", "effects", "initial", "drawing", "view"]
+    order = ["system", "particles", "effects", "initial", "drawing", "view"]
     tables = [key for key in order if isinstance(data.get(key), Mapping)]
     tables += [k for k, v in data.items() if isinstance(v, Mapping) and k not in tables]
     top = sorted(

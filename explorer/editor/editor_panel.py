@@ -61,8 +61,26 @@ KINDS = (
     ("lagrangian", "Lagrangian L"),
     ("hamiltonian", "Hamiltonian H"),
 )
-DOCUMENT_KEYS = ("title", "description", "system", "effects", "initial", "drawing", "view")
-SYSTEM_KEYS = ("coordinates", "parameters", "kinetic", "potential", "lagrangian", "hamiltonian")
+# [particles] and system.gravity have no fields yet: they are kept as read (see document)
+DOCUMENT_KEYS = (
+    "title",
+    "description",
+    "system",
+    "particles",
+    "effects",
+    "initial",
+    "drawing",
+    "view",
+)
+SYSTEM_KEYS = (
+    "coordinates",
+    "parameters",
+    "kinetic",
+    "potential",
+    "lagrangian",
+    "hamiltonian",
+    "gravity",
+)
 EFFECT_KEYS = ("dissipation", "forces", "disabled")
 
 NEW_SCENE: dict = {
@@ -99,7 +117,13 @@ def data_from_scene(scene) -> dict:
         value = getattr(scene, key)
         if value is not None:
             system[key] = value
+    if scene.gravity is not None:
+        system["gravity"] = scene.gravity if isinstance(scene.gravity, str) else [*scene.gravity]
     data: dict = {"title": scene.title, "description": scene.description, "system": system}
+    if scene.particles:
+        data["particles"] = {
+            p.name: {"mass": p.mass, "position": list(p.position)} for p in scene.particles
+        }
     effects: dict = {}
     if scene.dissipation is not None:
         effects["dissipation"] = scene.dissipation
@@ -111,7 +135,12 @@ def data_from_scene(scene) -> dict:
         data["effects"] = effects
     data["initial"] = dict(scene.initial)
     if scene.drawing is not None:
-        drawing = {"points": {name: [x, y] for name, x, y in scene.drawing.points}}
+        own = {(p.name, p.position[0], p.position[1]) for p in scene.particles}
+        drawing = {  # a particle's own point comes from [particles], not from [drawing]
+            "points": {
+                name: [x, y] for name, x, y in scene.drawing.points if (name, x, y) not in own
+            }
+        }
         if scene.drawing.links:
             drawing["links"] = [list(link) for link in scene.drawing.links]
         if scene.drawing.trace:
@@ -692,11 +721,17 @@ class SystemEditorPanel(QWidget):
             name: _number_or_text(value) for name, value in self.parameter_table.parameters()
         }
         keys = ("kinetic", "potential") if kind == "energies" else (kind,)
+        particles = self._data.get("particles")
         for key in keys:
             text = self.fields[key].text().strip()
-            if text or key == keys[0]:
+            if text or (key == keys[0] and not (kind == "energies" and particles)):
                 system[key] = text
+        gravity = _table(self._data.get("system")).get("gravity")
+        if gravity is not None:
+            system["gravity"] = gravity
         data: dict = {"title": self.title_edit.text(), "system": system}
+        if particles is not None:
+            data["particles"] = particles
         if self._data.get("description"):
             data["description"] = _text(self._data["description"])
         effects: dict = {}
@@ -1067,33 +1102,34 @@ class SystemEditorPanel(QWidget):
 
 
 def classification_html(mechanics, method: str, reason: str) -> str:
-    """The classification card: the textbook's words, cyclic coordinates, the method."""
+    """The classification card: the textbook's words, cyclic coordinates, the method.
+
+    The chapter's classes first (constraints, forces, simple or general), then what
+    follows for the equations and H. A question with no answer (H against an energy that
+    cannot be named) gets a neutral mark.
+    """
+    from systems import classification as words
+
     cls = mechanics.classification
     scene = mechanics.scene
 
-    def badge(ok: bool, text: str) -> str:
-        colour = "#1b7f3b" if ok else "#a15c00"
-        return f"<span style='color:{colour}'>{'●' if ok else '○'}</span> {html.escape(text)}"
+    def badge(ok: bool | None, text: str) -> str:
+        colour = {True: "#1b7f3b", False: "#a15c00", None: "#666666"}[ok]
+        mark = {True: "●", False: "○", None: "◌"}[ok]
+        return f"<span style='color:{colour}'>{mark}</span> {html.escape(text)}"
 
     rows = [
-        badge(
-            not cls.time_dependent,
-            "scleronomic (no explicit t)"
-            if not cls.time_dependent
-            else "rheonomic (depends on t explicitly)",
-        ),
-        badge(
-            cls.conservative,
-            "conservative" if cls.conservative else "not conservative (effects act)",
-        ),
+        badge(not cls.rheonomic, words.describe_rheonomic(cls.rheonomic)),
+        badge(cls.holonomic, words.describe_holonomic(cls.holonomic)),
+        badge(cls.bilateral, words.describe_bilateral(cls.bilateral)),
+        badge(cls.conservative, words.describe_conservative(cls.conservative)),
+        badge(cls.simple, words.describe_simple(cls.simple)),
+        badge(not cls.time_dependent, words.describe_time_dependent(cls.time_dependent)),
         badge(
             cls.hamiltonian_conserved,
             "H is conserved" if cls.hamiltonian_conserved else "H is not conserved",
         ),
-        badge(
-            cls.hamiltonian_is_energy,
-            "H = T + V (the energy)" if cls.hamiltonian_is_energy else "H ≠ T + V",
-        ),
+        badge(cls.hamiltonian_is_energy, words.describe_energy(cls.hamiltonian_is_energy)),
         badge(
             cls.natural, "natural: T quadratic in the velocities" if cls.natural else "not natural"
         ),

@@ -25,8 +25,9 @@ def explanation(result: jobs.EnergyResult) -> str:
     """The energy theorem in words for this kind of system."""
     words = []
     if result.explicit_time:
+        cause = "the constraint moves" if result.rheonomic else "a time-dependent potential"
         words.append(
-            "<b>L depends explicitly on t</b> (rheonomic): H is not conserved. It changes "
+            f"<b>L depends explicitly on t</b> ({cause}): H is not conserved. It changes "
             "<i>only</i> through the explicit time dependence, dH/dt = −∂L/∂t, which the "
             "two curves above show agree at every instant."
         )
@@ -45,16 +46,25 @@ def explanation(result: jobs.EnergyResult) -> str:
     if result.explicit_time and result.effects:
         words.append("Effects act as well: their power Σ q̇ᵢ Qᵢ adds to −∂L/∂t.")
     balance = result.balance
-    if balance.energy is not None and not result.hamiltonian_is_energy:
+    if balance.energy is not None and result.hamiltonian_is_energy is False:
         swing = float(np.ptp(balance.energy))
+        if result.rheonomic:
+            why = "the agent that drives the constraint does work on the system"
+        else:  # scleronomic, yet h = Σ q̇ᵢ ∂L/∂q̇ᵢ − L is not T + V: T is not quadratic
+            why = "T is not a quadratic form in the velocities, so Σ q̇ᵢ ∂T/∂q̇ᵢ ≠ 2T"
         words.append(
-            f"H is <b>not</b> T + V here: T + V varies by {swing:.3g} along the motion (the "
-            "agent that drives the constraint does work on the system), while H "
+            f"H is <b>not</b> T + V here: T + V varies by {swing:.3g} along the motion "
+            f"({why}), while H "
             + (
                 "stays constant."
                 if not (result.explicit_time or result.effects)
                 else "follows the theorem."
             )
+        )
+    elif result.hamiltonian_is_energy is None:
+        words.append(
+            "No energy T + V can be named here: the scene gives L (or H) alone, with an "
+            "explicit t or without a positive kinetic energy, so H is not compared with one."
         )
     mismatch = float(np.max(np.abs(balance.rate - balance.predicted)))
     size = float(np.max(np.abs(balance.rate))) if len(balance.rate) else 0.0
@@ -145,7 +155,7 @@ class EnergyTheoremView(TextbookTabView):
         plot.setLabel("left", "energy")
         plot.plot(b.t, b.hamiltonian, pen=pen(GREEN, 2.5), name="H (the Hamiltonian)")
         values = [b.hamiltonian]
-        if b.energy is not None and not result.hamiltonian_is_energy:
+        if b.energy is not None and result.hamiltonian_is_energy is False:
             plot.plot(b.t, b.energy, pen=pen(RED, 1.8), name="T + V")
             values.append(b.energy)
         self._pad(plot, np.concatenate(values), 0.45 if len(values) == 1 else 0.9)

@@ -26,7 +26,28 @@ KIND_TEXT = {
     "saddle": "unstable (saddle of U)",
     "maximum": "unstable (maximum of U)",
     "degenerate": "undecided (degenerate)",
+    "continuum": "a set of equilibria",
 }
+
+
+def kind_text(equilibrium) -> str:
+    """Stable or not, and what U does there: ``"stable (minimum of U)"``,
+    ``"stable (gyroscopic; maximum of U)"``, ``"stable (degenerate minimum, order 4)"``,
+    ``"stable set: the circle x² + y² = 1, neutral along it"``."""
+    e = equilibrium
+    verdict = "stable" if e.stable else "unstable"
+    if e.kind == "continuum" and e.continuum is not None:
+        return f"{verdict} set: {e.continuum.description}, neutral along it"
+    if e.kind == "degenerate":
+        order = f", order {e.order}" if e.order else ""
+        if e.stable:
+            return f"stable (degenerate minimum{order})"
+        if e.verdict == "undecided":
+            return "undecided (degenerate)"
+        return f"unstable (degenerate{order})"
+    if e.kind in ("saddle", "maximum") and e.stable:
+        return f"stable (gyroscopic; {e.kind} of U)"
+    return KIND_TEXT.get(e.kind, e.kind)
 
 
 def _number(value: float) -> str:
@@ -38,6 +59,11 @@ def _number(value: float) -> str:
     return "0" if text in ("0", "-0") else text.replace("-", "−")
 
 
+def _gyroscopic(equilibrium) -> bool:
+    G = np.asarray(equilibrium.gyroscopic)
+    return G.size > 0 and bool(np.any(G != 0))
+
+
 def frequency_text(equilibrium) -> str:
     """ω of every normal mode (stable), or the growth rates of the unstable directions."""
     if equilibrium.stable:
@@ -46,14 +72,24 @@ def frequency_text(equilibrium) -> str:
             label = f"ω{_subscript(i)}" if len(equilibrium.frequencies) > 1 else "ω"
             extra = f"  (ω² = {w * w:.6g}, period {2 * math.pi / w:.5g})" if w > 0 else ""
             parts.append(f"{label} = {w:.6g}{extra}")
-        return ";  ".join(parts)
-    rates = [math.sqrt(-w2) for w2 in equilibrium.omega_squared if w2 < 0]
+        if not parts:
+            return "— (no linear oscillation)" if equilibrium.kind == "degenerate" else "—"
+        text = ";  ".join(parts)
+        if equilibrium.kind == "continuum":
+            text += "  across the set"
+        if _gyroscopic(equilibrium):
+            text += "  (with the gyroscopic terms)"
+        return text
+    rates = equilibrium.growth_rates
     if not rates:
         return "—"
     text = "unstable: grows at rate " + ", ".join(f"λ = {r:.4g}" for r in rates)
-    others = [math.sqrt(w2) for w2 in equilibrium.omega_squared if w2 > 0]
-    if others:
-        text += ";  oscillates along the other mode at " + ", ".join(f"ω = {w:.4g}" for w in others)
+    if not _gyroscopic(equilibrium):
+        others = [math.sqrt(w2) for w2 in equilibrium.omega_squared if w2 > 0]
+        if others:
+            text += ";  oscillates along the other mode at " + ", ".join(
+                f"ω = {w:.4g}" for w in others
+            )
     return text
 
 
@@ -61,21 +97,37 @@ def _subscript(i: int) -> str:
     return str(i + 1).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
 
 
+def _amplitude(x: complex) -> str:
+    """A mode-shape entry: ``+0.5``, ``−0.3i`` or ``+0.2+0.1i``."""
+    x = complex(x)
+    re = 0.0 if abs(x.real) < 5e-4 else x.real
+    im = 0.0 if abs(x.imag) < 5e-4 else x.imag
+    if im == 0.0:
+        text = f"{re:+.3g}"
+    elif re == 0.0:
+        text = f"{im:+.3g}i"
+    else:
+        text = f"{re:+.3g}{im:+.3g}i"
+    return text.replace("-", "−")
+
+
 def mode_text(equilibrium, names: tuple[str, ...]) -> str:
-    """Each normal mode as the relative amplitudes of the coordinates."""
+    """Each normal mode as the relative amplitudes of the coordinates (complex with
+    gyroscopic terms: a factor i is a quarter period behind)."""
     modes = np.asarray(equilibrium.modes)
     if modes.ndim != 2 or modes.shape[0] < 2:
         return "—"
     parts = []
     for j in range(modes.shape[1]):
         v = modes[:, j]
-        big = float(np.max(np.abs(v))) or 1.0
-        v = v / big
-        if v[np.argmax(np.abs(v))] < 0:
+        big = v[np.argmax(np.abs(v))]
+        if abs(big) == 0:
+            continue
+        v = v / (abs(big) if np.isrealobj(v) else big)
+        if np.isrealobj(v) and v[np.argmax(np.abs(v))] < 0:
             v = -v
-        shape = ", ".join(f"{x:+.3g}".replace("-", "−") for x in v)
-        parts.append(f"({shape})")
-    return "  ".join(parts)
+        parts.append("(" + ", ".join(_amplitude(x) for x in v) + ")")
+    return "  ".join(parts) or "—"
 
 
 class EquilibriaView(TextbookTabView):
@@ -140,10 +192,22 @@ class EquilibriaView(TextbookTabView):
             "numeric": "found by a numeric scan of the view",
         }.get(search.method, "")
         lines = []
+        sets = sum(1 for e in search.equilibria if e.continuum is not None)
         if found:
+            points = found - sets
+            count = f"{points} equilibri{'um' if points == 1 else 'a'}"
+            if sets and points:
+                count += f" and {sets} set{'s' if sets > 1 else ''} of them"
+            elif sets:
+                count = f"{sets} set{'s' if sets > 1 else ''} of equilibria"
+            if any(_gyroscopic(e) for e in search.equilibria):
+                small = "det(−ω² M + iω G + K) = 0, with the gyroscopic terms G of L"
+            else:
+                small = "K v = ω² M v"
             lines.append(
-                f"<b>{found} equilibri{'um' if found == 1 else 'a'}</b> where the generalized "
-                f"forces −∂U/∂q vanish ({how}). Small oscillations solve K v = ω² M v."
+                f"<b>{count}</b> where the generalized forces −∂U/∂q vanish ({how}). "
+                f"Small oscillations solve {small}; where K is singular, the terms of U "
+                "beyond the quadratic ones decide."
             )
         else:
             lines.append("<b>No equilibria.</b>")
@@ -165,6 +229,7 @@ class EquilibriaView(TextbookTabView):
         headers += ["kind", "U (= H at rest)", "small oscillations"]
         if len(names) > 1:
             headers.append("normal modes (" + ", ".join(pretty_name(n) for n in names) + ")")
+        headers.append("decided by")
         self.table.clear()
         self.table.setColumnCount(len(headers))
         self.table.setHorizontalHeaderLabels(headers)
@@ -180,11 +245,13 @@ class EquilibriaView(TextbookTabView):
                 ]
                 cells.append(",  ".join(forms) if self._symbolic(e) else "")
             kind_column = len(cells)
-            cells += [KIND_TEXT.get(e.kind, e.kind), f"{e.potential:.6g}", frequency_text(e)]
+            cells += [kind_text(e), f"{e.potential:.6g}", frequency_text(e)]
             if len(names) > 1:
-                cells.append(mode_text(e, names))
+                cells.append(mode_text(e, names) if e.continuum is None else "—")
+            cells.append(e.decided_by)
             for column, text in enumerate(cells):
                 item = QTableWidgetItem(text)
+                item.setToolTip(e.decided_by)
                 if column == kind_column:
                     item.setForeground(pg.mkColor(GREEN if e.stable else RED))
                 self.table.setItem(row, column, item)
@@ -265,13 +332,16 @@ class EquilibriumMarkers:
         name = names[self.index]
         spots = []
         for e in search.equilibria:
+            where = ", ".join(f"{pretty_name(k)} = {_number(v)}" for k, v in e.q.items())
+            if e.continuum is not None:
+                spots += self._set_spots(e, name, names.index(name), where)
+                continue
             q = e.q.get(name, 0.0)
             p = e.p.get(f"p_{name}", 0.0)
             copies = [q]
             if name in search.periodic:
                 copies += [q - 2 * math.pi, q + 2 * math.pi]
-            where = ", ".join(f"{pretty_name(k)} = {_number(v)}" for k, v in e.q.items())
-            tip = f"equilibrium {where}\n{KIND_TEXT.get(e.kind, e.kind)}\n{frequency_text(e)}"
+            tip = f"equilibrium {where}\n{kind_text(e)}\n{frequency_text(e)}"
             if e.stable and e.frequencies:
                 tip += "\nperiods 2π/ω = " + ", ".join(
                     f"{2 * math.pi / w:.5g}" for w in e.frequencies if w > 0
@@ -283,6 +353,25 @@ class EquilibriumMarkers:
                 else:
                     style = {"symbol": "x", "brush": pg.mkBrush(RED), "pen": pg.mkPen(RED)}
                 spots.append({"pos": (x, p), "size": 14, "data": tip, **style})
+        return spots
+
+    @staticmethod
+    def _set_spots(e, name: str, index: int, where: str) -> list[dict]:
+        """Small dots along a set of equilibria, projected on the pair (q_i, p_i)."""
+        tip = f"{kind_text(e)}\nthrough {where}\n{frequency_text(e)}\nU = {e.potential:.6g}"
+        color = GREEN if e.stable else RED
+        spots = []
+        for q, p in zip(e.continuum.points[:, index], e.continuum.momenta[:, index], strict=True):
+            spots.append(
+                {
+                    "pos": (float(q), float(p)),
+                    "size": 6,
+                    "data": tip,
+                    "symbol": "o",
+                    "brush": pg.mkBrush(color),
+                    "pen": pg.mkPen(color),
+                }
+            )
         return spots
 
     def update(self) -> None:

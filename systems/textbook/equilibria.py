@@ -4,21 +4,38 @@ For a scleronomic system the equilibria (constant q, zero velocities) solve
 ``dU/dq = 0`` with ``U(q) = -L(q, qdot=0)``: the potential energy, less any velocity-free
 part of the kinetic energy (a bead on a spinning hoop has ``U = V - m w^2 R^2 sin^2/2``).
 A scene given only by a Hamiltonian that cannot be turned into a Lagrangian uses
-``U = H(q, p=0)``. The Hessian ``K = d2U/dq2`` at an equilibrium decides its kind, and the
-generalized eigenproblem ``K v = w^2 M v`` (``scipy.linalg.eigh``) gives the normal modes
-(terms of L linear in the velocities, gyroscopic or magnetic, are not part of it).
+``U = H(q, p=0)``.
+
+Small oscillations use the whole quadratic Lagrangian about an equilibrium,
+``L2 = qdot^T M qdot/2 + qdot^T C q - q^T K q/2`` with ``K = d2U/dq2`` and
+``C = d2L/dqdot dq`` (the terms of L linear in the velocities: a rotating frame, a magnetic
+field). Its equations ``M qdd + G qdot + K q = 0``, ``G = C - C^T``, are the quadratic
+eigenproblem ``det(-w^2 M + i w G + K) = 0``, solved through its 2m x 2m linearisation; a
+Hamiltonian-only scene linearises Hamilton's equations instead (``J Hess H``). The
+equilibrium is stable when every eigenvalue lies on the imaginary axis (with ``G = 0``:
+when U has a minimum; with ``G != 0`` a maximum or saddle of U may be stabilized
+gyroscopically), unstable when one has a positive real part.
+
+When K is singular the linearisation cannot decide. U is then followed along the
+degenerate directions (the transverse directions relaxed to dU/dq = 0 there, a
+Lyapunov-Schmidt reduction): a rise of even order on every side is a degenerate minimum
+(stable by the energy, as U = x^4/4), a fall or an odd order is unstable (x^3, -x^4), and
+a U that stays flat is a continuum of equilibria. A continuum is followed (curves by
+pseudo-arclength continuation) and reported once, as an ``EquilibriumSet``, with the
+transverse frequencies; it is neutral along itself.
 
 Coordinates that ``U`` does not depend on (cyclic ones such as the angle of planetary
 motion) are not searched: every value is an equilibrium value. They are reported as
 ``free`` and set to 0; their momenta are held at zero, so the mass matrix used for the
-remaining coordinates is the Schur complement ``M_rr - M_rf M_ff^-1 M_fr``.
+remaining coordinates is the Schur complement ``M_rr - M_rf M_ff^-1 M_fr`` (and the
+velocity-linear terms are reduced the same way, to quadratic order).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg
@@ -46,25 +63,78 @@ Box = Mapping[str, tuple[float, float]]
 
 
 @dataclass(frozen=True)
+class EquilibriumSet:
+    """A connected curve or surface of equilibria, reported once.
+
+    Attributes
+    ----------
+    dimension : int
+        1 for a curve, 2 for a surface, ...
+    description : str
+        For a person: ``"the circle x² + y² = 1"``, ``"the curve x**2/4 + y**2 - 1 = 0"``,
+        or ``"a closed curve of equilibria through (1, 0)"``.
+    equation : str
+        ``f`` of the set ``f(q) = 0`` in the scene's symbols when sympy found one (a
+        common factor of dU/dq that vanishes on the set), else "".
+    closed : bool
+        True for a curve that was followed all the way round.
+    points : ndarray, shape (k, n)
+        Points along the set in all n coordinates (free ones at 0, angles folded), in
+        order along a curve; the equilibria the scan found on the set for a surface.
+    momenta : ndarray, shape (k, n)
+        The momenta at rest at those points.
+    found : int
+        How many equilibria of the numeric scan lay on the set (each was one entry before
+        the set was recognised).
+    """
+
+    dimension: int
+    description: str
+    equation: str
+    closed: bool
+    points: np.ndarray
+    momenta: np.ndarray
+    found: int
+
+    def as_json(self) -> dict:
+        """``{"dimension", "description", "equation", "closed", "neutral_along": True}``."""
+        return {
+            "dimension": int(self.dimension),
+            "description": self.description,
+            "equation": self.equation or None,
+            "closed": bool(self.closed),
+            "neutral_along": True,
+        }
+
+
+@dataclass(frozen=True)
 class Equilibrium:
-    """One equilibrium configuration, with its stability and normal modes.
+    """One equilibrium configuration (or one set of them), its stability and normal modes.
 
     Attributes
     ----------
     q : dict[str, float]
-        Every coordinate's value (free coordinates at 0, periodic angles in (-pi, pi]).
+        Every coordinate's value (free coordinates at 0, periodic angles in (-pi, pi]); for
+        a set, one point of it.
     stable : bool
-        True for a strict minimum of U (all Hessian eigenvalues positive).
+        True when every eigenvalue of the linearised motion is on the imaginary axis and,
+        if the linearisation is degenerate, U rises along the degenerate directions (for a
+        set: transversally; it is neutral along itself).
     kind : str
-        ``"minimum"``, ``"saddle"``, ``"maximum"`` or ``"degenerate"`` (a zero eigenvalue).
+        What U does there: ``"minimum"``, ``"saddle"``, ``"maximum"``, ``"degenerate"``
+        (K has a zero eigenvalue; see ``order`` and ``decided_by``) or ``"continuum"`` (a
+        set of equilibria, see ``continuum``).
     frequencies : list[float]
-        Normal-mode angular frequencies w (ascending) for a stable equilibrium, else [].
+        Normal-mode angular frequencies w (ascending, the zero ones of degenerate or
+        neutral directions left out) for a stable equilibrium, else [].
     omega_squared : ndarray, shape (m,)
-        Eigenvalues w^2 of ``K v = w^2 M v`` over the m searched coordinates, ascending;
-        a negative one is the square of a growth rate.
-    modes : ndarray, shape (n, m)
-        Column j is the mode shape of ``omega_squared[j]`` in all n coordinates,
-        normalized so that ``v^T M v = 1``.
+        Eigenvalues w^2 of ``K v = w^2 M v`` over the m searched coordinates, ascending,
+        without the gyroscopic terms; a negative one is the square of a growth rate.
+    modes : ndarray, shape (n, m) or (n, k)
+        Mode shapes in all n coordinates: without gyroscopic terms column j belongs to
+        ``omega_squared[j]``, normalized so that ``v^T M v = 1``; with them (complex) the
+        coordinate part of the eigenvector of each of the k positive frequencies, scaled
+        so that its largest entry is 1 (a phase of i is a quarter period behind).
     hessian : ndarray, shape (m, m)
         K = d2U/dq2 over the searched coordinates.
     potential : float
@@ -76,6 +146,25 @@ class Equilibrium:
     exact : dict[str, str]
         Closed forms found by sympy (coordinate -> expression text in the parameters);
         empty when the equilibrium was found numerically.
+    eigenvalues : ndarray, shape (2m,)
+        Complex eigenvalues of the linearised motion, sorted by imaginary part (empty
+        when the inertia there is zero or infinite): ``±i w`` when stable, a positive
+        real part is a growth rate.
+    gyroscopic : ndarray, shape (m, m)
+        G = C - C^T (antisymmetric; zero without velocity-linear terms). For a
+        Hamiltonian-only scene, ``d2H/dq dp`` at the equilibrium.
+    order : int or None
+        For a degenerate equilibrium, the order of the leading term of U along the
+        degenerate direction(s) (4 for U = x^4/4); None otherwise or if U is flat.
+    decided_by : str
+        One sentence: what decided the stability.
+    verdict : str
+        The same as a key: ``"stable: minimum"``, ``"stable: gyroscopic"``,
+        ``"unstable: linear"``, ``"stable: rises"`` (a degenerate minimum),
+        ``"unstable: falls"``, ``"unstable: odd"``, ``"stable: flat"``,
+        ``"stable: flat gyroscopic"``, ``"unstable: flat"`` or ``"undecided"``.
+    continuum : EquilibriumSet or None
+        The set this entry stands for (``kind == "continuum"``).
     """
 
     q: dict[str, float]
@@ -88,14 +177,41 @@ class Equilibrium:
     potential: float
     p: dict[str, float] = field(default_factory=dict)
     exact: dict[str, str] = field(default_factory=dict)
+    eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+    gyroscopic: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    order: int | None = None
+    decided_by: str = ""
+    verdict: str = ""
+    continuum: EquilibriumSet | None = None
+
+    @property
+    def growth_rates(self) -> list[float]:
+        """The positive real parts of the eigenvalues (descending), [] when stable."""
+        if self.stable or self.eigenvalues.size == 0:
+            return []
+        scale = max(1.0, float(np.max(np.abs(self.eigenvalues))))
+        # one of each conjugate pair: a real rate, or the real part of a growing spiral
+        rates = [lam.real for lam in self.eigenvalues if lam.real > 1e-7 * scale and lam.imag >= 0]
+        return sorted((float(r) for r in rates), reverse=True)
 
     def as_json(self) -> dict:
-        """``{"q": {name: value}, "stable": bool, "frequencies": [...]}``."""
-        return {
+        """``{"q", "stable", "frequencies", "kind", "decided_by"}``, and ``"order"`` for a
+        degenerate equilibrium, ``"growth_rates"`` for an unstable one with a growing
+        mode, ``"set"`` (``EquilibriumSet.as_json``) for a continuum."""
+        data = {
             "q": {name: _clean(value) for name, value in self.q.items()},
             "stable": bool(self.stable),
             "frequencies": [float(w) for w in self.frequencies] if self.stable else [],
+            "kind": self.kind,
+            "decided_by": self.decided_by,
         }
+        if self.kind == "degenerate":
+            data["order"] = self.order
+        if not self.stable and self.growth_rates:
+            data["growth_rates"] = self.growth_rates
+        if self.continuum is not None:
+            data["set"] = self.continuum.as_json()
+        return data
 
 
 @dataclass(frozen=True)
@@ -280,7 +396,10 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
     if method == "symbolic" and added:
         method = "symbolic+numeric"
     found = _unique(found, problem)
-    equilibria = [problem.equilibrium(point, exact) for point, exact in found]
+    problem.equation = _set_equation_finder(
+        mechanics, U, unknowns, timeout if symbolic else 0.0, parameters, region
+    )
+    equilibria = problem.classify(found)
     equilibria.sort(key=lambda e: (round(e.potential, 9), tuple(e.q.values())))
     if not equilibria:
         notes.insert(0, "dU/dq vanishes nowhere in the search box")
@@ -396,6 +515,12 @@ class _Problem:
             momenta = [sympy.S.Zero] * len(self.names)
         momenta_function = vectorize(momenta, mechanics.q)
         self.rest_momenta = lambda q: momenta_function(*q)
+        self.cross = _cross_function(mechanics, momenta, parameters)
+        widths = [hi - lo for lo, hi in region.values()]
+        # lengths for following U along degenerate directions and along sets of equilibria
+        self.probe_length = 0.005 * float(np.mean(widths))
+        self.trace_step = 0.005 * float(np.mean(widths))
+        self.equation = None  # set by the search: f(q) = 0 of a continuum, from sympy
 
     def hessian(self, x: np.ndarray) -> np.ndarray:
         return self._hessian(*x).reshape(self.m, self.m)
@@ -432,9 +557,43 @@ class _Problem:
                 except (ValueError, np.linalg.LinAlgError, FloatingPointError):
                     continue
             x = self.accept(sol.x, inside_only=True)
+            if x is not None:
+                x = self.accept(self.polish(x), inside_only=True)
             if x is not None and self.index(x, found) < 0:
                 found.append(x)
         return found
+
+    def polish(self, x: np.ndarray, iterations: int = 100) -> np.ndarray:
+        """Newton steps (least squares where K is singular) from a root finder's answer.
+
+        At a degenerate equilibrium (U = x^4 + ...) the root finder stops where dU/dq is
+        merely small, up to 1e-2 away, and each start would add its own "equilibrium";
+        Newton converges there too, linearly, to the one point.
+        """
+        start = x = np.asarray(x, dtype=float)
+        singular = np.linalg.svd(self.hessian(x), compute_uv=False)
+        if singular[-1] > 1e-3 * singular[0]:
+            return x  # a regular root: the root finder's answer is as good as Newton's
+        smallest, stalled = math.inf, 0
+        with np.errstate(all="ignore"):
+            for _ in range(iterations):
+                g, K = self.gradient(*x), self.hessian(x)
+                if not (np.all(np.isfinite(g)) and np.all(np.isfinite(K))):
+                    return start
+                try:
+                    step = np.linalg.lstsq(K, g, rcond=None)[0]
+                except np.linalg.LinAlgError:
+                    return start
+                size = float(np.linalg.norm(step))
+                stalled = stalled + 1 if size > 0.95 * smallest else 0
+                if stalled >= 5:  # rounding noise, not convergence
+                    break
+                x, smallest = x - step, min(smallest, size)
+                if not np.all(np.isfinite(x)) or np.linalg.norm(x - start) > self.probe_length:
+                    return start  # not converging to a point near this one
+                if size <= 1e-15 * (1.0 + np.linalg.norm(x)):
+                    break
+        return x
 
     def accept(self, x: np.ndarray, *, inside_only: bool) -> np.ndarray | None:
         x = np.asarray(x, dtype=float)
@@ -483,7 +642,9 @@ class _Problem:
         hits = np.flatnonzero(np.all(d <= 1e-6 * (1.0 + np.abs(a)), axis=1))
         return int(hits[0]) if hits.size else -1
 
-    def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> Equilibrium:
+    def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> tuple[Equilibrium, int]:
+        """The equilibrium at ``x`` (searched coordinates, shape (m,)), and the number of
+        degenerate directions along which U is flat (0 unless it may lie on a set)."""
         n, m = len(self.names), self.m
         full = dict.fromkeys(self.names, 0.0)
         full.update({name: float(v) for name, v in zip(self.searched, x, strict=True)})
@@ -500,17 +661,27 @@ class _Problem:
             Mfr = M[np.ix_(index_f, index_r)]
             back = -np.linalg.pinv(Mff) @ Mfr  # pinv: M_ff may vanish (spherical pendulum)
             Mrr = Mrr + Mfr.T @ back
-        eig_K = np.linalg.eigvalsh(K)
+        G, hamiltonian = self.cross.gyroscopic(q, index_r, index_f, back)
+        regular = _regular(Mrr)
+        H_qq = K
+        if hamiltonian and G is not None and regular:
+            # U at rest is H minimized over p: H_qq - H_qp H_pp^-1 H_pq, as for a Lagrangian
+            K = H_qq - G @ Mrr @ G.T
+        eig_K, vec_K = np.linalg.eigh(K)
         tol = 1e-8 * max(self.hessian_scale, float(np.max(np.abs(eig_K))), 1e-300)
-        if np.any(np.abs(eig_K) <= tol):
+        null = np.abs(eig_K) <= tol
+        if np.any(null):
             kind = "degenerate"
+            # the numerically zero eigenvalues set to zero, so that a degenerate direction
+            # gives zero eigenvalues, not the square roots of rounding errors
+            K = (vec_K * np.where(null, 0.0, eig_K)) @ vec_K.T
         elif np.all(eig_K > 0):
             kind = "minimum"
         elif np.all(eig_K < 0):
             kind = "maximum"
         else:
             kind = "saddle"
-        if _regular(Mrr):
+        if regular:
             try:
                 w2, vectors = scipy.linalg.eigh(K, Mrr)
             except (np.linalg.LinAlgError, ValueError):
@@ -523,24 +694,617 @@ class _Problem:
         modes[index_r] = vectors
         if index_f:
             modes[index_f] = back @ vectors
-        stable = kind == "minimum"
-        frequencies = [float(math.sqrt(max(v, 0.0))) for v in w2 if math.isfinite(v)]
-        frequencies = frequencies if stable else []
-        return Equilibrium(
-            q=full,
-            stable=stable,
-            kind=kind,
-            frequencies=frequencies,
-            omega_squared=np.asarray(w2, dtype=float),
-            modes=modes,
-            hessian=K,
-            potential=float(self.U(*x)[0]),
-            p={
-                f"p_{name}": _clean(v)
-                for name, v in zip(self.names, self.rest_momenta(q), strict=True)
-            },
-            exact=exact,
+        finite = np.abs(w2[np.isfinite(w2)])
+        w2_tol = 1e-8 * max(float(finite.max()) if finite.size else 0.0, 1e-300)
+        gyroscopic = G is not None and regular
+        if gyroscopic:
+            if hamiltonian:  # Hess H = [[H_qq, H_qp], [H_pq, H_pp]], H_pp = M^-1
+                eigenvalues, shapes = _spectrum(H_qq, np.linalg.inv(Mrr), G, True)
+            else:
+                eigenvalues, shapes = _spectrum(K, Mrr, G, False)
+        elif regular:
+            root = np.sqrt(np.abs(w2).astype(complex))
+            growth = np.where(w2 < -w2_tol, root.real, 0.0)
+            turn = np.where(w2 > w2_tol, root.real, 0.0)
+            eigenvalues = np.concatenate([growth + 1j * turn, -growth - 1j * turn])
+            eigenvalues = eigenvalues[np.argsort(eigenvalues.imag, kind="stable")]
+        else:
+            eigenvalues = np.zeros(0, dtype=complex)
+        scale = max(float(np.max(np.abs(eigenvalues), initial=0.0)), 1e-300)
+        if gyroscopic:
+            growing = bool(np.any(eigenvalues.real > 1e-7 * scale))
+        else:
+            growing = bool(np.any(eig_K < -tol))
+        verdict, order, flat = self._decide(x, kind, eig_K, vec_K, null, growing, G is not None)
+        stable = verdict.startswith("stable")
+        frequencies: list[float] = []
+        if stable and regular:
+            if gyroscopic:
+                turns = np.sort(np.abs(eigenvalues.imag))
+                turns = turns[turns > 1e-7 * scale]
+                frequencies = [float(w) for w in turns[::2]]
+                keep = np.flatnonzero(eigenvalues.imag > 1e-7 * scale)
+                keep = keep[np.argsort(eigenvalues.imag[keep])]
+                modes = np.zeros((n, len(keep)), dtype=complex)
+                modes[index_r] = shapes[:, keep]
+                if index_f:
+                    modes[index_f] = back @ shapes[:, keep]
+            else:
+                frequencies = [float(math.sqrt(v)) for v in w2 if v > w2_tol]
+        decided_by = _decided_text(verdict, kind, eig_K, null, order, regular, G is not None)
+        return (
+            Equilibrium(
+                q=full,
+                stable=stable,
+                kind=kind,
+                frequencies=frequencies,
+                omega_squared=np.asarray(w2, dtype=float),
+                modes=modes,
+                hessian=K,
+                potential=float(self.U(*x)[0]),
+                p={
+                    f"p_{name}": _clean(v)
+                    for name, v in zip(self.names, self.rest_momenta(q), strict=True)
+                },
+                exact=exact,
+                eigenvalues=eigenvalues,
+                gyroscopic=np.zeros((m, m)) if G is None else G,
+                order=order,
+                decided_by=decided_by,
+                verdict=verdict,
+            ),
+            flat,
         )
+
+    # -- stability beyond the linearisation ---------------------------------------------
+
+    def _decide(self, x, kind, eig_K, vec_K, null, growing, gyroscopic):
+        """``(verdict, order, flat)``: the verdict a key of ``_VERDICTS``, the order of U
+        along degenerate directions, the number of those along which U is flat."""
+        if not np.any(null):
+            if growing:
+                return "unstable: linear", None, 0
+            if kind == "minimum":
+                return "stable: minimum", None, 0
+            return ("stable: gyroscopic", None, 0) if gyroscopic else ("unstable: linear", None, 0)
+        transverse_minimum = bool(np.all(eig_K[~null] > 0))
+        # followed even when a mode grows, so that an unstable set is recognised as one
+        shape, order = self._along_degenerate(x, vec_K, null)
+        if shape == "flat":
+            flat = int(np.count_nonzero(null))
+            if transverse_minimum:
+                return "stable: flat", None, flat
+            if gyroscopic and not growing:
+                return "stable: flat gyroscopic", None, flat
+            return "unstable: flat", None, flat
+        if growing:
+            return "unstable: linear", None, 0
+        if shape in ("falls", "odd"):
+            return f"unstable: {shape}", order, 0
+        if shape == "rises" and transverse_minimum:
+            return "stable: rises", order, 0
+        return "undecided", order, 0
+
+    def _along_degenerate(self, x, vec_K, null) -> tuple[str, int | None]:
+        """How U behaves along the null space of K at ``x``: ``"rises"`` (every way),
+        ``"falls"``, ``"odd"`` (rises one way and falls the other), ``"flat"`` or
+        ``"mixed"``; and the order of its leading term (None if flat or unclear)."""
+        N, R = vec_K[:, null], vec_K[:, ~null]
+        d = N.shape[1]
+        if d == 1:
+            directions = [N[:, 0], -N[:, 0]]
+        elif d == 2:
+            angles = np.linspace(0.0, 2 * math.pi, 12, endpoint=False)
+            directions = [N @ np.array([math.cos(a), math.sin(a)]) for a in angles]
+        else:
+            rng = np.random.default_rng(5)
+            units = np.vstack([np.eye(d), -np.eye(d), rng.normal(size=(4 * d, d))])
+            directions = [N @ (u / np.linalg.norm(u)) for u in units]
+        steps = self.probe_length * 2.0 ** -np.arange(6)
+        noise = 1e-11 * self.gradient_scale
+        shapes, orders = [], []
+        for v in directions:
+            slopes = np.array([self._slope(x, v, s, R) for s in steps])
+            clear = np.flatnonzero(np.isfinite(slopes) & (np.abs(slopes) > noise))
+            if clear.size == 0:
+                shapes.append("flat")
+                continue
+            last = clear[-1]  # the shortest step that still shows U change: its sign
+            shapes.append("rises" if slopes[last] > 0 else "falls")
+            if last - 1 in clear and slopes[last - 1] * slopes[last] > 0:
+                # dU/ds ~ c s^(p-1): halving s divides it by 2^(p-1)
+                p = 1.0 + math.log2(slopes[last - 1] / slopes[last])
+                if abs(p - round(p)) < 0.25 and round(p) >= 2:
+                    orders.append(round(p))
+        order = max(orders) if orders else None
+        if all(shape == "flat" for shape in shapes):
+            return "flat", None
+        if all(shape == "rises" for shape in shapes):
+            return "rises", order
+        if d == 1 and set(shapes) == {"rises", "falls"}:
+            return "odd", order
+        if "falls" in shapes:
+            return "falls", order
+        return "mixed", order
+
+    def _slope(self, x, v, s, R) -> float:
+        """dU/ds at ``x + s v`` with the directions ``R`` (columns) relaxed to dU = 0 there
+        (Newton); by the envelope theorem the slope of U along the reduced path."""
+        y = x + s * v
+        for _ in range(30):
+            if R.shape[1] == 0:
+                break
+            g = self.gradient(*y)
+            J = R.T @ self.hessian(y) @ R
+            try:
+                step = R @ np.linalg.solve(J, R.T @ g)
+            except np.linalg.LinAlgError:
+                return math.nan
+            y = y - step
+            if not np.all(np.isfinite(y)):
+                return math.nan
+            if np.linalg.norm(step) <= 1e-15 * (1.0 + np.linalg.norm(y)):
+                break
+        return float(v @ self.gradient(*y))
+
+    # -- sets of equilibria ---------------------------------------------------------------
+
+    def classify(self, found: list[tuple[np.ndarray, dict[str, str]]]) -> list[Equilibrium]:
+        """One ``Equilibrium`` per isolated point and one per set of them (``continuum``)."""
+        equilibria: list[Equilibrium] = []
+        sets: list[dict] = []
+        for point, exact in found:
+            member = self._member(point, sets)
+            if member is not None:
+                member["found"] += 1
+                member["points"].append(point)
+                continue
+            equilibrium, flat = self.equilibrium(point, exact)
+            if flat == 1:
+                curve, closed = self.trace(point)
+                if len(curve) >= 3:
+                    sets.append(
+                        {
+                            "dimension": 1,
+                            "curve": curve,
+                            "closed": closed,
+                            "found": 1,
+                            "points": [point],
+                            "level": equilibrium.potential,
+                        }
+                    )
+                    continue
+            elif flat >= 2:
+                sets.append(
+                    {
+                        "dimension": flat,
+                        "curve": None,
+                        "closed": False,
+                        "found": 1,
+                        "points": [point],
+                        "level": equilibrium.potential,
+                    }
+                )
+                continue
+            if flat:
+                equilibrium = replace(
+                    equilibrium,
+                    stable=False,
+                    verdict="undecided",
+                    frequencies=[],
+                    decided_by=_VERDICTS["undecided"].format(zeros=_zeros(flat), order=""),
+                )
+            equilibria.append(equilibrium)
+        return equilibria + [self._set_equilibrium(record) for record in sets]
+
+    def _member(self, x: np.ndarray, sets: list[dict]) -> dict | None:
+        for record in sets:
+            if record["curve"] is not None:
+                if self.distance(x, record["curve"]).min() <= self.trace_step:
+                    return record
+            elif abs(float(self.U(*x)[0]) - record["level"]) <= 1e-9 * (1 + abs(record["level"])):
+                eig = np.linalg.eigvalsh(self.hessian(x))
+                tol = 1e-8 * max(self.hessian_scale, float(np.max(np.abs(eig))))
+                if np.count_nonzero(np.abs(eig) <= tol) >= record["dimension"]:
+                    return record
+        return None
+
+    def distance(self, x: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Euclidean distances from ``x`` to each row of ``points`` (angles mod 2 pi)."""
+        d = np.abs(np.asarray(points) - x)
+        d = np.where(self.is_periodic, np.mod(d, 2 * math.pi), d)
+        d = np.where(self.is_periodic, np.minimum(d, 2 * math.pi - d), d)
+        return np.linalg.norm(d, axis=-1)
+
+    def trace(self, x0: np.ndarray, limit: int = 2000) -> tuple[np.ndarray, bool]:
+        """Follow the curve of equilibria through ``x0`` by pseudo-arclength continuation.
+
+        Returns
+        -------
+        points : ndarray, shape (k, m)
+            Points along the curve, in order, spaced by about ``trace_step``; fewer than 3
+            when there is no curve (U is flat only to the order the probe resolved).
+        closed : bool
+            True when the curve came back to ``x0``.
+        """
+        h = self.trace_step
+
+        def tangent(x, previous):
+            w, V = np.linalg.eigh(self.hessian(x))  # x was accepted: K is finite there
+            t = V[:, int(np.argmin(np.abs(w)))]
+            return t if previous is None or t @ previous >= 0 else -t
+
+        def correct(y, t):
+            x = y.copy()
+            for _ in range(25):
+                g = self.gradient(*x)
+                F = np.append(g, t @ (x - y))
+                J = np.vstack([self.hessian(x), t])
+                if not (np.all(np.isfinite(F)) and np.all(np.isfinite(J))):
+                    return None
+                try:
+                    dx = np.linalg.lstsq(J, -F, rcond=None)[0]
+                except np.linalg.LinAlgError:
+                    return None
+                x = x + dx
+                if np.linalg.norm(dx) <= 1e-14 * (1.0 + np.linalg.norm(x)):
+                    break
+            return self.accept(x, inside_only=True) if np.linalg.norm(x - y) < h else None
+
+        t0 = tangent(x0, None)
+        halves: list[list[np.ndarray]] = []
+        for sign in (1.0, -1.0):
+            x, t, half = x0, sign * t0, []
+            for _ in range(limit):
+                nxt = correct(x + h * t, t)
+                if nxt is None or self.distance(nxt, np.array([x]))[0] < 0.25 * h:
+                    break
+                # unfold the angles, so the curve is continuous through +-pi
+                nxt = np.where(self.is_periodic, x + _wrapped(nxt - x), nxt)
+                half.append(nxt)
+                if len(half) >= 3 and self.distance(nxt, x0[None, :])[0] < 0.75 * h:
+                    half.pop()
+                    return np.array([x0, *half]), True
+                x, t = nxt, tangent(nxt, t)
+            halves.append(half)
+        forward, backward = halves
+        points = np.array([*backward[::-1], x0, *forward])
+        return points, False
+
+    def _representative(self, curve: np.ndarray) -> np.ndarray:
+        """A point of the curve where a coordinate is 0 (the last such coordinate, the
+        largest such point), refined onto the set; else the curve's first point."""
+        for j in reversed(range(self.m)):
+            column = curve[:, j]
+            if self.is_periodic[j]:
+                column = _wrapped(column)
+            crossings = np.flatnonzero(np.sign(column[:-1]) != np.sign(column[1:]))
+            candidates = []
+            for i in crossings:
+                a, b = column[i], column[i + 1]
+                if abs(b - a) > 4 * self.trace_step:  # a jump of an angle through pi
+                    continue
+                w = a / (a - b) if a != b else 0.0
+                start = curve[i] + w * (curve[i + 1] - curve[i])
+                start = np.where(self.is_periodic, _wrapped(start), start)
+                x = self._on_set_with_zero(start, [j])
+                if x is not None:
+                    candidates.append(x)
+            if candidates:
+                return max(candidates, key=lambda x: tuple(np.round(x, 9)))
+        return curve[0]
+
+    def _on_set_with_zero(self, start: np.ndarray, zeros: list[int]) -> np.ndarray | None:
+        """The point of the set near ``start`` where the coordinates ``zeros`` are 0, or
+        None (least squares on dU/dq = 0 and those coordinates)."""
+        scale = self.gradient_scale
+
+        def residual(x):
+            return np.append(self.gradient(*x) / scale, x[zeros])
+
+        def jacobian(x):
+            return np.vstack([self.hessian(x) / scale, np.eye(self.m)[zeros]])
+
+        with np.errstate(all="ignore"):
+            try:
+                solution = scipy.optimize.least_squares(
+                    residual, start, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15
+                )
+            except (ValueError, np.linalg.LinAlgError):
+                return None
+        x = solution.x
+        x[zeros] = np.where(np.abs(x[zeros]) < 1e-12, 0.0, x[zeros])
+        if np.any(x[zeros] != 0.0) or np.linalg.norm(x - start) > 4 * self.trace_step:
+            return None
+        return self.accept(x, inside_only=False)
+
+    def _surface_point(self, points: np.ndarray, dimension: int) -> np.ndarray:
+        """A point of a surface of equilibria with its last ``dimension`` coordinates 0 if
+        there is one near the points found, else the first point found."""
+        for count in range(dimension, 0, -1):
+            zeros = list(range(self.m - count, self.m))
+            # nearest to those coordinates' zeros; among equals, the largest first coordinate
+            off = np.round(np.linalg.norm(points[:, zeros], axis=1), 6)
+            start = points[int(np.lexsort((-points[:, 0], off))[0])]
+            x = self._on_set_with_zero(start, zeros) if count else None
+            if x is not None:
+                return x
+        return points[0]
+
+    def _set_equilibrium(self, record: dict) -> Equilibrium:
+        curve = record["curve"]
+        dimension = record["dimension"]
+        if curve is not None:
+            x = self._representative(curve)
+            points = np.array([np.where(self.is_periodic, fold_angle(p), p) for p in curve])
+        else:
+            curve = points = np.array(record["points"])
+            x = self._surface_point(points, dimension)
+        equilibrium, _ = self.equilibrium(x, {})
+        equation = self.equation(points) if self.equation is not None else ""
+        full_points = np.zeros((len(points), len(self.names)))
+        index_r = [self.names.index(name) for name in self.searched]
+        full_points[:, index_r] = points
+        momenta = np.array([self.rest_momenta(p) for p in full_points])
+        momenta = momenta.reshape(len(points), len(self.names))
+        through = ", ".join(_short(equilibrium.q[name]) for name in self.names)
+        description = _describe(
+            curve, x, self.searched, self.is_periodic, record["closed"], dimension, equation
+        )
+        if not description:
+            what = {1: "curve", 2: "surface"}.get(dimension, f"{dimension}-dimensional set")
+            closed = "closed " if record["closed"] else ""
+            description = f"a {closed}{what} of equilibria through ({through})"
+        continuum = EquilibriumSet(
+            dimension=dimension,
+            description=description,
+            equation=equation,
+            closed=record["closed"],
+            points=np.array([[_clean(v) for v in row] for row in full_points]),
+            momenta=momenta,
+            found=record["found"],
+        )
+        if equilibrium.stable:
+            how = (
+                "transversally a minimum of U"
+                if "gyroscopic" not in equilibrium.decided_by
+                else ("transversally stabilized by the velocity-linear terms")
+            )
+            decided = f"U is constant along {description}: neutral along it, {how}"
+        else:
+            decided = f"U is constant along {description}: neutral along it, unstable across it"
+        return replace(equilibrium, kind="continuum", decided_by=decided, continuum=continuum)
+
+
+_VERDICTS = {
+    "stable: minimum": "U has a strict minimum (K positive definite)",
+    "stable: gyroscopic": (
+        "gyroscopic stabilization: U has a {kind}, but the terms of L linear in the "
+        "velocities put every eigenvalue of the linearisation on the imaginary axis"
+    ),
+    "unstable: linear": "the linearisation has a growing mode (an eigenvalue with positive "
+    "real part)",
+    "stable: rises": (
+        "the linearisation is degenerate ({zeros} of K); U rises along the degenerate "
+        "direction{s}{order}: a degenerate minimum, stable (the energy bounds the motion)"
+    ),
+    "unstable: falls": (
+        "the linearisation is degenerate ({zeros} of K); U falls along the degenerate "
+        "direction{s}{order}: unstable"
+    ),
+    "unstable: odd": (
+        "the linearisation is degenerate ({zeros} of K); U rises on one side and falls on "
+        "the other along the degenerate direction{order}, an inflection: unstable"
+    ),
+    "stable: flat": "the linearisation is degenerate ({zeros} of K); U is constant along "
+    "the degenerate direction{s} (neutral) and has a minimum across",
+    "stable: flat gyroscopic": "the linearisation is degenerate ({zeros} of K); U is "
+    "constant along the degenerate direction{s} (neutral), stabilized across by the "
+    "gyroscopic terms",
+    "unstable: flat": "the linearisation is degenerate ({zeros} of K); U is constant along "
+    "the degenerate direction{s} and falls across: unstable",
+    "undecided": "the linearisation is degenerate ({zeros} of K) and the terms of U beyond "
+    "the quadratic ones do not decide{order}: not known to be stable",
+}
+
+
+def _zeros(count: int) -> str:
+    return "a zero eigenvalue" if count == 1 else f"{count} zero eigenvalues"
+
+
+def _decided_text(verdict, kind, eig_K, null, order, regular, gyroscopic) -> str:
+    zeros = int(np.count_nonzero(null))
+    text = _VERDICTS[verdict].format(
+        kind=kind,
+        zeros=_zeros(zeros),
+        s="s" if zeros > 1 else "",
+        order=f" as the power {order} of the distance" if order else "",
+    )
+    if verdict == "unstable: linear" and not gyroscopic:
+        if zeros:
+            text = f"K has a negative eigenvalue besides {_zeros(zeros)}: U falls that way"
+        else:
+            text = f"U has a {kind} (K has a negative eigenvalue)"
+    if verdict.startswith("stable") and not regular:
+        text += "; the inertia there is zero or infinite, so there are no small oscillations"
+    elif verdict == "stable: minimum" and gyroscopic:
+        text += "; the terms of L linear in the velocities shift the frequencies"
+    return text
+
+
+def _spectrum(K, M, G, hamiltonian: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (2m,) sorted by imaginary part, and the coordinate parts (m, 2m) of the
+    eigenvectors, of ``M qdd + G qdot + K q = 0`` (state (q, qdot)); or, for a
+    Hamiltonian-only scene (``M`` is then ``d2H/dp2``, ``G`` is ``d2H/dq dp``), of
+    Hamilton's linearised equations ``z' = J Hess(H) z`` (state (q, p))."""
+    m = len(K)
+    if hamiltonian:
+        S = np.block([[K, G], [G.T, M]])
+        A = np.block([[S[m:]], [-S[:m]]])  # J S with J = [[0, I], [-I, 0]]
+    else:
+        A = np.block(
+            [[np.zeros((m, m)), np.eye(m)], [-np.linalg.solve(M, K), -np.linalg.solve(M, G)]]
+        )
+    values, vectors = np.linalg.eig(A)
+    order = np.lexsort((values.real, values.imag))
+    shapes = vectors[:m, order]
+    big = np.argmax(np.abs(shapes), axis=0)
+    pivot = shapes[big, np.arange(shapes.shape[1])]
+    shapes = shapes / np.where(np.abs(pivot) > 0, pivot, 1.0)
+    return values[order], shapes
+
+
+def _wrapped(angle):
+    """An angle (or array of them) moved into [-pi, pi)."""
+    return np.mod(np.asarray(angle) + math.pi, 2 * math.pi) - math.pi
+
+
+def _short(value: float) -> str:
+    text = f"{_clean(value):.6g}"
+    return "0" if text == "-0" else text
+
+
+def _describe(points, through, names, periodic, closed: bool, dimension: int, equation: str) -> str:
+    """A set of equilibria for a person, from points on it (shape (k, m), angles unfolded
+    along a curve) and one point ``through`` (m,) of it: ``"the circle x² + y² = 1"`` when
+    the points lie on a circle in the plane of two (non-angle) coordinates, the others
+    fixed; ``"the straight line through (0, 0) along (1, 0.5)"``; ``"the curve
+    <equation>"`` when sympy gave one; or "" (the caller says "a curve through ...")."""
+    spread = np.ptp(points, axis=0)
+    moving = np.flatnonzero(spread > 1e-9 * (1.0 + np.max(np.abs(points), axis=0)))
+    fixed = [f"{names[i]} = {_short(points[0, i])}" for i in range(len(names)) if i not in moving]
+    at = f" at {', '.join(fixed)}" if fixed and dimension == 1 else ""
+    if dimension == 1 and closed and len(moving) == 2 and not np.any(periodic[moving]):
+        xy = points[:, moving]
+        A = np.column_stack([2 * xy, np.ones(len(xy))])
+        b = np.sum(xy**2, axis=1)
+        (a, c, k), *_ = np.linalg.lstsq(A, b, rcond=None)
+        r2 = k + a * a + c * c
+        if r2 > 0:
+            r = math.sqrt(r2)
+            off = np.abs(np.hypot(xy[:, 0] - a, xy[:, 1] - c) - r)
+            if np.max(off) <= 1e-7 * r:
+                u, v = (names[i] for i in moving)
+                return f"the circle {_square(u, a)} + {_square(v, c)} = {_short(r2)}{at}"
+    if dimension == 1 and len(points) >= 3 and moving.size:
+        centred = points - points.mean(axis=0)
+        singular = np.linalg.svd(centred, compute_uv=False)
+        if singular[1] <= 1e-9 * singular[0]:
+            direction = np.linalg.svd(centred)[2][0]
+            direction = direction / direction[np.argmax(np.abs(direction))]
+            through = ", ".join(_short(v) for v in through)
+            along = ", ".join(_short(v) for v in direction)
+            return f"the straight line through ({through}) along ({along})"
+    if equation:
+        what = {1: "curve", 2: "surface"}.get(dimension, "set")
+        return f"the {what} {equation}"
+    return ""
+
+
+def _square(name: str, centre: float) -> str:
+    if abs(centre) < 1e-9:
+        return f"{name}²"
+    sign = "-" if centre > 0 else "+"
+    return f"({name} {sign} {_short(abs(centre))})²"
+
+
+class _Cross:
+    """The terms of the quadratic Lagrangian that couple velocities and coordinates.
+
+    ``gyroscopic(q, index_r, index_f, back)`` gives ``(G, hamiltonian)``: G (m, m) or None
+    when there are no such terms. For a Lagrangian, ``G = C - C^T`` with
+    ``C = d a / d q`` (a = p at rest), reduced onto the searched coordinates with the free
+    coordinates' momenta held at zero (``C_rr + back^T C_fr``). For a Hamiltonian-only
+    scene, ``H_qp`` (``G[i, j] = d2H/dq_i dp_j``) over the searched coordinates (then
+    ``hamiltonian`` is True and the spectrum comes from Hamilton's linearised equations;
+    the search itself still uses U = H(q, p = 0)).
+    """
+
+    def __init__(self, function, hamiltonian: bool, n: int):
+        self.function, self.hamiltonian, self.n = function, hamiltonian, n
+
+    def gyroscopic(self, q, index_r, index_f, back):
+        if self.function is None:
+            return None, self.hamiltonian
+        C = np.asarray(self.function(*q), dtype=float).reshape(self.n, self.n)
+        if self.hamiltonian:  # C[i, j] = d2H/dp_i dq_j: G = H_qp is its transpose
+            block = C[np.ix_(index_r, index_r)].T
+            big = float(np.max(np.abs(block), initial=0.0))
+            return (block if big > 0 else None), True
+        reduced = C[np.ix_(index_r, index_r)]
+        if index_f:
+            reduced = reduced + back.T @ C[np.ix_(index_f, index_r)]
+        G = reduced - reduced.T
+        big = float(np.max(np.abs(G), initial=0.0))
+        # a symmetric C (a total time derivative in L) leaves only rounding errors
+        if not big > 1e-10 * float(np.max(np.abs(reduced), initial=0.0)):
+            return None, False
+        return G, False
+
+
+def _cross_function(mechanics: Mechanics, momenta, parameters) -> _Cross:
+    """``_Cross`` for the scene: da/dq from the momenta at rest, or d2H/dq dp at p = 0."""
+    n = mechanics.n
+    if mechanics.lagrangian is None:
+        zero = {**dict.fromkeys(mechanics.p, 0), mechanics.t: 0}
+        H = with_parameters(mechanics.hamiltonian, mechanics, parameters)
+        engine = Calculus(mechanics.scene.symbols.values())
+        rows = [engine.gradient(d, mechanics.q) for d in engine.gradient(H, mechanics.p)]
+        entries = [e.xreplace(zero) for row in rows for e in row]
+        if all(e == 0 for e in entries):
+            return _Cross(None, True, n)
+        return _Cross(vectorize(entries, mechanics.q), True, n)
+    if all(sympy.S(a) == 0 for a in momenta):
+        return _Cross(None, False, n)
+    engine = Calculus(mechanics.scene.symbols.values())
+    rows = [engine.gradient(a, mechanics.q) for a in momenta]
+    return _Cross(vectorize([e for row in rows for e in row], mechanics.q), False, n)
+
+
+def _set_equation_finder(mechanics, U, unknowns, timeout: float, parameters, region):
+    """A function ``points (k, m) -> str``: the factor ``f`` common to every component of
+    dU/dq (sympy, in a child process stopped after ``timeout`` seconds, parameters
+    symbolic) that vanishes at all the points, written ``"lhs = rhs"``; "" if none. None
+    when ``timeout`` is 0 (no symbolic work wanted)."""
+    if timeout <= 0:
+        return None
+
+    def find(points: np.ndarray) -> str:
+        cache = cache_for(mechanics)
+        key = ("equilibria.common_factors", tuple(unknowns))
+        if key not in cache:
+            gradient = [sympy.diff(U, u) for u in unknowns]
+            too_big = sum(g.count_ops() for g in gradient) > SYMBOLIC_MAX_OPS
+            cache[key] = (
+                None if too_big else run_bounded(_common_factors, (gradient, unknowns), timeout)
+            )
+        lows = np.array([lo for lo, _ in region.values()])
+        highs = np.array([hi for _, hi in region.values()])
+        away = np.random.default_rng(11).uniform(lows, highs, size=(64, len(unknowns)))
+        for factor in cache[key] or []:
+            f = vectorize([with_parameters(factor, mechanics, parameters)], unknowns)
+            on, off = np.abs(f(*points.T)[0]), np.abs(f(*away.T)[0])
+            typical = _typical(off)
+            if np.all(np.isfinite(on)) and float(np.max(on)) <= 1e-8 * typical:
+                constant, rest = factor.as_coeff_Add()
+                if constant != 0 and rest != 0:
+                    return f"{sympy.sstr(rest)} = {sympy.sstr(-constant)}"
+                return f"{sympy.sstr(factor)} = 0"
+        return ""
+
+    return find
+
+
+def _common_factors(gradient, unknowns):
+    """Runs in the child process: the irreducible factors of the greatest common divisor
+    of the numerators of ``gradient`` that contain an unknown."""
+    numerators = [sympy.fraction(sympy.together(g))[0] for g in gradient]
+    common = numerators[0]
+    for g in numerators[1:]:
+        common = sympy.gcd(common, g)
+    if not common.has(*unknowns):
+        return []
+    return [f for f, _ in sympy.factor_list(common)[1] if f.has(*unknowns)]
 
 
 def _derivatives(mechanics: Mechanics, U: sympy.Expr, unknowns) -> tuple[list, list]:

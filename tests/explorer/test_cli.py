@@ -19,6 +19,8 @@ def test_derive_json_reads_back(tmp_path, capsys):
     assert report["coordinates"] == ["r", "theta"]
     assert report["cyclic"] == ["theta"]
     assert report["classification"]["hamiltonian_is_energy"] is True
+    assert report["classification"]["simple"] is True
+    assert report["classification"]["rheonomic"] is False
     names = {
         n: sympy.Symbol(n)
         for n in ["r", "theta", "r_dot", "theta_dot", "p_r", "p_theta", "m", "k", "t"]

@@ -204,11 +204,13 @@ def _events(run: Run, seconds: float) -> tuple[np.ndarray, np.ndarray]:
 
 def test_double_pendulum_section_on_an_angle_collects_crossings_modulo_2pi(double_pendulum):
     compiled = double_pendulum
-    run = Run(compiled, t_end=200.0, section=(0, 0.0, 1), energy_tolerance=None)
+    # energetic enough that the first link tumbles: theta1 runs off by many turns whatever
+    # rounding does to the chaotic details (the scene's own start wanders only sometimes)
+    start = np.array([0.0, 0.0, 20.0, 10.0])
+    run = Run(compiled, y0=start, t_end=200.0, section=(0, 0.0, 1), energy_tolerance=None)
     assert run.section_period == pytest.approx(TWO_PI)
     t, y = _events(run, 0.05)
-    # theta1 wanders off by many turns in this chaotic motion
-    assert abs(run.good[1][0]) > 4 * math.pi
+    assert abs(run.good[1][0]) > 20 * math.pi
     assert len(t) >= 40  # two points by t = 5000 before crossings were taken modulo 2 pi
     assert np.all(np.diff(t) > 0)
     assert np.allclose(wrap(y[:, 0]), 0.0, atol=1e-9)
@@ -217,7 +219,7 @@ def test_double_pendulum_section_on_an_angle_collects_crossings_modulo_2pi(doubl
     H = compiled.hamiltonian(t, y)
     assert H == pytest.approx(H[0], rel=1e-6)
     # where blocks end changes nothing: the same crossings from differently sized blocks
-    again = Run(compiled, t_end=200.0, section=(0, 0.0, 1), energy_tolerance=None)
+    again = Run(compiled, y0=start, t_end=200.0, section=(0, 0.0, 1), energy_tolerance=None)
     t2, _ = _events(again, 0.4)
     assert len(t2) == len(t) and np.allclose(t2, t, rtol=0, atol=1e-9)
 

@@ -135,7 +135,22 @@ def _reference(scene, mech):
         lagrangian = _read(scene.lagrangian, names)
     else:
         potential = _read(scene.potential, names) if scene.potential is not None else 0
-        lagrangian = _read(scene.kinetic, names) - potential
+        if scene.particles:  # T and gravity's V from the positions, without systems.particles
+            kinetic = 0
+            for particle in scene.particles:
+                mass = _read(particle.mass, names)
+                position = [_read(c, names) for c in particle.position]
+                kinetic += mass * sum(c.diff(t) ** 2 for c in position) / 2
+                if scene.gravity is not None:
+                    field = (
+                        [_read(g, names) for g in scene.gravity]
+                        if isinstance(scene.gravity, tuple)
+                        else [0, -_read(scene.gravity, names), 0][: len(position)]
+                    )
+                    potential -= mass * sum(g * c for g, c in zip(field, position, strict=True))
+        else:
+            kinetic = _read(scene.kinetic, names)
+        lagrangian = kinetic - potential
     method = LagrangesMethod(lagrangian, q)
     method.form_lagranges_equations()
     qd = [qi.diff(t) for qi in q]
@@ -345,16 +360,22 @@ def test_pendulum_bobs_hang_below_the_pivot_at_rest(derived):
 
 def test_classification_of_the_showcase_scenes(derived):
     cls = {name: derived(name)[1].classification for name in REQUIRED}
-    assert not cls["variable_length_pendulum"].hamiltonian_is_energy
+    assert cls["variable_length_pendulum"].hamiltonian_is_energy is False
     assert cls["variable_length_pendulum"].time_dependent
+    assert cls["variable_length_pendulum"].rheonomic
     assert cls["bead_on_rotating_hoop"].hamiltonian_conserved
-    assert not cls["bead_on_rotating_hoop"].hamiltonian_is_energy
+    assert cls["bead_on_rotating_hoop"].hamiltonian_is_energy is False
+    # the hoop turns (rheonomic), yet the equations in its frame have no t: the t in its
+    # drawing does not make it time dependent
+    assert cls["bead_on_rotating_hoop"].rheonomic
+    assert not cls["bead_on_rotating_hoop"].time_dependent
     assert not cls["damped_pendulum"].conservative
     assert not cls["driven_damped_pendulum"].conservative
     assert cls["kepler_cartesian"].separable and cls["henon_heiles"].separable
     assert not cls["double_pendulum"].separable
     for name in ("harmonic_oscillator", "simple_pendulum", "planetary_motion", "double_pendulum"):
-        assert cls[name].hamiltonian_is_energy and cls[name].hamiltonian_conserved
+        assert cls[name].hamiltonian_is_energy is True and cls[name].hamiltonian_conserved
+        assert cls[name].simple and not cls[name].rheonomic
     assert derived("planetary_motion")[1].cyclic == ("theta",)
     assert derived("spherical_pendulum")[1].cyclic == ("phi",)
 

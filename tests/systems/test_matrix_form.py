@@ -216,7 +216,8 @@ def test_the_tidy_forms_equal_the_derived_ones(text, monkeypatch):
     changed = [compact.mass_matrix[0][j] is not form.mass_matrix[0, j] for j in range(3)]
     assert all(changed)  # cos(q1 - qj), not sin sin + cos cos
     if mechanics.scene.title.endswith("turntable"):
-        assert not mechanics.classification.hamiltonian_is_energy and "H" in compact.conserved
+        assert mechanics.classification.hamiltonian_is_energy is False and "H" in compact.conserved
+        assert mechanics.classification.rheonomic and not mechanics.classification.time_dependent
         assert all(a != 0 for a in compact.shift)
     text = report.readable(mechanics, equilibria=False)
     assert "solved numerically at every step" in text and "for 3 coordinates" in text

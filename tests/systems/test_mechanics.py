@@ -54,7 +54,8 @@ def test_scleronomic_conservative_scenes_have_H_equal_T_plus_V(text):
     mech = derive(scene(text))
     c = mech.classification
     assert not c.time_dependent and c.conservative and c.hamiltonian_conserved
-    assert c.hamiltonian_is_energy and c.natural
+    assert c.hamiltonian_is_energy is True and c.natural
+    assert not c.rheonomic and c.holonomic and c.bilateral and c.simple
     energy = mech.energy_function()
     assert sympy.simplify(energy - (mech.kinetic + mech.potential)) == 0
 
@@ -62,8 +63,8 @@ def test_scleronomic_conservative_scenes_have_H_equal_T_plus_V(text):
 def test_rheonomic_scene_has_H_not_T_plus_V_and_not_conserved():
     mech = derive(scene(VARIABLE_LENGTH))
     c = mech.classification
-    assert c.time_dependent
-    assert not c.hamiltonian_is_energy
+    assert c.time_dependent and c.rheonomic and not c.conservative and not c.simple
+    assert c.hamiltonian_is_energy is False
     assert not c.hamiltonian_conserved
     assert not c.natural  # T has a velocity-free term m (a w cos wt)^2 / 2
     assert sympy.simplify(mech.energy_function() - (mech.kinetic + mech.potential)) != 0
@@ -81,10 +82,12 @@ def test_effects_enter_only_when_enabled():
     assert sympy.simplify(Q - (-s["b"] * s["theta_dot"] + s["A"] * sympy.cos(s["w"] * s["t"]))) == 0
     assert not full.classification.conservative
     assert not full.classification.hamiltonian_conserved
+    assert full.classification.time_dependent  # the driving force A cos(w t)
+    assert not full.classification.rheonomic  # ... moves no constraint
     off = derive(scene(DRIVEN_DAMPED).with_effects([]))
     assert off.generalized_forces == (0,)
     assert not any(e.has(s["A"]) or e.has(s["b"]) for e in off.hamilton_equations)
-    assert off.classification.conservative
+    assert off.classification.conservative and not off.classification.time_dependent
 
 
 def test_hamiltonian_scene_gets_equations_and_lagrangian():
@@ -119,3 +122,4 @@ lagrangian = "-m*c**2*sqrt(1 - x_dot**2/c**2) - k*x**2/2"
     expected = 2.0 * 0.7 / (0.7**2 + 4.0) ** 0.5
     assert float(mech.velocities[0].xreplace(value)) == pytest.approx(expected, rel=1e-12)
     assert not mech.classification.natural
+    assert mech.classification.hamiltonian_is_energy is True  # H = gamma m c^2 + V

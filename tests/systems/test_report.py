@@ -36,7 +36,7 @@ def test_one_line_for_people():
 
 
 def test_combine_trig_joins_sums_of_products_of_sines_and_cosines():
-    from systems.report import combine_trig
+    from systems.display import combine_trig
 
     a, b, c, m = sympy.symbols("a b c m", real=True)
     sin, cos = sympy.sin, sympy.cos

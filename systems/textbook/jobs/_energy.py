@@ -23,13 +23,15 @@ class EnergyResult:
         Both sides at the run's samples.
     run : Run
     rheonomic : bool
-        The classification's ``time_dependent``.
+        The classification's ``rheonomic``: the constraints or the transformation
+        r(q, t) depend on t (a moving constraint whose agent can do work).
     explicit_time : bool
         L (or H, for a scene given by H) contains t explicitly.
     effects : bool
         Dissipation or forces are switched on.
-    hamiltonian_is_energy : bool
-        H = T + V.
+    hamiltonian_is_energy : bool or None
+        H = T + V; None where no energy can be named (L or H alone, with explicit t or
+        without a positive kinetic energy), so there is nothing to compare H with.
     """
 
     balance: EnergyBalance
@@ -37,7 +39,7 @@ class EnergyResult:
     rheonomic: bool
     explicit_time: bool
     effects: bool
-    hamiltonian_is_energy: bool
+    hamiltonian_is_energy: bool | None
 
 
 def energy(compiled: CompiledSystem, duration: float, cancel: Cancel = NEVER) -> EnergyResult:
@@ -63,8 +65,8 @@ def energy(compiled: CompiledSystem, duration: float, cancel: Cancel = NEVER) ->
     return EnergyResult(
         balance,
         run,
-        bool(cls.time_dependent),
+        bool(cls.rheonomic),
         bool(expression.has(mechanics.t)),
         effects,
-        bool(cls.hamiltonian_is_energy),
+        cls.hamiltonian_is_energy,
     )

@@ -26,9 +26,23 @@ def test_pendulum_bottom_stable_at_sqrt_g_over_l_top_unstable():
     assert top.q["theta"] == pytest.approx(math.pi, abs=1e-12) and not top.stable
     assert top.frequencies == []
     assert top.omega_squared[0] == pytest.approx(-g / l, rel=1e-12)  # growth rate^2
+    assert top.growth_rates == pytest.approx([math.sqrt(g / l)], rel=1e-12)
     assert equilibria_json(mech) == [
-        {"q": {"theta": 0.0}, "stable": True, "frequencies": [pytest.approx(math.sqrt(g / l))]},
-        {"q": {"theta": pytest.approx(math.pi)}, "stable": False, "frequencies": []},
+        {
+            "q": {"theta": 0.0},
+            "stable": True,
+            "frequencies": [pytest.approx(math.sqrt(g / l))],
+            "kind": "minimum",
+            "decided_by": "U has a strict minimum (K positive definite)",
+        },
+        {
+            "q": {"theta": pytest.approx(math.pi)},
+            "stable": False,
+            "frequencies": [],
+            "kind": "maximum",
+            "decided_by": "U has a maximum (K has a negative eigenvalue)",
+            "growth_rates": [pytest.approx(math.sqrt(g / l))],
+        },
     ]
 
 
