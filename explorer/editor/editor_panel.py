@@ -559,6 +559,13 @@ class SystemEditorPanel(QWidget):
             self.kind_combo.setCurrentIndex([k for k, _ in KINDS].index(kind))
             for key, field in self.fields.items():
                 field.set_text(_text(system.get(key)))
+            particles = _table(data.get("particles"))
+            self.fields["kinetic"].set_derived(
+                f"from [particles] ({', '.join(map(str, particles))}): T is derived from "
+                "their positions; edit them in the scene file"
+                if particles and kind == "energies"
+                else None
+            )
             self._show_kind(kind)
             ranges = {
                 name: tuple(value) for name, value in _table(data.get("editor_ranges")).items()

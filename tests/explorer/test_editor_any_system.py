@@ -87,6 +87,23 @@ def _pendulum(editor: SystemEditorPanel):
     return scene
 
 
+def test_a_scene_with_particles_shows_its_t_as_derived_not_as_an_empty_field(editor):
+    editor.show_scene(load_scene("double_pendulum"))
+    kinetic = editor.fields["kinetic"]
+    assert kinetic.text() == "" and kinetic.edit.isReadOnly()
+    note = kinetic.edit.placeholderText()
+    assert "[particles]" in note and "bob1, bob2" in note
+    document = editor.document()
+    assert "kinetic" not in document["system"] and set(document["particles"]) == {
+        "bob1",
+        "bob2",
+    }
+    # a scene that gives T: typed again, with its own placeholder back
+    _pendulum(editor)
+    assert not kinetic.edit.isReadOnly()
+    assert kinetic.text() and "[particles]" not in kinetic.edit.placeholderText()
+
+
 # -- New scene -----------------------------------------------------------------------------
 
 
