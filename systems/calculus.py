@@ -10,8 +10,9 @@ differentiate in closed form (a ``Derivative`` left in a result) falls back to s
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
+import numpy as np
 import sympy
 
 from systems.expressions import FUNCTIONS
@@ -211,6 +212,41 @@ def _to_engine(expr: sympy.Basic, rename: dict, memo: dict):
         result = symengine.sympify(expr.xreplace(rename) if rename else expr)
     memo[expr] = result
     return result
+
+
+def fast_function(
+    arguments: Sequence[sympy.Symbol], exprs: Sequence[sympy.Expr]
+) -> Callable[[np.ndarray], np.ndarray]:
+    """``exprs`` as a numeric function of the ``arguments``' values.
+
+    symengine's ``Lambdify`` where it can (made in milliseconds: ``sympy.lambdify`` printed
+    and compiled Python source for most of a second for a ten-link chain's equations),
+    ``sympy.lambdify`` otherwise.
+
+    Returns
+    -------
+    callable
+        ``f(values)``, ``values`` shape (len(arguments),), returning shape (len(exprs),).
+    """
+    count = len(exprs)
+    if symengine is not None:
+        try:
+            memo: dict = {}
+            engine_arguments = [_to_engine(a, {}, memo) for a in arguments]
+            engine_exprs = [_to_engine(sympy.sympify(e), {}, memo) for e in exprs]
+            function = symengine.Lambdify(
+                engine_arguments, engine_exprs, real=True, cse=True, backend="lambda"
+            )
+
+            def evaluate(values: np.ndarray) -> np.ndarray:
+                result = function(np.asarray(values, dtype=float))
+                return np.asarray(result, dtype=float).reshape(count)
+
+            return evaluate
+        except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError):
+            pass
+    plain = sympy.lambdify([list(arguments)], list(exprs), modules="math", cse=True)
+    return lambda values: np.array(plain(list(values)), dtype=float).reshape(count)
 
 
 def numeric_evaluator(expr: sympy.Expr):

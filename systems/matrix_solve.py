@@ -124,21 +124,23 @@ def state_function(
     """
     n = mechanics.n
     q, qd, p, t = mechanics.q, mechanics.qdot, mechanics.p, mechanics.t
-    values = [as_expr(e).xreplace(parameters) for e in exprs]
-    f = sympy.lambdify((t, q, qd, p), values, modules="math", cse=lambdify_cse)
+    # the parameters are arguments with fixed values: substituting them first walked
+    # every expression (a large system's equations) once more
+    names, fixed = list(parameters), np.array(list(parameters.values()), dtype=float)
+    f = calculus.fast_function([t, *q, *qd, *p, *names], [as_expr(e) for e in exprs])
     form = mechanics.matrix_form
     if form is None:
-        return lambda time, y: np.array(f(time, y[:n], np.zeros(n), y[n:]), dtype=float)
-    # flat lists: a Matrix would be printed as ImmutableDenseMatrix, unknown to "math"
-    blocks = [as_expr(e).xreplace(parameters) for e in (*form.mass_matrix, *form.shift)]
-    g = sympy.lambdify((t, q), blocks, modules="math", cse=lambdify_cse)
+        zero = np.zeros(n)
+        return lambda time, y: f(np.concatenate(([time], y[:n], zero, y[n:], fixed)))
+    blocks = [as_expr(e) for e in (*form.mass_matrix, *form.shift)]
+    g = calculus.fast_function([t, *q, *names], blocks)
 
     def evaluate(time: float, y: np.ndarray) -> np.ndarray:
-        values = np.array(g(time, y[:n]), dtype=float)
+        values = g(np.concatenate(([time], y[:n], fixed)))
         M = values[: n * n].reshape(n, n)
         a = values[n * n :]
         velocities = np.linalg.solve(M, y[n:] - a)
-        return np.array(f(time, y[:n], velocities, y[n:]), dtype=float)
+        return f(np.concatenate(([time], y[:n], velocities, y[n:], fixed)))
 
     return evaluate
 
