@@ -211,8 +211,12 @@ def check_svg(path: Path) -> None:
 
 
 def csv_header(scene) -> list[str]:
-    """Columns as the ``run`` command writes them: t, q, q_dot, p_q, H."""
-    return ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
+    """Columns as the ``run`` command writes them: t, q, q_dot, p_q, H, and for a scene
+    with constraints their multipliers lambda_1 .. lambda_k."""
+    from systems.constraints import multiplier_names
+
+    names = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
+    return names + multiplier_names(scene)
 
 
 def csv_rows(t: np.ndarray, every: float | None = None, points: int | None = None) -> np.ndarray:
@@ -245,8 +249,9 @@ def csv_rows(t: np.ndarray, every: float | None = None, points: int | None = Non
 def trajectory_table(
     compiled, trajectory, every: float | None = None, points: int | None = None
 ) -> np.ndarray:
-    """Rows (t, q, q_dot, p, H) of one trajectory's states, thinned by ``csv_rows``;
-    shape (k, 2 + 3n). Gap rows (``explorer.trajectories``) are not states: left out."""
+    """Rows (t, q, q_dot, p, H[, lambda]) of one trajectory's states, thinned by
+    ``csv_rows``; shape (k, 2 + 3n + c) for c constraints. Gap rows
+    (``explorer.trajectories``) are not states: left out."""
     from explorer.trajectories import backfill_energy, is_gap
 
     n = compiled.n
@@ -258,7 +263,12 @@ def trajectory_table(
     t, y, energy = t[rows], y[rows], energy[rows]
     with np.errstate(all="ignore"):
         qdot = compiled.velocities(t, y)
-    return np.column_stack([t, y[:, :n], qdot, y[:, n:], energy])
+    columns = [t, y[:, :n], qdot, y[:, n:], energy]
+    constraints = compiled.constraints()
+    if constraints is not None:
+        with np.errstate(all="ignore"):
+            columns.append(constraints.multipliers(t, y))
+    return np.column_stack(columns)
 
 
 def write_trajectories_csv(

@@ -48,8 +48,9 @@ hamiltonian_is_energy
     can be named: L or H depends on t explicitly (T and V cannot be told apart in a
     time-dependent L), or its velocity part is not a positive kinetic energy.
 hamiltonian_conserved, natural, separable
-    H has no explicit t and no effects act; T is quadratic in the velocities (the
-    derivation decides); H = T(p) + V(q, t) (likewise).
+    H has no explicit t, no effects act and no holonomic constraint moves (contains t:
+    its force then does work, and time_dependent is true as well); T is quadratic in the
+    velocities (the derivation decides); H = T(p) + V(q, t) (likewise).
 """
 
 from __future__ import annotations
@@ -80,8 +81,8 @@ evaluated)."""
 class Constraints:
     """The constraints a scene declares, as expressions in (q, qdot, t) and parameters.
 
-    No scene can declare constraints yet; a ``[constraints]`` table will fill this and
-    pass it to ``classify``.
+    Filled from a scene's ``[constraints]`` table (``systems.constraints.declared``;
+    holonomic ones only so far) and passed to ``classify``.
 
     Attributes
     ----------
@@ -289,13 +290,15 @@ def classify(
         hamilton = list(hamilton_equations)
     lagrange_t = any(probe.depends_on(e, (t,)) for e in lagrange)
     hamilton_t = any(probe.depends_on(e, (t,)) for e in hamilton)
-    time_dependent = lagrange_t or hamilton_t
+    # a moving constraint puts t into the equations (through its force) and does work
+    moving = any(probe.depends_on(as_expr(c), (t,)) for c in constraints.holonomic)
+    time_dependent = lagrange_t or hamilton_t or moving
     conservative = from_potential and not (lagrange_t if lagrange else hamilton_t)
 
     H_explicit_t = probe.depends_on(hamiltonian, (t,)) or (
         matrix_form is not None and any(probe.depends_on(e, (t,)) for e in matrix_form.mass_matrix)
     )
-    hamiltonian_conserved = not acting and not H_explicit_t
+    hamiltonian_conserved = not acting and not H_explicit_t and not moving
 
     kind = scene.kind
     if kind == "energies":

@@ -19,7 +19,7 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-from systems import calculus, matrix_solve
+from systems import calculus, constraints, matrix_solve
 from systems.codegen import build_module
 from systems.expressions import as_expr
 from systems.interpreted import KernelHandover
@@ -138,7 +138,8 @@ class CompiledSystem:
     def initial_state(self, t0: float = 0.0) -> np.ndarray:
         """The scene's initial state as canonical ``(q, p)``, shape (2n,).
 
-        Missing entries are 0. Velocities are turned into momenta with p = dL/dqdot.
+        Missing entries are 0. Velocities are turned into momenta with p = dL/dqdot. A
+        scene with constraints has its state moved onto them (``constraints.Numeric``).
         """
         scene = self.mechanics.scene
         values = scene.initial_values
@@ -151,7 +152,19 @@ class CompiledSystem:
             p = self.momenta_from_velocities(t0, q, qdot)
         else:
             p = self._mixed_momenta(t0, q, qdot, given_p)
-        return np.concatenate([q, p])
+        y = np.concatenate([q, p])
+        numeric = self.constraints()
+        return y if numeric is None else numeric.project(t0, y)
+
+    def constraints(self) -> constraints.Numeric | None:
+        """The scene's holonomic constraints evaluated with numpy (multipliers, violation,
+        projection), or None for a scene without constraints."""
+        if not constraints.count(self.mechanics.scene):
+            return None
+        if "constraints" not in self._numeric:  # shared with copies of other parameters
+            self._numeric["constraints"] = constraints.Numeric(self)
+        numeric = self._numeric["constraints"]
+        return numeric if numeric.compiled is self else numeric.bound_to(self)
 
     def _mixed_momenta(self, t0, q, qdot, given_p: dict[int, float]) -> np.ndarray:
         """Momenta when some p_i and the other velocities are given: solve for the rest.
@@ -270,7 +283,8 @@ def _printed_source(mechanics: Mechanics, wanted: frozenset[str]) -> str:
 
     from systems import derivation_cache
 
-    tag = f"kernel source {derivation_cache.code_hash(sys.modules[__name__])} {sorted(wanted)}"
+    code = derivation_cache.code_hash(sys.modules[__name__], constraints)
+    tag = f"kernel source {code} {sorted(wanted)}"
     return derivation_cache.remembered(
         mechanics.scene, tag, lambda: _KernelWriter(mechanics).source(wanted)
     )
@@ -323,7 +337,9 @@ class _KernelWriter:
         state = self.unpack_state()
         if mech.matrix_form is not None and wanted & {"rhs", "hamiltonian", "velocities"}:
             parts.append(matrix_solve.kernel_source())
-        if "rhs" in wanted:
+        if "rhs" in wanted and constraints.count(scene):
+            parts.append(constraints.kernel_source(self, mech))  # rhs with the multipliers
+        elif "rhs" in wanted:
             parts.append(self.function("rhs(t, y, P, out)", state, mech.hamilton_equations))
         if "hamiltonian" in wanted:
             parts.append(self.scalar("hamiltonian(t, y, P)", state, mech.hamiltonian))

@@ -28,11 +28,13 @@ import sympy
 
 import systems.calculus
 import systems.classification
+import systems.constraints
 import systems.display
 import systems.expressions
 import systems.mechanics
 import systems.particles
 import systems.scene
+import systems.symmetries
 from systems.cache_integrity import (
     MAGIC,
     cache_root,
@@ -52,8 +54,10 @@ def _code_version() -> str:
         systems.mechanics,
         systems.calculus,
         systems.classification,
+        systems.constraints,
         systems.display,
         systems.particles,
+        systems.symmetries,
     ):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()

@@ -23,6 +23,7 @@ from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
 from systems.expressions import as_expr
 from systems.scene import Scene
+from systems.symmetries import conserved_charges
 
 ZERO_TOLERANCE = 1e-9
 SYMBOLIC_INVERSE_LIMIT = 4
@@ -186,6 +187,10 @@ def derive(scene: Scene) -> Mechanics:
     try:
         with time_limit(limit_seconds(), "deriving the equations of motion"):
             mechanics = _derive(scene)
+            if scene.holonomic_constraints:
+                from systems.constraints import check
+
+                check(mechanics)  # independent, fewer than n, and a mass matrix to use
     except TimeLimitExceeded as exc:
         raise DerivationError(
             f"{exc}: some expression is probably far larger once expanded or "
@@ -218,18 +223,16 @@ def _derive(scene: Scene) -> Mechanics:
 
 
 class _Context:
+    """One derivation. Nothing is simplified here: the kernels take the expressions as
+    derived (their common-subexpression elimination finds what cancelling would), and
+    what people read is tidied when it is laid out (``systems.display.tidied``, after the
+    first block); tidying was 94% of a double pendulum's derivation."""
+
     def __init__(self, scene: Scene, t, q, qd, p):
         self.scene = scene
         self.t, self.q, self.qd, self.p = t, q, qd, p
         self.n = len(q)
         self.rng = random.Random(1234)
-
-    def tidy(self, expr: sympy.Expr) -> sympy.Expr:
-        """``expr`` as derived: nothing is simplified on the derivation path. The kernels
-        take the expressions as they are (their CSE finds what cancelling would), and
-        what is shown is tidied when it is laid out (``systems.display.tidied``, after
-        the first block): tidying was 94% of a double pendulum's derivation."""
-        return as_expr(expr)
 
     def fail(self, reason: str, field: str | None = None) -> DerivationError:
         return DerivationError(reason, source=self.scene.source, field=field)
@@ -302,14 +305,14 @@ class _Context:
                 velocities, H = self.legendre_quadratic(M, a, L0)
         else:
             velocities = self.solve_velocities(momenta)
-            H = self.tidy(
+            H = as_expr(
                 sum(pi * vi for pi, vi in zip(self.p, velocities, strict=True))
                 - L.xreplace(dict(zip(qd, velocities, strict=True)))
             )
         to_velocities = dict(zip(qd, velocities, strict=True))
         if matrix_form is None:
             pdot = tuple(
-                self.tidy((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
+                as_expr((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
             )
         else:  # the kernels' input, never shown at length: no simplification
             pdot = tuple(gradient[i] + forces[i] for i in range(self.n))
@@ -392,13 +395,13 @@ class _Context:
         if _is_diagonal(M):  # any size: particles in Cartesian coordinates, lattices
             inverse = sympy.diag(*[1 / M[i, i] for i in range(self.n)])
         elif self.n <= SYMBOLIC_INVERSE_LIMIT:
-            det = self.tidy(M.det(method="berkowitz"))
+            det = as_expr(M.det(method="berkowitz"))
             inverse = M.adjugate() / det
         else:  # constant: see needs_matrix_form
             inverse = M.inv(method="LU")
         shifted = p - a
-        velocities = tuple(self.tidy(e) for e in inverse * shifted)
-        H = self.tidy((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
+        velocities = tuple(as_expr(e) for e in inverse * shifted)
+        H = as_expr((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
         return velocities, H
 
     def solve_velocities(self, momenta):
@@ -416,7 +419,7 @@ class _Context:
                 for m, pi in zip(momenta, self.p, strict=True)
             ]
             if all(self.vanishes(e) for e in back):
-                return tuple(self.tidy(v) for v in velocities)
+                return tuple(as_expr(v) for v in velocities)
         raise self.fail(
             "the momenta p = dL/dqdot could not be solved for the velocities, so the "
             "Hamiltonian cannot be formed; write L quadratic in the velocities, or give the "
@@ -433,7 +436,7 @@ class _Context:
                 "the Hamiltonian does not depend on any momentum p_<q>", "system.hamiltonian"
             )
         calculus = Calculus(self.scene.symbols.values())
-        velocities = tuple(self.tidy(v) for v in calculus.gradient(H, p))
+        velocities = tuple(as_expr(v) for v in calculus.gradient(H, p))
         L = momenta = M = F = None
         zero_momentum = dict.fromkeys(p, sympy.S.Zero)
         quadratic = _degree_at_most(H, p, 2)
@@ -448,9 +451,9 @@ class _Context:
             else:
                 Winv = W.inv(method="ADJ")
             momenta_vec = Winv * (sympy.Matrix(qd) - b)
-            momenta = tuple(self.tidy(e) for e in momenta_vec)
+            momenta = tuple(as_expr(e) for e in momenta_vec)
             to_momenta = dict(zip(p, momenta, strict=True))
-            L = self.tidy(
+            L = as_expr(
                 sum(m * v for m, v in zip(momenta, qd, strict=True)) - H.xreplace(to_momenta)
             )
             _, hessian, gradient, rest = self.lagrangian_parts(L)
@@ -458,15 +461,13 @@ class _Context:
             F = sympy.Matrix([gradient[i] + forces[i] - rest[i] for i in range(self.n)])
         to_velocities = dict(zip(qd, velocities, strict=True))
         force = calculus.gradient(H, q)
-        pdot = tuple(
-            self.tidy(-force[i] + forces[i].xreplace(to_velocities)) for i in range(self.n)
-        )
+        pdot = tuple(as_expr(-force[i] + forces[i].xreplace(to_velocities)) for i in range(self.n))
         H0 = H.xreplace(zero_momentum)
         kinetic_p, potential = H - H0, H0
         natural = quadratic and self.vanishes(_homogeneous_part(kinetic_p, p, 2) - kinetic_p)
         kinetic = None
         if momenta is not None:
-            kinetic = self.tidy(kinetic_p.xreplace(dict(zip(p, momenta, strict=True))))
+            kinetic = as_expr(kinetic_p.xreplace(dict(zip(p, momenta, strict=True))))
         cyclic = tuple(
             name for name, qi in zip(self.scene.coordinates, q, strict=True) if not H.has(qi)
         )
@@ -544,6 +545,8 @@ class _Context:
         natural,
         matrix_form=None,
     ) -> Mechanics:
+        from systems.constraints import constrains, declared
+
         q, qd, p, t = self.q, self.qd, self.p, self.t
         # in matrix form M depends on q (needs_matrix_form), so H cannot split
         separable = matrix_form is None and self.splits(H)
@@ -551,7 +554,7 @@ class _Context:
         if separable:
             zero_p = dict.fromkeys(p, sympy.S.Zero)
             V = H.xreplace(zero_p)
-            separable_parts = (self.tidy(H - V), self.tidy(V))
+            separable_parts = (as_expr(H - V), as_expr(V))
         # decided from the equations of motion, not from L or H as written
         classification = classify(
             self.scene,
@@ -571,19 +574,35 @@ class _Context:
             natural=natural,
             separable=separable,
             matrix_form=matrix_form,
+            constraints=declared(self.scene),
         )
         H_conserved = classification.hamiltonian_conserved
         conserved: dict[str, sympy.Expr] = {}
         if H_conserved:
             if momenta is not None:
                 to_p = dict(zip(p, momenta, strict=True))
-                conserved["H"] = self.tidy(H.xreplace(to_p))
+                conserved["H"] = as_expr(H.xreplace(to_p))
             else:
                 conserved["H"] = H
         for name in cyclic:
             i = self.scene.coordinates.index(name)
-            if self.vanishes(forces[i]):
+            if self.vanishes(forces[i]) and not constrains(self.scene, name):
                 conserved[f"p_{name}"] = momenta[i] if momenta is not None else p[i]
+        # Noether's charges beyond the cyclic momenta: L_z, P_x, [symmetries]
+        for charge in conserved_charges(
+            self.scene,
+            t=t,
+            q=q,
+            qdot=qd,
+            p=p,
+            lagrangian=L,
+            momenta=momenta,
+            velocities=velocities,
+            pdot=pdot,
+            forces=forces,
+            listed=conserved,
+        ):
+            conserved[charge.name] = charge.velocity
         return Mechanics(
             scene=self.scene,
             t=t,

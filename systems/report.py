@@ -19,6 +19,7 @@ import sympy
 
 from systems.calculus import Calculus, Unsupported
 from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
+from systems.symmetries import ROTATIONS, TRANSLATIONS
 
 try:
     import symengine
@@ -102,10 +103,12 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         lines.append(scene.description)
     coordinates = ", ".join(shown[q] for q in scene.coordinates)
     lines.append(f"coordinates: {coordinates}; parameters: {params}")
+    lines.append(degrees_of_freedom_sentence(mechanics))
     if scene.enabled_effects():
         lines.append(f"effects on: {', '.join(scene.enabled_effects())}")
     if scene.particles:
         lines += particles_lines(scene)
+    lines += constraints_lines(mechanics)
     if mechanics.matrix_form is not None:
         lines += _matrix_form_lines(mechanics, shown)
     else:
@@ -120,9 +123,32 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
             conserved.update(_compact(mechanics).conserved)
         rows = [(shown.get(name, name), expr) for name, expr in conserved.items()]
         lines += _block("Conserved quantities", rows, scene)
+    lines += _noether_lines(mechanics)
     if equilibria:
         lines += _equilibria_lines(mechanics)
     return "\n".join(lines)
+
+
+def _noether_lines(mechanics: Mechanics) -> list[str]:
+    """What each Noether charge is (``systems.symmetries``), and the ``[symmetries]``
+    entries that are not listed."""
+    lines = []
+    for name in mechanics.conserved:
+        axis = name[2:]
+        if name in ROTATIONS:
+            lines.append(f"- {name}: angular momentum about the {axis} axis (Noether: rotations)")
+        elif name in TRANSLATIONS:
+            lines.append(f"- {name}: total linear momentum along {axis} (Noether: translations)")
+        elif name != "H" and not name.startswith("p_"):
+            lines.append(f"- {name}: the charge of the generator [symmetries] {name}")
+    left_out = [name for name, _ in mechanics.scene.symmetries if name not in mechanics.conserved]
+    if left_out:
+        lines.append(
+            f"- not conserved, or the same as a quantity above: {', '.join(left_out)} "
+            "([symmetries]: L changes along the generator, or an effect or a constraint "
+            "does work along it)"
+        )
+    return lines
 
 
 def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]:
@@ -130,14 +156,16 @@ def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]
     in closed form."""
     scene = mechanics.scene
     lines: list[str] = []
+    # with constraints these are the free coordinates' equations (see constraints_lines)
+    free = " (free, without −Φ_qᵀ λ)" if scene.holonomic_constraints else ""
     if mechanics.lagrangian is not None:
         lines += _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
         equations = [(f"({i + 1})", eq) for i, eq in enumerate(mechanics.lagrange_equations())]
-        lines += _block("Lagrange's equations", equations, scene)
+        lines += _block("Lagrange's equations" + free, equations, scene)
         try:
             accelerations = zip(scene.coordinates, mechanics.accelerations(), strict=True)
             rows = [(shown[f"{q}_ddot"], a) for q, a in accelerations]
-            lines += _block("Accelerations", rows, scene)
+            lines += _block("Accelerations" + free, rows, scene)
         except ValueError:
             pass
     if mechanics.momenta is not None:
@@ -149,7 +177,7 @@ def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]
         (f"d{shown[name]}/dt", expr)
         for name, expr in zip(names, mechanics.hamilton_equations, strict=True)
     ]
-    lines += _block("Hamilton's equations", rows, scene)
+    lines += _block("Hamilton's equations" + free, rows, scene)
     return lines
 
 
@@ -258,6 +286,59 @@ def particles_lines(scene: Scene) -> list[str]:
             "quadratic in the velocities."
         )
     return lines
+
+
+def degrees_of_freedom_sentence(mechanics: Mechanics) -> str:
+    """``degrees of freedom: f`` and, with constraints, where f comes from."""
+    from systems.constraints import count, degrees_of_freedom
+
+    f, n, k = degrees_of_freedom(mechanics), mechanics.n, count(mechanics.scene)
+    if not k:
+        return f"degrees of freedom: {f} (one per coordinate, no constraints)"
+    plural = "s" if n - f != 1 else ""
+    return f"degrees of freedom: {f} = {n} coordinates − {n - f} independent constraint{plural}"
+
+
+def constraints_lines(mechanics: Mechanics) -> list[str]:
+    """The holonomic constraints Φ(q, t) = 0 and the equations with multipliers, or
+    ``[]`` for a scene without constraints."""
+    from systems.constraints import holonomic
+
+    pieces = holonomic(mechanics)
+    if pieces is None:
+        return []
+    scene = mechanics.scene
+    index = [_subscript(i, pieces.k) for i in range(pieces.k)]
+    rows = [(f"Φ{index[i]}", f) for i, f in enumerate(pieces.values)]
+    rows += [(f"γ{index[i]}", g) for i, g in enumerate(pieces.gamma)]
+    lines = _block("Holonomic constraints Φ(q, t) = 0", rows, scene)
+    lines.append(
+        "The equations below are those of the free coordinates. With the constraints they "
+        "carry one Lagrange multiplier λ each: M q̈ + Φ_qᵀ λ = F and Φ_q q̈ = γ, solved for "
+        "q̈ and λ at every step; ṗ gets the constraint force −Φ_qᵀ λ, and every step is "
+        "projected back onto Φ = 0 (the constrained integrators)."
+    )
+    return lines
+
+
+def constraints_json(mechanics: Mechanics) -> dict | None:
+    """The holonomic constraints as JSON-ready data, or None without constraints:
+    ``holonomic`` (Φ_i), ``jacobian`` (rows of ∂Φ_i/∂q) and ``gamma`` (the right-hand sides
+    of Φ_q q̈ = γ), in the scene's names."""
+    from systems.constraints import holonomic
+
+    pieces = holonomic(mechanics)
+    if pieces is None:
+        return None
+    scene = mechanics.scene
+    return {
+        "holonomic": [_text(f, scene) for f in pieces.values],
+        "jacobian": [
+            [_text(pieces.jacobian[i, j], scene) for j in range(mechanics.n)]
+            for i in range(pieces.k)
+        ],
+        "gamma": [_text(g, scene) for g in pieces.gamma],
+    }
 
 
 def particles_json(scene: Scene) -> dict | None:
@@ -382,8 +463,12 @@ def derivation_json(mechanics: Mechanics) -> dict:
         ``hamilton_equations``, ``cyclic``, ``conserved``, ``classification``,
         ``equilibria``, ``matrix_form`` (bool), ``mass_matrix``, ``shift`` and
         ``rest`` (None unless ``matrix_form``), and ``particles`` (``particles_json``:
-        the transformation equations, None without particles), with the scene's own names; every
-        expression is a string that ``sympy.sympify`` reads back.
+        the transformation equations, None without particles), ``degrees_of_freedom``
+        (coordinates minus independent constraints) and ``constraints``
+        (``constraints_json``, None without constraints; the accelerations and
+        Hamilton's equations are then those of the free coordinates, without the
+        multipliers' force), with the scene's own names; every expression is a string
+        that ``sympy.sympify`` reads back.
 
         For a system in matrix form (``Mechanics.matrix_form``: many coordinates and a
         coupled mass matrix) the velocities are not solved in closed form:
@@ -396,6 +481,7 @@ def derivation_json(mechanics: Mechanics) -> dict:
         ``p_<q>`` equations and the conserved quantities are tidied for reading (sines
         and cosines combined) where that was checked to give the same values.
     """
+    from systems.constraints import degrees_of_freedom
     from systems.mechanics import DerivationError
     from systems.textbook import equilibria_json
 
@@ -443,6 +529,8 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "equilibria": equilibria_json(mechanics),
         **matrix,
         "particles": particles_json(scene),
+        "degrees_of_freedom": degrees_of_freedom(mechanics),
+        "constraints": constraints_json(mechanics),
     }
 
 
@@ -534,7 +622,8 @@ class _Compact:
     L0 (Christoffel symbols: a few terms per entry where the derivation's F, the
     unexpanded derivative of L, has thousands); ``momenta`` is M q̇ + a; ``pdot`` is
     ∂L/∂q + Q; ``conserved`` holds H in (q, q̇) as ``q̇ᵀ M q̇/2 − L0`` and the cyclic
-    momenta, when they are conserved; ``hamiltonian`` is ``(p − a)·q̇/2 − L0`` (with q̇
+    momenta, when they are conserved (a Noether charge, ``L_z`` or a ``[symmetries]``
+    name, is not in it: it is shown as derived); ``hamiltonian`` is ``(p − a)·q̇/2 − L0`` (with q̇
     standing for ``M⁻¹ (p − a)``). M, a and L0 are sympy expressions; the others are
     symengine expressions (sympy where symengine is missing, or where the derived form
     is shown instead): ``_rows`` and ``_text`` print either.
@@ -591,6 +680,7 @@ def _form_compact(mechanics: Mechanics) -> _Compact:
             conserved[name] = energy
         elif name.startswith("p_") and name[2:] in mechanics.scene.coordinates:
             conserved[name] = momenta[mechanics.scene.coordinates.index(name[2:])]
+        # other names are Noether charges (systems.symmetries): shown as derived
     derived_momenta = mechanics.momenta or [None] * n
     derived = [
         *mechanics.forcing,

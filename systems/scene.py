@@ -109,7 +109,11 @@ class Scene:
     as many components as the positions; None: no field), and ``drawing`` holds the
     particles' points (their x and y) with whatever ``[drawing]`` added. ``warnings``
     lists what was left out when the scene was read with ``drop_unfit=True`` (empty
-    otherwise); it takes no part in comparisons.
+    otherwise); it takes no part in comparisons. ``holonomic_constraints`` are the texts
+    of ``[constraints] holonomic``, each f(q, t) = 0 (fields
+    ``"constraints.holonomic[<i>]"``; see ``systems.constraints``). ``symmetries`` are the
+    user's generators of ``[symmetries]``: (name, ((coordinate, xi text), ...)), fields
+    ``"symmetries.<name>.<q>"`` (see ``systems.symmetries``).
     """
 
     title: str
@@ -130,6 +134,8 @@ class Scene:
     name: str = ""
     particles: tuple[Particle, ...] = ()
     gravity: str | tuple[str, ...] | None = None
+    holonomic_constraints: tuple[str, ...] = ()
+    symmetries: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = ()
     warnings: tuple[SceneWarning, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
@@ -454,7 +460,11 @@ def scene_from_dict(
     effects = reader.table(data, "effects")
     reader.check_keys(effects, "effects", {"dissipation", "forces", "disabled"})
     forces_table = reader.table(effects, "forces", prefix="effects.")
+    holonomic_constraints = reader.constraints(reader.table(data, "constraints"))
     top = {"title", "description", "system", "particles", "effects", "initial", "drawing", "view"}
+    top.add("constraints")
+    symmetries = reader.symmetries(reader.table(data, "symmetries"))
+    top.add("symmetries")
     if drop_unfit:
         problems: list[SceneError] = []
         drawing = reader.drawing(
@@ -494,6 +504,8 @@ def scene_from_dict(
         name=name,
         particles=particles,
         gravity=gravity,
+        holonomic_constraints=holonomic_constraints,
+        symmetries=symmetries,
         **texts,
     )
     if not drop_unfit:
@@ -743,6 +755,52 @@ class _Reader:
             return tuple(self.text(c, f"system.gravity[{i}]") for i, c in enumerate(value))
         return self.text(value, "system.gravity")
 
+    def constraints(self, table: Mapping[str, Any]) -> tuple[str, ...]:
+        """The ``[constraints]`` table: ``holonomic = ["f(q, t)", ...]``, each f = 0."""
+        for key in table:
+            if key in ("nonholonomic", "unilateral"):
+                raise self.fail(
+                    f"constraints.{key}",
+                    f"{key} constraints are not supported yet; only holonomic constraints "
+                    "f(q, t) = 0 can be given for now",
+                )
+        self.check_keys(table, "constraints", {"holonomic"})
+        if "holonomic" not in table:
+            return ()
+        value = table["holonomic"]
+        if not isinstance(value, list) or not value:
+            raise self.fail(
+                "constraints.holonomic",
+                "must be a non-empty list of expressions f(q, t), each meaning f = 0, "
+                'e.g. ["x**2 + y**2 - l**2"]',
+            )
+        return tuple(self.text(item, f"constraints.holonomic[{i}]") for i, item in enumerate(value))
+
+    def symmetries(self, table: Mapping[str, Any]) -> tuple:
+        """The ``[symmetries]`` table: ``name = { <q> = "xi_q(q)", ... }``, a generator
+        per entry (coordinates not named get 0)."""
+        from systems.symmetries import RESERVED
+
+        result = []
+        for name, entry in table.items():
+            field = f"symmetries.{name}"
+            self._name(name, field)
+            if name in RESERVED or name.startswith("p_"):
+                raise self.fail(
+                    field,
+                    f"{name!r} is the name of a quantity Phase Explorer finds itself "
+                    "(H, p_<q>, L_x, L_y, L_z, P_x, P_y, P_z); choose another name",
+                )
+            if not isinstance(entry, Mapping) or not entry:
+                raise self.fail(
+                    field,
+                    'must be a table of coordinate = "xi(q)", e.g. { z = "1", phi = "c" }',
+                )
+            result.append(
+                (name, tuple((q, self.text(v, f"{field}.{q}")) for q, v in entry.items()))
+            )
+        return tuple(result)
+
     def string_list(self, value: Any, field: str) -> list[str]:
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise self.fail(field, "must be a list of strings")
@@ -945,6 +1003,13 @@ def _validate(scene: Scene) -> None:
             )
         seen.add(name)
     _validate_particles(scene, fail)
+    for name, entries in scene.symmetries:
+        for q, _ in entries:
+            if q not in scene.coordinates:
+                raise fail(
+                    f"symmetries.{name}.{q}",
+                    f"{q!r} is not a coordinate (coordinates: {', '.join(scene.coordinates)})",
+                )
     given = {
         "energies": scene.kinetic is not None
         or scene.potential is not None
@@ -1049,6 +1114,15 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
         ]
     elif scene.gravity is not None:
         fields.append(("system.gravity", scene.gravity, ("params",)))
+    fields += [
+        (f"constraints.holonomic[{i}]", text, ("q", "t", "params"))
+        for i, text in enumerate(scene.holonomic_constraints)
+    ]
+    fields += [
+        (f"symmetries.{name}.{q}", text, ("q", "params"))
+        for name, entries in scene.symmetries
+        for q, text in entries
+    ]
     if scene.drawing:
         for name, x, y in scene.drawing.points:
             fields.append((f"drawing.points.{name}.x", x, ("q", "t", "params")))
@@ -1057,6 +1131,16 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
     for field_name, text, groups in fields:
         if text is not None:
             result[field_name] = _parse_field(scene, field_name, text, groups)
+    coordinates = {scene.symbols[q] for q in scene.coordinates}
+    for i in range(len(scene.holonomic_constraints)):
+        field_name = f"constraints.holonomic[{i}]"
+        if not result[field_name].free_symbols & coordinates:
+            raise SceneError(
+                "a constraint must depend on the coordinates "
+                f"({', '.join(scene.coordinates)}): this one restricts no motion",
+                source=scene.source,
+                field=field_name,
+            )
     return result
 
 
@@ -1093,6 +1177,14 @@ def _misplaced_name_hint(scene, exc, groups, field_name) -> str | None:
     if groups == ("params",) and name in scene.symbols and field_name.startswith(CONSTANT_FIELDS):
         what = "a mass" if field_name.endswith(".mass") else "the field of gravity"
         return f"{what} is a constant: it may use numbers and parameters, not {name!r}"
+    if name in scene.velocity_names and field_name.startswith("constraints.holonomic"):
+        return (
+            f"a holonomic constraint f(q, t) = 0 may not contain the velocity {name!r}; "
+            "a constraint on the velocities belongs in 'nonholonomic', which is not "
+            "supported yet"
+        )
+    if field_name.startswith("symmetries.") and name in scene.symbols:
+        return f"a generator xi(q) may use the coordinates, numbers and parameters, not {name!r}"
     if name in scene.velocity_names and "qdot" not in groups:
         if field_name == "system.potential":
             return (
@@ -1128,6 +1220,11 @@ def _to_toml(scene: Scene) -> str:
             f"{_key(p.name)} = {_inline({'mass': p.mass, 'position': list(p.position)})}"
             for p in scene.particles
         ]
+    if scene.holonomic_constraints:
+        lines += ["", "[constraints]", f"holonomic = {_value(list(scene.holonomic_constraints))}"]
+    if scene.symmetries:
+        lines += ["", "[symmetries]"]
+        lines += [f"{_key(name)} = {_inline(dict(entries))}" for name, entries in scene.symmetries]
     if scene.dissipation is not None or scene.forces:
         lines += ["", "[effects]"]
         if scene.dissipation is not None:
@@ -1162,18 +1259,27 @@ def document_toml(data: Mapping[str, Any]) -> str:
     """The tables of a scene document as TOML text, whether or not they make a valid scene.
 
     The layout is that of ``Scene.to_toml``: the top-level keys (``title``,
-    ``description``), then ``[system]``, ``[particles]``, ``[effects]``, ``[initial]``,
-    ``[drawing]`` and ``[view]`` (and any other table, in its order), one key a line,
-    nested arrays and tables written inline; an empty table other than ``[system]`` is
-    left out. Reading the text with ``read_document`` gives the same tables back (an
-    empty table aside).
+    ``description``), then ``[system]``, ``[particles]``, ``[constraints]``,
+    ``[symmetries]``, ``[effects]``, ``[initial]``, ``[drawing]`` and ``[view]`` (and any
+    other table, in its order), one key a line, nested arrays and tables written inline;
+    an empty table other than ``[system]`` is left out. Reading the text with
+    ``read_document`` gives the same tables back (an empty table aside).
 
     Raises
     ------
     TypeError
         For a value TOML cannot hold (None, an object).
     """
-    order = ["system", "particles", "effects", "initial", "drawing", "view"]
+    order = [
+        "system",
+        "particles",
+        "constraints",
+        "symmetries",
+        "effects",
+        "initial",
+        "drawing",
+        "view",
+    ]
     tables = [key for key in order if isinstance(data.get(key), Mapping)]
     tables += [k for k, v in data.items() if isinstance(v, Mapping) and k not in tables]
     top = sorted(

@@ -206,6 +206,9 @@ class Run:
         self.t_end = t_end
         self.max_steps = max_steps
         self.y0 = compiled.initial_state(t0) if y0 is None else np.array(y0, dtype=float)
+        numeric = compiled.constraints()
+        if y0 is not None and numeric is not None and np.all(np.isfinite(self.y0)):
+            self.y0 = numeric.project(t0, self.y0)  # a start off the constraints: onto them
         self.t0 = t0
         self.steps = self.evals = 0
         self.finished = False
@@ -414,6 +417,9 @@ class Sampler:
         The last block (its status and message say how the run ended).
     worst : float
         The largest |H - H0| seen in any block (0 without the ``"H"`` diagnostic).
+    violation : float or None
+        The largest |Phi_i(q, t)| of the holonomic constraints over the states of every
+        block (None for a scene without constraints).
     interrupted : bool
     events_t : list of float
     events_y : list of ndarray, shape (2n,)
@@ -426,12 +432,16 @@ class Sampler:
         self.last: Block | None = None
         self.worst = 0.0
         self.interrupted = False
+        self.constraints = run.compiled.constraints()
+        self.violation = None if self.constraints is None else 0.0
         self.events_t: list[float] = []
         self.events_y: list[np.ndarray] = []
 
     def __iter__(self) -> Iterator[tuple[float, np.ndarray]]:
         run = self.run
         t_last = run.t0
+        if self.constraints is not None:
+            self.violation = self.constraints.violation(run.t0, run.y0[None])
         yield run.t0, run.y0.copy()
         H0 = None
         try:
@@ -448,6 +458,9 @@ class Sampler:
                         with np.errstate(all="ignore"):
                             change = np.max(np.abs(block.diagnostics["H"] - H0))
                         self.worst = max(self.worst, float(change))
+                    if self.constraints is not None and len(block.t):
+                        worst = self.constraints.violation(block.t, block.y)
+                        self.violation = max(self.violation, worst)
                 last = self.last
                 if last is not None and len(last.t) and last.t[-1] > t_last:
                     t_last = float(last.t[-1])
@@ -511,6 +524,11 @@ def _explain(code: Status, stepper: Stepper, runner) -> str:
         return (
             f"the state became non-finite after t = {t:.6g}; the last finite state is "
             "shown. Reduce the step or tolerance, or check the equations"
+        )
+    if code == Status.NOT_CONVERGED and stepper.family.constrained:
+        return (
+            f"the projection onto the constraints did not converge at t = {t:.6g}: their "
+            "Jacobian dPhi/dq may lose rank there; reduce the step or tolerance"
         )
     if code == Status.NOT_CONVERGED:
         return (

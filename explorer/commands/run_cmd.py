@@ -146,6 +146,10 @@ def run(args: argparse.Namespace) -> int:
             H = compiled.hamiltonian(t, y)
             qdot = compiled.velocities(t, y)
     last, interrupted = sampler.last, sampler.interrupted
+    constraints = compiled.constraints()
+    violation = None
+    if constraints is not None:  # every block's states, and the rows (endless: first, last)
+        violation = max(sampler.violation or 0.0, constraints.violation(t, y))
     if last is None:
         last = run_.stop("interrupted", "")
     wall_s = time.perf_counter() - start
@@ -157,7 +161,8 @@ def run(args: argparse.Namespace) -> int:
         max_rel = max(float(np.max(np.abs(H - H[0])) / scale), sampler.worst / scale)
     if args.out and not endless:
         try:
-            write_trajectory(args.out, scene, t, y, qdot, H, n)
+            multipliers = None if constraints is None else constraints.multipliers(t, y)
+            write_trajectory(args.out, scene, t, y, qdot, H, n, multipliers)
         except OSError as exc:
             raise UserError(f"could not write {args.out}: {exc.strerror or exc}") from None
     report = {
@@ -175,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
             "p": dict(zip(scene.coordinates, map(float, y[-1, n:]), strict=True)),
         },
         "max_rel_energy_error": max_rel,
+        "max_constraint_violation": violation,
         "status": "interrupted" if interrupted else last.status,
         "message": (
             f"interrupted at t = {t[-1]:.6g}; the {sampler.count} rows up to there were written"
@@ -231,10 +237,13 @@ def stream_trajectory(path: str, scene, compiled, sampler):
     (Ctrl+C, the step budget or a problem), so ``path`` never holds half a row. Returns
     the first and last samples as (t (2,), y (2, 2n), qdot (2, n), H (2,)).
     """
+    from systems.constraints import multiplier_names
     from systems.files import atomic_path
 
     n = compiled.n
     header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
+    header += multiplier_names(scene)
+    constraints = compiled.constraints()
     kept: list[tuple[float, np.ndarray, np.ndarray, float]] = []
     sampler.count = 0
     try:
@@ -250,6 +259,8 @@ def stream_trajectory(path: str, scene, compiled, sampler):
                         H = float(compiled.hamiltonian(t, y[None])[0])
                         qdot = compiled.velocities(t, y[None])[0]
                     row = [t, *y[:n], *qdot, *y[n:], H]
+                    if constraints is not None:
+                        row += list(constraints.multipliers(t, y[None])[0])
                     writer.writerow([repr(float(v)) for v in row])
                     sampler.count += 1
                     kept = [*kept[:1], (t, y, qdot, H)]
@@ -280,20 +291,30 @@ def sample_times(args: argparse.Namespace, t_end: float):
     return np.linspace(0.0, t_end, count + 1)
 
 
-def write_trajectory(path: str, scene, t, y, qdot, H, n: int) -> None:
-    """CSV columns t, each q, each q_dot, each p_q, H; or the same arrays in an .npz.
+def write_trajectory(path: str, scene, t, y, qdot, H, n: int, multipliers=None) -> None:
+    """CSV columns t, each q, each q_dot, each p_q, H, and for a scene with constraints
+    their multipliers lambda_1 .. lambda_k (``multipliers``, shape (rows, k)); or the same
+    arrays in an .npz (the multipliers as ``lambda``).
 
     Written whole or not at all (``systems.files.atomic_path``).
     """
+    from systems.constraints import multiplier_names
     from systems.files import atomic_path
 
     header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
-    table = np.column_stack([t, y[:, :n], qdot, y[:, n:], H])
+    columns = [t, y[:, :n], qdot, y[:, n:], H]
+    extra = {}
+    if multipliers is not None:
+        header += multiplier_names(scene)
+        columns.append(multipliers)
+        extra["lambda"] = multipliers
+    table = np.column_stack(columns)
     with atomic_path(path) as temporary:
         if Path(path).suffix.lower() == ".npz":
             np.savez(
-                temporary, t=t, q=y[:, :n], qdot=qdot, p=y[:, n:], H=H, columns=np.array(header)
-            )
+                temporary, t=t, q=y[:, :n], qdot=qdot, p=y[:, n:], H=H, columns=np.array(header),
+                **extra,
+            )  # fmt: skip
             return
         with open(temporary, "w", newline="", encoding="utf-8") as handle:
             writer = csv.writer(handle)
@@ -311,6 +332,8 @@ def readable(scene, report: dict) -> str:
     ]
     if report["max_rel_energy_error"] is not None:
         lines.append(f"  max relative energy error: {report['max_rel_energy_error']:.3g}")
+    if report["max_constraint_violation"] is not None:
+        lines.append(f"  max constraint violation: {report['max_constraint_violation']:.3g}")
     final = ", ".join(f"{k} = {v:.10g}" for k, v in report["final"]["q"].items())
     lines.append(f"  final: {final}")
     lines.append(

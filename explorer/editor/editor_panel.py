@@ -61,12 +61,15 @@ KINDS = (
     ("lagrangian", "Lagrangian L"),
     ("hamiltonian", "Hamiltonian H"),
 )
-# [particles] and system.gravity have no fields yet: they are kept as read (see document)
+# [particles], [constraints], [symmetries] and system.gravity have no fields yet: they are
+# kept as read (see document)
 DOCUMENT_KEYS = (
     "title",
     "description",
     "system",
     "particles",
+    "constraints",
+    "symmetries",
     "effects",
     "initial",
     "drawing",
@@ -124,6 +127,10 @@ def data_from_scene(scene) -> dict:
         data["particles"] = {
             p.name: {"mass": p.mass, "position": list(p.position)} for p in scene.particles
         }
+    if scene.holonomic_constraints:
+        data["constraints"] = {"holonomic": list(scene.holonomic_constraints)}
+    if scene.symmetries:
+        data["symmetries"] = {name: dict(entries) for name, entries in scene.symmetries}
     effects: dict = {}
     if scene.dissipation is not None:
         effects["dissipation"] = scene.dissipation
@@ -739,6 +746,9 @@ class SystemEditorPanel(QWidget):
         data: dict = {"title": self.title_edit.text(), "system": system}
         if particles is not None:
             data["particles"] = particles
+        for key in ("constraints", "symmetries"):
+            if self._data.get(key) is not None:
+                data[key] = self._data[key]
         if self._data.get("description"):
             data["description"] = _text(self._data["description"])
         effects: dict = {}

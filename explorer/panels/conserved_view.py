@@ -1,5 +1,10 @@
 """Conserved-quantities view: relative energy error (log scale) and conserved momenta over time.
 
+The conserved momenta are the cyclic coordinates' p_q, state components, and the Noether
+charges of ``systems.symmetries`` (``L_z``, ``P_x``, a ``[symmetries]`` name), functions
+of the state (q, p) evaluated on the main trajectory's new rows by numpy functions made
+once per system (``symmetries.charge_functions``); both are drawn in the same plot.
+
 When H is not conserved (driven, dissipative or rheonomic scenes) the upper plot shows H(t)
 itself instead of an error. ``set_system`` rebuilds both plots from the new system alone:
 titles, legends, the momentum plot (there is none without a conserved momentum) and the
@@ -13,6 +18,8 @@ column's lowest and highest value).
 """
 
 from __future__ import annotations
+
+import html
 
 import numpy as np
 import pyqtgraph as pg
@@ -30,6 +37,7 @@ from explorer.panels.curves import (
     style_plot,
 )
 from explorer.trajectories import backfill_energy
+from systems.symmetries import ROTATIONS, TRANSLATIONS, charge_functions
 
 FLOOR = 1e-17
 REPAINT_GAP_SECONDS = 0.1
@@ -63,7 +71,14 @@ class FiniteSeries:
 
 
 LEGEND_ORBITS = 6
-MOMENTUM_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
+MOMENTUM_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#17becf", "#bcbd22", "#e377c2")
+
+
+def charge_label(name: str) -> str:
+    """``L<sub>z</sub>``, ``P<sub>x</sub>``, or the ``[symmetries]`` name as written."""
+    if name in ROTATIONS or name in TRANSLATIONS:
+        return f"{name[0]}<sub>{name[2]}</sub>"
+    return html.escape(name)
 
 
 class ConservedView(QWidget):
@@ -91,6 +106,12 @@ class ConservedView(QWidget):
         self._values: dict[int, GrowingArray] = {}
         self._energy_series: dict[int, FiniteSeries] = {}
         self._momentum_series: dict[int, FiniteSeries] = {}
+        self.conserved_charges: list[str] = []
+        self._charge_functions: dict = {}
+        self._charge_curves: dict[str, EnvelopeCurve] = {}
+        self._charge_values: dict[str, GrowingArray] = {}
+        self._charge_series: dict[str, FiniteSeries] = {}
+        self._charge_key = None
         self.energy_range = RangeKeeper(self.energy_plot, time_axis=True)
         self.momentum_range: RangeKeeper | None = None
         self._store = None
@@ -123,13 +144,16 @@ class ConservedView(QWidget):
         self.conserved_momenta = [
             scene.coordinates.index(name[2:]) for name in conserved if name[2:] in scene.coordinates
         ]
-        if self.conserved_momenta:
+        self._charge_functions = charge_functions(compiled.mechanics)
+        self.conserved_charges = list(self._charge_functions)
+        if self.conserved_momenta or self.conserved_charges:
             self._add_momentum_plot(scene)
 
     def _remove_momentum_plot(self) -> None:
-        for curve in self._momentum_curves.values():
+        for curve in [*self._momentum_curves.values(), *self._charge_curves.values()]:
             curve.remove()
         self._momentum_curves.clear()
+        self._charge_curves.clear()
         if self.momentum_plot is not None:
             self.momentum_plot.setXLink(None)
             self.layout_widget.removeItem(self.momentum_plot)
@@ -144,8 +168,9 @@ class ConservedView(QWidget):
         self.momentum_plot.setXLink(self.energy_plot)
         style_plot(self.momentum_plot)
         self.momentum_plot.setLabel("bottom", "t")
-        labels = ", ".join(momentum_label(scene.coordinates[i]) for i in self.conserved_momenta)
-        set_title(self.momentum_plot, f"Conserved momenta: {labels}")
+        labels = [momentum_label(scene.coordinates[i]) for i in self.conserved_momenta]
+        labels += [charge_label(name) for name in self.conserved_charges]
+        set_title(self.momentum_plot, f"Conserved momenta: {', '.join(labels)}")
         self.momentum_legend = add_outside_legend(
             self.layout_widget.ci, row=0, col=3, columns=1, side="right"
         )
@@ -155,6 +180,11 @@ class ConservedView(QWidget):
             curve = EnvelopeCurve(self.momentum_plot, pen, ranges=self.momentum_range)
             self._momentum_curves[i] = curve
             self.momentum_legend.addItem(curve.tail, momentum_label(scene.coordinates[i]))
+        for k, name in enumerate(self.conserved_charges, start=len(self.conserved_momenta)):
+            pen = pg.mkPen(MOMENTUM_COLOURS[k % len(MOMENTUM_COLOURS)], width=1.5)
+            curve = EnvelopeCurve(self.momentum_plot, pen, ranges=self.momentum_range)
+            self._charge_curves[name] = curve
+            self.momentum_legend.addItem(curve.tail, charge_label(name))
         self.momentum_legend.updateSize()
 
     def _reset_curves(self) -> None:
@@ -170,8 +200,14 @@ class ConservedView(QWidget):
         self.energy_range.reset()
         if self.momentum_range is not None:
             self.momentum_range.reset()
-        for curve in self._momentum_curves.values():
+        for curve in [*self._momentum_curves.values(), *self._charge_curves.values()]:
             curve.reset()
+        self._forget_charges()
+
+    def _forget_charges(self) -> None:
+        self._charge_values.clear()
+        self._charge_series.clear()
+        self._charge_key = None
 
     def _update_energy_legend(self) -> None:
         self.energy_legend.set_entries(
@@ -226,6 +262,27 @@ class ConservedView(QWidget):
             for i, curve in self._momentum_curves.items():
                 series = self._momentum_series.setdefault(i, FiniteSeries())
                 curve.update(*series.feed(main.t.data, main.y.data[:, n + i]))
+            if self._charge_curves:
+                self._update_charges(main)
+
+    def _update_charges(self, main) -> None:
+        """Evaluate each Noether charge on the main trajectory's rows not seen before."""
+        t, y = main.t.data, main.y.data
+        if main.key != self._charge_key or any(
+            len(v) > len(t) for v in self._charge_values.values()
+        ):
+            self._forget_charges()  # another main trajectory, or one that started afresh
+            self._charge_key = main.key
+        for name, curve in self._charge_curves.items():
+            values = self._charge_values.setdefault(name, GrowingArray(()))
+            done = len(values)
+            if done < len(t):
+                with np.errstate(all="ignore"):
+                    values.extend(
+                        self._charge_functions[name](t[done:], y[done:], self.compiled.parameters)
+                    )
+            series = self._charge_series.setdefault(name, FiniteSeries())
+            curve.update(*series.feed(t, values.data))
 
     def export_target(self) -> QWidget:
         """The widget that figure exports render (both plots with their legends)."""

@@ -2,6 +2,8 @@
 
 Rules, first match wins:
 
+0. holonomic constraints (``[constraints]``) -> ``constrained_dop853``, the only adaptive
+   method that projects onto them;
 1. stiff (see ``stiffness_ratio``): with decaying fast modes -> ``radau``; with purely
    oscillatory fast modes in a conservative system (a stiff spring) ->
    ``gauss_legendre6`` with a step that resolves the fastest mode, since an L-stable
@@ -211,6 +213,12 @@ def _remembered_choice(mechanics) -> tuple[str, str]:
 
 
 def _choose(mechanics) -> tuple[str, str]:
+    if getattr(mechanics.scene, "holonomic_constraints", ()):
+        return "constrained_dop853", (
+            "holonomic constraints: adaptive 8th-order Runge-Kutta on the equations with "
+            "Lagrange multipliers, projected onto the constraints after every step "
+            f"(tolerance {DEFAULT_TOL:g})"
+        )
     c = mechanics.classification
     eigenvalues = _eigenvalues(mechanics)
     ratio = _ratio(eigenvalues, _scene_t_end(mechanics))

@@ -554,6 +554,44 @@ def dop853_step(y, comp, clock, P, coef, work):
     return STATUS_RUNNING, evals
 
 
+# -- constrained systems: a step, then the projection onto the constraints ------------------
+# ``project(t, y, P) -> bool`` exists only in the kernel module of a scene with holonomic
+# constraints (``systems.constraints``), whose ``rhs`` already carries the multipliers'
+# force; numba compiles these steps only when such a scene calls them.
+
+
+def cdop853_work(coef, m):
+    return dop853_work(coef, m)
+
+
+def cdop853_step(y, comp, clock, P, coef, work):
+    """A DOP853 step on the constrained ``rhs``; an accepted step is projected onto the
+    constraints (positions, then velocities), so they hold to round-off after every step."""
+    code, evals = dop853_step(y, comp, clock, P, coef, work)
+    if code == STATUS_RUNNING:
+        if not project(clock[CLOCK_T], y, P):
+            return STATUS_NOT_CONVERGED, evals
+        for k in range(y.shape[0]):
+            comp[k] = 0.0
+        work[-1][0] = 0.0  # the carried-over f (first same as last) is of the unprojected y
+    return code, evals
+
+
+def cerk_work(coef, m):
+    return erk_work(coef, m)
+
+
+def cerk_step(y, comp, clock, P, coef, work):
+    """A fixed explicit Runge-Kutta step on the constrained ``rhs``, then the projection."""
+    code, evals = erk_step(y, comp, clock, P, coef, work)
+    if code == STATUS_RUNNING:
+        if not project(clock[CLOCK_T], y, P):
+            return STATUS_NOT_CONVERGED, evals
+        for k in range(y.shape[0]):
+            comp[k] = 0.0
+    return code, evals
+
+
 # -- the drivers -------------------------------------------------------------------------------
 
 

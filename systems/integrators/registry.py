@@ -70,6 +70,9 @@ class Family:
     adaptive: bool = False
     ensemble: bool = False
     teaching: bool = False
+    constrained: bool = False
+    """Projects onto holonomic constraints after every step: only these families
+    integrate a scene with ``[constraints]``, and only scenes with constraints."""
 
     @property
     def run_kernel(self) -> str | None:
@@ -122,6 +125,9 @@ class Stepper:
 
     def applies_to(self, mechanics) -> str | None:
         """None if this method integrates ``mechanics`` as derived, else why it cannot."""
+        reason = _constraints_fit(mechanics, self)
+        if reason:
+            return reason
         return self.family.applies(mechanics, self)
 
     def default_setting(
@@ -205,6 +211,31 @@ def _applies_always(mechanics, stepper: Stepper) -> str | None:
     return None
 
 
+CONSTRAINED_METHODS = "constrained_dop853 or constrained_rk4"
+
+
+def _constraints_fit(mechanics, stepper: Stepper) -> str | None:
+    """Why ``stepper`` cannot integrate a scene with (or without) holonomic constraints."""
+    constrained = bool(getattr(mechanics.scene, "holonomic_constraints", ()))
+    if constrained == stepper.family.constrained:
+        return None
+    if not constrained:
+        return (
+            f"{stepper.name} is for scenes with [constraints] (it projects onto them after "
+            "every step); this scene has none: use dop853 or rk4"
+        )
+    if stepper.family.symplectic:
+        return (
+            f"{stepper.name} would ignore the scene's [constraints]: it steps the free "
+            "Hamiltonian, and a symplectic method with constraints needs projections of "
+            f"its own (RATTLE), which are not implemented; use {CONSTRAINED_METHODS}"
+        )
+    return (
+        f"{stepper.name} would let the scene's [constraints] drift: it does not project "
+        f"onto them after each step; use {CONSTRAINED_METHODS}"
+    )
+
+
 def _splitting_applies(mechanics, stepper: Stepper) -> str | None:
     c = mechanics.classification
     if not c.separable:
@@ -273,6 +304,11 @@ def _gauss_tt_coef(stepper, compiled, t0, y0, compensated):
 def _explicit_coef(stepper, compiled, t0, y0, compensated):
     A, b, c = EXPLICIT_TABLEAUX[stepper.name]
     return (A, b, c, bool(compensated))
+
+
+def _constrained_rk4_coef(stepper, compiled, t0, y0, compensated):
+    A, b, c = EXPLICIT_TABLEAUX["rk4"]
+    return (A, b, c, False)  # each step's projection resets the Kahan terms
 
 
 def _dop853_coef(stepper, compiled, t0, y0, compensated):
@@ -369,6 +405,31 @@ FAMILIES: dict[str, Family] = {
             adaptive=True,
         ),
         Family(
+            name="constrained",
+            description="adaptive DOP853 on the equations with multipliers, projected onto "
+            "the holonomic constraints after every step",
+            kernel="cdop853",
+            setting="tol",
+            runner=runners.AdaptiveRunner,
+            coefficients=_dop853_coef,
+            default_setting=_adaptive_tol,
+            applies=_applies_always,
+            adaptive=True,
+            constrained=True,
+        ),
+        Family(
+            name="constrained_fixed",
+            description="classical RK4 on the equations with multipliers, projected onto "
+            "the holonomic constraints after every step",
+            kernel="cerk",
+            setting="dt",
+            runner=runners.FixedStepRunner,
+            coefficients=_constrained_rk4_coef,
+            default_setting=stepsize.default_step,
+            applies=_applies_always,
+            constrained=True,
+        ),
+        Family(
             name="scipy",
             description="scipy's implicit solvers for stiff systems",
             kernel=None,
@@ -460,6 +521,18 @@ STEPPERS: dict[str, Stepper] = {
             finisher="gauss_legendre6",
         ),
         _method("dop853", 8, "dop853", "compiled adaptive Dormand-Prince 8(5,3)"),
+        _method(
+            "constrained_dop853",
+            8,
+            "constrained",
+            "adaptive Dormand-Prince 8(5,3) with projection onto the holonomic constraints",
+        ),
+        _method(
+            "constrained_rk4",
+            4,
+            "constrained_fixed",
+            "classical RK4 with projection onto the holonomic constraints",
+        ),
         _method("radau", 5, "scipy", "scipy Radau IIA (implicit, stiff)", stiff=True),
         _method("bdf", 5, "scipy", "scipy BDF (implicit multistep, stiff)", stiff=True),
         _method("lsoda", 12, "scipy", "scipy LSODA (switches stiff/non-stiff)", stiff=True),

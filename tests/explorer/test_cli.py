@@ -3,6 +3,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import sympy
 
 from explorer.cli import main
@@ -80,3 +81,29 @@ def test_derive_json_lists_equilibria(tmp_path, capsys):
     assert by_angle[0.0]["stable"] and not by_angle[round(3.141592653589793, 9)]["stable"]
     (omega,) = by_angle[0.0]["frequencies"]
     assert abs(omega - (9.81 / 0.7) ** 0.5) < 1e-9
+
+
+def test_run_reports_the_constraint_violation_and_writes_the_multipliers(tmp_path, capsys):
+    out = tmp_path / "cartesian.csv"
+    args = ["run", "cartesian_pendulum", "--t-end", "5", "--samples", "50", "--json"]
+    assert main([*args, "--out", str(out)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["method"] == "constrained_dop853"
+    assert 0.0 <= report["max_constraint_violation"] <= 1e-10
+    header, *rows = out.read_text().splitlines()
+    assert header.split(",") == [
+        "t", "x", "y", "x_dot", "y_dot", "p_x", "p_y", "H", "lambda_1",
+    ]  # fmt: skip
+    t, x, y, x_dot, y_dot, _, _, _, lam = map(float, rows[10].split(","))
+    assert 2 * lam == pytest.approx(9.81 * -y + (x * y_dot - y * x_dot) ** 2, rel=1e-9)
+    assert main(["run", "simple_pendulum", "--t-end", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["max_constraint_violation"] is None
+    assert main(["run", "cartesian_pendulum", "--method", "leapfrog", "--json"]) == 2
+    assert "ignore the scene's [constraints]" in capsys.readouterr().err
+
+
+def test_derive_json_has_the_degrees_of_freedom(capsys):
+    assert main(["derive", "cartesian_pendulum", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["degrees_of_freedom"] == 1
+    assert report["constraints"]["holonomic"] == ["-l**2 + x**2 + y**2"]

@@ -390,6 +390,26 @@ def test_document_text_reads_back_to_the_same_document(qtbot, editor, name):
     other.shutdown()
 
 
+def test_tables_without_fields_are_kept_through_save_and_a_rebuild(qtbot, editor):
+    """[symmetries] and [constraints] have no fields in the editor yet: Save and the
+    document the window builds from keep them as read."""
+    text = (
+        'title = "Bead on a helix"\n[system]\ncoordinates = ["r", "phi", "z"]\n'
+        "parameters = { m = 1.0, k = 1.0, e = 0.5, c = 0.3 }\n"
+        'kinetic = "m*(r_dot**2 + r**2*phi_dot**2 + z_dot**2)/2"\n'
+        'potential = "k*(r - 1)**2 + e*cos(phi - c*z)"\n'
+        '[symmetries]\nscrew = { z = "1", phi = "c" }\n'
+    )
+    assert editor.show_document(text, source="helix.toml") == []
+    scene = scene_from_dict(editor.document(), source="<editor>", drop_unfit=True)
+    assert scene.symmetries == (("screw", (("z", "1"), ("phi", "c"))),)
+    assert "[symmetries]" in editor.document_text()
+    editor.show_scene(load_scene("cartesian_pendulum"))
+    again = scene_from_dict(editor.document(), source="<editor>", drop_unfit=True)
+    assert again.holonomic_constraints == load_scene("cartesian_pendulum").holonomic_constraints
+    assert "[constraints]" in editor.document_text()
+
+
 def test_an_unbuildable_document_is_written_and_read_back_as_typed(qtbot, editor):
     _pendulum(editor)
     _type(editor.coordinates, "theta, 2y")

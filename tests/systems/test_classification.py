@@ -43,6 +43,7 @@ T, F, N = True, False, None
 CATALOGUE = {
     "atwood_machine":           ((F, T, T, T, T, F, T, T, T, T), "fixed pulley, gravity only: simple; H = T + V"),  # noqa: E501
     "bead_on_rotating_hoop":    ((T, T, T, T, F, F, T, F, F, T), "hoop turned at omega: T0 = m a^2 omega^2 sin^2/2 shows r(q, t); L has no t, so H = T2 - T0 + V is conserved but is not T + V; the t in the drawing changes nothing"),  # noqa: E501
+    "cartesian_pendulum":       ((F, T, T, T, T, F, T, T, T, T), "x, y tied by the fixed equation x^2 + y^2 - l^2 = 0: scleronomic, holonomic, bilateral; gravity only: simple; H = T + V, M = m I"),  # noqa: E501
     "coupled_oscillators":      ((F, T, T, T, T, F, T, T, T, T), "springs, no constraint in motion: simple"),  # noqa: E501
     "damped_pendulum":          ((F, T, T, F, F, F, F, T, T, T), "Rayleigh dissipation acts: not conservative, H not conserved; the equations have no t"),  # noqa: E501
     "double_pendulum":          ((F, T, T, T, T, F, T, T, T, F), "fixed pivot: simple; M(q) couples the angles, so H is not separable"),  # noqa: E501
@@ -506,7 +507,9 @@ USER_SCENES = {
 CONSERVED = {
     "cone": {"H", "p_phi"},
     "elastic_spherical_pendulum": {"H", "p_phi"},
-    "magnetic_3d": {"H", "p_z"},
+    # symmetric gauge: L is invariant under rotations about z, so the canonical
+    # L_z = x p_y - y p_x is conserved (Noether, systems.symmetries)
+    "magnetic_3d": {"H", "p_z", "L_z"},
     "top": {"H", "p_phi", "p_psi"},
 }
 

@@ -1,0 +1,48 @@
+"""The conserved-quantities panel plots the Noether charges (systems.symmetries)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.explorer.conftest import wait_for_points
+
+
+def _rect(item):
+    return item.mapRectToScene(item.boundingRect())
+
+
+def test_cartesian_kepler_shows_an_angular_momentum_curve(qtbot, window):
+    request = window.open_scene("kepler_cartesian")
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=90000
+    )
+    wait_for_points(qtbot, window, 40, timeout=60000)
+    for _ in range(3):
+        window.store.mark_dirty()
+        window._on_redraw_timer_timeout()
+        qtbot.wait(20)
+    conserved = window.conserved_view
+    assert conserved.conserved_momenta == [] and conserved.conserved_charges == ["L_z"]
+    assert conserved.momentum_plot is not None
+    assert "L<sub>z</sub>" in conserved.momentum_plot.titleLabel.text
+    assert [label.text for _, label in conserved.momentum_legend.items] == ["L<sub>z</sub>"]
+    curve = conserved._charge_curves["L_z"]
+    assert curve.point_count() >= 8
+    values = conserved._charge_values["L_z"].data
+    y = window.store.main.y.data[: len(values)]  # the run goes on: rows may have come
+    expected = y[:, 0] * y[:, 3] - y[:, 1] * y[:, 2]  # x p_y - y p_x
+    shown = np.isfinite(expected)
+    assert shown.sum() >= 8 and np.array_equal(np.isfinite(values), shown)
+    assert np.abs(values[shown] - expected[shown]).max() <= 1e-14
+    assert np.abs(values[shown] - np.sqrt(1.5)).max() <= 1e-12
+    # the legend sits beside the plot, not on the curve
+    assert not _rect(conserved.momentum_legend).intersects(
+        _rect(conserved.momentum_plot.getViewBox())
+    )
+    # back to a scene without charges: the plot and its curves go
+    request = window.open_scene("simple_pendulum")
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=90000
+    )
+    assert conserved.conserved_charges == [] and conserved._charge_curves == {}
+    assert conserved.momentum_plot is None
