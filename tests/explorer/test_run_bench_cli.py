@@ -15,6 +15,7 @@ from tests.systems.scenes import DRIVEN_DAMPED, PLANETARY
 
 ROOT = Path(__file__).resolve().parents[2]
 JSON_KEYS = {
+    "max_constraint_violation",
     "method",
     "why",
     "steps",
@@ -41,6 +42,7 @@ def test_run_json_report_and_csv(tmp_path, capsys):
     assert code == 0
     assert set(report) == JSON_KEYS
     assert report["status"] == "ok" and report["message"] == ""
+    assert report["max_constraint_violation"] is None  # no constraints
     assert report["t_end"] == 3.0
     assert report["method"] == "yoshida8" and "separable" in report["why"]
     assert report["steps"] > 0 and report["rhs_evaluations"] >= report["steps"]
