@@ -548,6 +548,9 @@ class _Context:
         from systems.constraints import constrains, declared
 
         q, qd, p, t = self.q, self.qd, self.p, self.t
+        # a constraint's force acts on every coordinate it contains: none of those is
+        # cyclic (the Cartesian pendulum's L has no x, but its string pulls along x)
+        cyclic = tuple(name for name in cyclic if not constrains(self.scene, name))
         # in matrix form M depends on q (needs_matrix_form), so H cannot split
         separable = matrix_form is None and self.splits(H)
         separable_parts = None
@@ -586,7 +589,7 @@ class _Context:
                 conserved["H"] = H
         for name in cyclic:
             i = self.scene.coordinates.index(name)
-            if self.vanishes(forces[i]) and not constrains(self.scene, name):
+            if self.vanishes(forces[i]):
                 conserved[f"p_{name}"] = momenta[i] if momenta is not None else p[i]
         # Noether's charges beyond the cyclic momenta: L_z, P_x, [symmetries]
         for charge in conserved_charges(

@@ -402,6 +402,8 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
     from systems.textbook import search_equilibria
 
     search = search_equilibria(mechanics)
+    if search.method == "not computed":  # saying "none" would be a wrong answer
+        return [search.reason[0].upper() + search.reason[1:]], ""
     shown = display_names(mechanics.scene)
     lines = []
     for eq in search.equilibria:

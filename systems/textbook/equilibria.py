@@ -224,7 +224,8 @@ class EquilibriumSearch:
         Sorted by U, then by coordinates.
     method : str
         ``"symbolic"`` (sympy solved dU/dq = 0 and a numeric scan found nothing more),
-        ``"symbolic+numeric"``, ``"numeric"``, or ``"none"`` (not searched: see reason).
+        ``"symbolic+numeric"``, ``"numeric"``, ``"none"`` (not searched: see reason), or
+        ``"not computed"`` (a system with constraints: ``not_computed``).
     reason : str
         One sentence for the user: why there are none, or what was assumed.
     searched, free, periodic : tuple[str, ...]
@@ -266,8 +267,11 @@ def find_equilibria(
 
 def equilibria_json(
     mechanics: Mechanics, box: Box | None = None, *, parameters: Mapping[str, float] | None = None
-) -> list[dict]:
-    """The equilibria for ``derive --json``: a list of ``{"q", "stable", "frequencies"}``."""
+) -> list[dict] | None:
+    """The equilibria for ``derive --json``: a list of ``{"q", "stable", "frequencies"}``,
+    or None where they are not computed (``not_computed``: a system with constraints)."""
+    if not_computed(mechanics) is not None:
+        return None
     return [e.as_json() for e in find_equilibria(mechanics, box, parameters=parameters)]
 
 
@@ -327,9 +331,29 @@ def search_equilibria(
         return EquilibriumSearch([], "none", f"{exc} (the potential is too large to scan)")
 
 
+def not_computed(mechanics: Mechanics) -> str | None:
+    """Why the equilibria of ``mechanics`` are not computed (None: they are).
+
+    A system with constraints is in equilibrium where dU/dq + Phi_q^T lambda = 0 on
+    Phi(q, t) = 0 (virtual work with the constraint forces): the search solves
+    dU/dq = 0 of free coordinates, which would give a wrong answer (none, for the
+    Cartesian pendulum), so it says so instead.
+    """
+    if getattr(mechanics.scene, "holonomic_constraints", ()):
+        return (
+            "equilibria of a system with constraints are not computed yet: they need the "
+            "constraint forces (dU/dq + \u03a6_q\u1d40\u03bb = 0 on \u03a6 = 0), "
+            "which the search does not include"
+        )
+    return None
+
+
 def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> EquilibriumSearch:
     names = mechanics.scene.coordinates
     U, source = equilibrium_potential(mechanics)
+    reason = not_computed(mechanics)
+    if reason is not None:
+        return EquilibriumSearch([], "not computed", reason, potential=U)
     expression = mechanics.lagrangian if source == "lagrangian" else mechanics.hamiltonian
     if expression.has(mechanics.t):
         return EquilibriumSearch(

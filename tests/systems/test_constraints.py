@@ -166,8 +166,8 @@ def test_derivation_shows_the_constraints_and_the_degrees_of_freedom():
     assert data["degrees_of_freedom"] == 1
     assert data["constraints"]["holonomic"] == ["-l**2 + x**2 + y**2"]
     assert data["constraints"]["jacobian"] == [["2*x", "2*y"]]
-    # x is cyclic in L, but the string pulls on it: p_x is not conserved
-    assert "x" in data["cyclic"] and "p_x" not in data["conserved"] and "H" in data["conserved"]
+    # L has no x, but the string pulls along x: x is not cyclic and p_x is not conserved
+    assert data["cyclic"] == [] and "p_x" not in data["conserved"] and "H" in data["conserved"]
     text = readable(mechanics, equilibria=False)
     assert "degrees of freedom: 1 = 2 coordinates − 1 independent constraint" in text
     assert "Φ₁" in text and "Hamilton's equations (free, without −Φ_qᵀ λ)" in text
@@ -348,3 +348,18 @@ def test_a_start_where_the_constraints_are_singular_is_refused():
         caught.value
     )
     assert np.isnan(compiled.constraints().multipliers(0.0, np.zeros((1, 4)))).all()
+
+
+def test_equilibria_and_cyclic_coordinates_are_not_those_of_the_free_coordinates():
+    """The free coordinates' answers would be wrong: dV/dq = (0, m g) vanishes nowhere
+    (no equilibria, where the pendulum hangs at rest at the bottom), and L has no x
+    (cyclic, where the string pulls along x). Neither is reported."""
+    from systems.report import derivation_json, readable
+
+    mechanics = derive(load_scene("cartesian_pendulum"))
+    assert mechanics.cyclic == () and "p_x" not in mechanics.conserved
+    data = derivation_json(mechanics)
+    assert data["equilibria"] is None and data["cyclic"] == []
+    text = readable(mechanics)
+    assert "not computed yet" in text and "cyclic coordinates: none" in text
+    assert "none: " not in text.split("Equilibria")[-1]
