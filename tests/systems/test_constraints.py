@@ -324,6 +324,11 @@ x = 0.5
     assert np.max(np.abs(r - 0.5 * np.cosh(1.5 * t))) <= 1e-8
     numeric = compiled.constraints()
     assert numeric.violation(t, y) <= 1e-10
+    # the rod does work on the bead: the energy tab says it cannot balance it yet
+    from systems.textbook import jobs
+
+    with pytest.raises(ValueError, match="constraint moves"):
+        jobs.energy(compile_system(mechanics, ("rhs", "hamiltonian", "velocities")), 1.0)
 
 
 def test_other_parameter_values_are_used_without_lambdifying_again(compiled):
@@ -363,3 +368,17 @@ def test_equilibria_and_cyclic_coordinates_are_not_those_of_the_free_coordinates
     text = readable(mechanics)
     assert "not computed yet" in text and "cyclic coordinates: none" in text
     assert "none: " not in text.split("Equilibria")[-1]
+
+
+def test_the_action_tab_refuses_a_constrained_scene_instead_of_a_failing_principle():
+    """Free variations of the Cartesian pendulum's path leave the circle: S(eps) then has a
+    slope (-7.5 for k = 2), which would read as Hamilton's principle failing."""
+    from systems.textbook import jobs
+
+    compiled = compile_system(
+        derive(load_scene("cartesian_pendulum")), ("rhs", "hamiltonian", "velocities")
+    )
+    with pytest.raises(ValueError, match="constraints"):
+        jobs.principle(compiled, 3.0, 2, 0, 0.01)
+    with pytest.raises(ValueError, match="constraints"):
+        jobs.two_point(compiled, [0.0, -1.0], [0.5, -0.866], 1.0)

@@ -48,10 +48,20 @@ def energy(compiled: CompiledSystem, duration: float, cancel: Cancel = NEVER) ->
     Raises
     ------
     ValueError
-        If the run stops at once.
+        If the run stops at once, or a constraint moves (its force does work, which the
+        balance does not include yet).
     Cancelled
     """
-
+    mechanics = compiled.mechanics
+    constraints = getattr(mechanics.scene, "holonomic_constraints", ())
+    if constraints and any(
+        mechanics.scene.expression(f"constraints.holonomic[{i}]").has(mechanics.t)
+        for i in range(len(constraints))
+    ):
+        raise ValueError(
+            "a constraint moves: its force does work (the multipliers' power), which this "
+            "balance does not include yet, so dH/dt would not match its prediction"
+        )
     samples = int(min(20001, max(2001, 100 * duration)))  # dH/dt from samples: keep them dense
     run = integrate(compiled, duration, samples, cancel=cancel)
     if len(run.t) < 5:
@@ -60,7 +70,6 @@ def energy(compiled: CompiledSystem, duration: float, cancel: Cancel = NEVER) ->
     balance = energy_balance(compiled.mechanics, run.t, run.y, parameters=parameters_of(compiled))
     cls = compiled.mechanics.classification
     effects = any(f != 0 for f in compiled.mechanics.generalized_forces)
-    mechanics = compiled.mechanics
     expression = mechanics.lagrangian if mechanics.lagrangian is not None else mechanics.hamiltonian
     return EnergyResult(
         balance,
