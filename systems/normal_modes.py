@@ -386,6 +386,14 @@ def analyse(
     ModeAnalysis
         Never raises for a scene that derived.
     """
+    if getattr(mechanics.scene, "holonomic_constraints", ()):
+        # the free coordinates' U and M would give wrong modes (the Cartesian pendulum's
+        # x "moves freely"): small oscillations on the constraint need its tangent space
+        return ModeAnalysis(
+            None,
+            "normal modes of a system with constraints are not computed yet: small "
+            "oscillations must keep to the constraints, which this analysis does not include",
+        )
     try:
         prepared = prepare(mechanics)
     except TimeLimitExceeded as exc:

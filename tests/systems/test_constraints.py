@@ -382,3 +382,12 @@ def test_the_action_tab_refuses_a_constrained_scene_instead_of_a_failing_princip
         jobs.principle(compiled, 3.0, 2, 0, 0.01)
     with pytest.raises(ValueError, match="constraints"):
         jobs.two_point(compiled, [0.0, -1.0], [0.5, -0.866], 1.0)
+
+
+def test_normal_modes_of_a_constrained_scene_say_they_are_not_computed():
+    """The free coordinates' analysis would say x "moves freely" (V = m g y has no x)."""
+    from systems.normal_modes import analyse
+
+    analysis = analyse(derive(load_scene("cartesian_pendulum")))
+    assert not analysis.applies and "constraints" in analysis.reason
+    assert "moves freely" not in analysis.reason
