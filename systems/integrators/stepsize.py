@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import weakref
 from typing import TYPE_CHECKING
 
@@ -114,6 +115,7 @@ def default_step(
 
 
 _probed: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_probed_lock = threading.Lock()  # runs are made in the worker, the GUI and job threads
 
 
 def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
@@ -124,12 +126,13 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     """
     parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
     key = (t0, y0.tobytes(), parameters.tobytes(), t_end)
-    try:
-        memory = _probed.setdefault(compiled, {})
-    except TypeError:  # not weakly referenceable: nothing is remembered
-        memory = {}
-    if key in memory:
-        return memory[key]
+    with _probed_lock:
+        try:
+            memory = _probed.setdefault(compiled, {})
+        except TypeError:  # not weakly referenceable: nothing is remembered
+            memory = {}
+        if key in memory:
+            return memory[key]
     rate = fastest_rate(compiled, t0, y0)
     if rate <= 0.0:
         return rate
@@ -149,9 +152,10 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     every = max(1, len(y0) * max(len(states), 1) // PROBE_JACOBIAN_BUDGET)
     for t, y in states[every - 1 :: every]:
         found = max(found, fastest_rate(compiled, t, y))
-    if len(memory) >= PROBE_MEMORY:
-        memory.pop(next(iter(memory)))
-    memory[key] = found
+    with _probed_lock:
+        if len(memory) >= PROBE_MEMORY:
+            memory.pop(next(iter(memory)))
+        memory[key] = found
     return found
 
 
