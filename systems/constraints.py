@@ -176,10 +176,18 @@ def check(mechanics) -> None:
         without a Lagrangian mass matrix, a mass matrix that depends on the velocities
         (L not quadratic in them), or a large system in matrix form.
     """
+    scene = mechanics.scene
+    for kind in ("nonholonomic", "unilateral"):
+        if getattr(scene, f"{kind}_constraints", ()):
+            raise DerivationError(
+                f"{kind} constraints are not supported yet; only holonomic constraints "
+                "f(q, t) = 0 can be integrated for now",
+                source=scene.source,
+                field=f"constraints.{kind}",
+            )
     pieces = holonomic(mechanics)
     if pieces is None:
         return
-    scene = mechanics.scene
     n, k = mechanics.n, pieces.k
 
     def fail(reason: str, field: str = "constraints.holonomic") -> DerivationError:

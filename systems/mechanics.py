@@ -187,7 +187,11 @@ def derive(scene: Scene) -> Mechanics:
     try:
         with time_limit(limit_seconds(), "deriving the equations of motion"):
             mechanics = _derive(scene)
-            if scene.holonomic_constraints:
+            if (
+                scene.holonomic_constraints
+                or scene.nonholonomic_constraints
+                or scene.unilateral_constraints
+            ):
                 from systems.constraints import check
 
                 check(mechanics)  # independent, fewer than n, and a mass matrix to use

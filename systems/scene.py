@@ -31,6 +31,15 @@ from systems.particles import Particle, Transformation, depends_on_time, transfo
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "resources" / "scenes"
 SYSTEM_KINDS = ("energies", "lagrangian", "hamiltonian")
+CONSTRAINT_KINDS = {
+    "holonomic": ("each f(q, t) meaning f = 0", "x**2 + y**2 - l**2"),
+    "nonholonomic": (
+        "each linear in the velocities, a(q, t) . qdot + b(q, t), meaning = 0",
+        "x_dot - R*cos(phi)*psi_dot",
+    ),
+    "unilateral": ("each g(q, t) meaning g >= 0", "y"),
+}
+"""The kinds of ``[constraints]``: what each entry means, and an example."""
 
 
 class SceneError(ValueError):
@@ -111,7 +120,11 @@ class Scene:
     lists what was left out when the scene was read with ``drop_unfit=True`` (empty
     otherwise); it takes no part in comparisons. ``holonomic_constraints`` are the texts
     of ``[constraints] holonomic``, each f(q, t) = 0 (fields
-    ``"constraints.holonomic[<i>]"``; see ``systems.constraints``). ``symmetries`` are the
+    ``"constraints.holonomic[<i>]"``; see ``systems.constraints``);
+    ``nonholonomic_constraints`` those of ``[constraints] nonholonomic``, each
+    a(q, t) . qdot + b(q, t) = 0, linear in the velocities (``"constraints.nonholonomic[<i>]"``);
+    ``unilateral_constraints`` those of ``[constraints] unilateral``, each g(q, t) >= 0
+    (``"constraints.unilateral[<i>]"``). ``symmetries`` are the
     user's generators of ``[symmetries]``: (name, ((coordinate, xi text), ...)), fields
     ``"symmetries.<name>.<q>"`` (see ``systems.symmetries``).
     """
@@ -135,6 +148,8 @@ class Scene:
     particles: tuple[Particle, ...] = ()
     gravity: str | tuple[str, ...] | None = None
     holonomic_constraints: tuple[str, ...] = ()
+    nonholonomic_constraints: tuple[str, ...] = ()
+    unilateral_constraints: tuple[str, ...] = ()
     symmetries: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = ()
     warnings: tuple[SceneWarning, ...] = field(default=(), compare=False)
 
@@ -460,7 +475,7 @@ def scene_from_dict(
     effects = reader.table(data, "effects")
     reader.check_keys(effects, "effects", {"dissipation", "forces", "disabled"})
     forces_table = reader.table(effects, "forces", prefix="effects.")
-    holonomic_constraints = reader.constraints(reader.table(data, "constraints"))
+    constraint_texts = reader.constraints(reader.table(data, "constraints"))
     top = {"title", "description", "system", "particles", "effects", "initial", "drawing", "view"}
     top.add("constraints")
     symmetries = reader.symmetries(reader.table(data, "symmetries"))
@@ -504,7 +519,9 @@ def scene_from_dict(
         name=name,
         particles=particles,
         gravity=gravity,
-        holonomic_constraints=holonomic_constraints,
+        holonomic_constraints=constraint_texts["holonomic"],
+        nonholonomic_constraints=constraint_texts["nonholonomic"],
+        unilateral_constraints=constraint_texts["unilateral"],
         symmetries=symmetries,
         **texts,
     )
@@ -755,26 +772,26 @@ class _Reader:
             return tuple(self.text(c, f"system.gravity[{i}]") for i, c in enumerate(value))
         return self.text(value, "system.gravity")
 
-    def constraints(self, table: Mapping[str, Any]) -> tuple[str, ...]:
-        """The ``[constraints]`` table: ``holonomic = ["f(q, t)", ...]``, each f = 0."""
-        for key in table:
-            if key in ("nonholonomic", "unilateral"):
+    def constraints(self, table: Mapping[str, Any]) -> dict[str, tuple[str, ...]]:
+        """The ``[constraints]`` table: ``holonomic = ["f(q, t)", ...]`` (each f = 0),
+        ``nonholonomic = ["a(q, t) . qdot + b(q, t)", ...]`` (each = 0) and
+        ``unilateral = ["g(q, t)", ...]`` (each g >= 0); a kind not given is empty."""
+        self.check_keys(table, "constraints", set(CONSTRAINT_KINDS))
+        result = {}
+        for kind, (meaning, example) in CONSTRAINT_KINDS.items():
+            if kind not in table:
+                result[kind] = ()
+                continue
+            value = table[kind]
+            if not isinstance(value, list) or not value:
                 raise self.fail(
-                    f"constraints.{key}",
-                    f"{key} constraints are not supported yet; only holonomic constraints "
-                    "f(q, t) = 0 can be given for now",
+                    f"constraints.{kind}",
+                    f'must be a non-empty list of expressions, {meaning}, e.g. ["{example}"]',
                 )
-        self.check_keys(table, "constraints", {"holonomic"})
-        if "holonomic" not in table:
-            return ()
-        value = table["holonomic"]
-        if not isinstance(value, list) or not value:
-            raise self.fail(
-                "constraints.holonomic",
-                "must be a non-empty list of expressions f(q, t), each meaning f = 0, "
-                'e.g. ["x**2 + y**2 - l**2"]',
+            result[kind] = tuple(
+                self.text(item, f"constraints.{kind}[{i}]") for i, item in enumerate(value)
             )
-        return tuple(self.text(item, f"constraints.holonomic[{i}]") for i, item in enumerate(value))
+        return result
 
     def symmetries(self, table: Mapping[str, Any]) -> tuple:
         """The ``[symmetries]`` table: ``name = { <q> = "xi_q(q)", ... }``, a generator
@@ -1114,10 +1131,15 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
         ]
     elif scene.gravity is not None:
         fields.append(("system.gravity", scene.gravity, ("params",)))
-    fields += [
-        (f"constraints.holonomic[{i}]", text, ("q", "t", "params"))
-        for i, text in enumerate(scene.holonomic_constraints)
-    ]
+    for kind, groups in (
+        ("holonomic", ("q", "t", "params")),
+        ("nonholonomic", ("q", "qdot", "t", "params")),
+        ("unilateral", ("q", "t", "params")),
+    ):
+        fields += [
+            (f"constraints.{kind}[{i}]", text, groups)
+            for i, text in enumerate(getattr(scene, f"{kind}_constraints"))
+        ]
     fields += [
         (f"symmetries.{name}.{q}", text, ("q", "params"))
         for name, entries in scene.symmetries
@@ -1132,16 +1154,44 @@ def _parse_all(scene: Scene) -> dict[str, sympy.Expr]:
         if text is not None:
             result[field_name] = _parse_field(scene, field_name, text, groups)
     coordinates = {scene.symbols[q] for q in scene.coordinates}
-    for i in range(len(scene.holonomic_constraints)):
-        field_name = f"constraints.holonomic[{i}]"
-        if not result[field_name].free_symbols & coordinates:
+    velocities = {scene.symbols[v] for v in scene.velocity_names}
+    for kind in CONSTRAINT_KINDS:
+        for i in range(len(getattr(scene, f"{kind}_constraints"))):
+            field_name = f"constraints.{kind}[{i}]"
+            expr = result[field_name]
+            if kind == "nonholonomic":
+                _check_linear_in_velocities(scene, field_name, expr, velocities)
+            elif not expr.free_symbols & coordinates:
+                raise SceneError(
+                    "a constraint must depend on the coordinates "
+                    f"({', '.join(scene.coordinates)}): this one restricts no motion",
+                    source=scene.source,
+                    field=field_name,
+                )
+    return result
+
+
+def _check_linear_in_velocities(scene, field_name: str, expr, velocities) -> None:
+    """A nonholonomic constraint is a(q, t) . qdot + b(q, t) = 0: it must contain some
+    velocity, and only linearly."""
+    used = expr.free_symbols & velocities
+    if not used:
+        raise SceneError(
+            "a nonholonomic constraint restricts the velocities and must contain at least "
+            f"one of them ({', '.join(scene.velocity_names)}); a constraint f(q, t) = 0 "
+            "belongs in 'holonomic'",
+            source=scene.source,
+            field=field_name,
+        )
+    for v in used:
+        coefficient = sympy.diff(expr, v)
+        if coefficient.free_symbols & velocities:
             raise SceneError(
-                "a constraint must depend on the coordinates "
-                f"({', '.join(scene.coordinates)}): this one restricts no motion",
+                f"a nonholonomic constraint must be linear in the velocities, "
+                f"a(q, t) . qdot + b(q, t) = 0; this one is not linear in {v}",
                 source=scene.source,
                 field=field_name,
             )
-    return result
 
 
 def _drawing_problems(scene: Scene, drawing: Drawing | None) -> list[SceneError]:
@@ -1180,8 +1230,7 @@ def _misplaced_name_hint(scene, exc, groups, field_name) -> str | None:
     if name in scene.velocity_names and field_name.startswith("constraints.holonomic"):
         return (
             f"a holonomic constraint f(q, t) = 0 may not contain the velocity {name!r}; "
-            "a constraint on the velocities belongs in 'nonholonomic', which is not "
-            "supported yet"
+            "a constraint on the velocities belongs in 'nonholonomic'"
         )
     if field_name.startswith("symmetries.") and name in scene.symbols:
         return f"a generator xi(q) may use the coordinates, numbers and parameters, not {name!r}"
@@ -1220,8 +1269,10 @@ def _to_toml(scene: Scene) -> str:
             f"{_key(p.name)} = {_inline({'mass': p.mass, 'position': list(p.position)})}"
             for p in scene.particles
         ]
-    if scene.holonomic_constraints:
-        lines += ["", "[constraints]", f"holonomic = {_value(list(scene.holonomic_constraints))}"]
+    kinds = [k for k in CONSTRAINT_KINDS if getattr(scene, f"{k}_constraints")]
+    if kinds:
+        lines += ["", "[constraints]"]
+        lines += [f"{k} = {_value(list(getattr(scene, f'{k}_constraints')))}" for k in kinds]
     if scene.symmetries:
         lines += ["", "[symmetries]"]
         lines += [f"{_key(name)} = {_inline(dict(entries))}" for name, entries in scene.symmetries]

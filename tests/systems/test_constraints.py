@@ -92,8 +92,14 @@ def _scene(constraints_text: str):
         ('holonomic = ["x**2 + y**2 - l**2", true]', "constraints.holonomic[1]", "string"),
         ('holonomic = "x**2 + y**2 - l**2"', "constraints.holonomic", "list"),
         ("holonomic = []", "constraints.holonomic", "list"),
-        ('nonholonomic = ["x_dot - y_dot"]', "constraints.nonholonomic", "not supported yet"),
-        ('unilateral = ["y"]', "constraints.unilateral", "not supported yet"),
+        ('nonholonomic = ["x - y"]', "constraints.nonholonomic[0]", "at least one"),
+        ('nonholonomic = ["x_dot**2 - y_dot"]', "constraints.nonholonomic[0]", "linear in x_dot"),
+        ('nonholonomic = ["x_dot*y_dot"]', "constraints.nonholonomic[0]", "linear in"),
+        ('nonholonomic = ["p_x"]', "constraints.nonholonomic[0]", "only allowed in a hamiltonian"),
+        ("nonholonomic = []", "constraints.nonholonomic", "list"),
+        ('unilateral = ["x_dot"]', "constraints.unilateral[0]", "not allowed"),
+        ('unilateral = ["l"]', "constraints.unilateral[0]", "depend on the coordinates"),
+        ('unilateral = "y"', "constraints.unilateral", "list"),
         ('rigid = ["x"]', "constraints.rigid", "unknown key"),
         ('holonomic = ["l - 1"]', "constraints.holonomic[0]", "depend on the coordinates"),
         ('holonomic = ["g*t - l"]', "constraints.holonomic[0]", "depend on the coordinates"),
@@ -107,11 +113,22 @@ def test_mistakes_in_the_table_name_the_field(text, field, words):
     assert f"c.toml: {field}: " in str(caught.value)
 
 
-def test_the_velocity_message_says_nonholonomic_is_not_supported_yet():
+def test_the_velocity_message_points_to_nonholonomic():
     with pytest.raises(SceneError) as caught:
         _scene('holonomic = ["x**2 + y**2 - l**2 + x_dot"]')
     message = str(caught.value)
-    assert "'x_dot'" in message and "nonholonomic" in message and "not supported yet" in message
+    assert "'x_dot'" in message and "'nonholonomic'" in message
+
+
+@pytest.mark.parametrize(
+    ("kind", "text"),
+    [("nonholonomic", 'nonholonomic = ["x_dot - y_dot"]'), ("unilateral", 'unilateral = ["y"]')],
+)
+def test_every_kind_is_read_and_written_back(kind, text):
+    scene = _scene(text)
+    assert getattr(scene, f"{kind}_constraints") == (text.split('"')[1],)
+    assert f"[constraints]\n{text}" in scene.to_toml()
+    assert parse_scene(scene.to_toml(), source="c.toml") == scene
 
 
 @pytest.mark.parametrize(
