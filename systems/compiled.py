@@ -159,7 +159,7 @@ class CompiledSystem:
     def constraints(self) -> constraints.Numeric | None:
         """The scene's holonomic constraints evaluated with numpy (multipliers, violation,
         projection), or None for a scene without constraints."""
-        if not constraints.count(self.mechanics.scene):
+        if not constraints.constrained(self.mechanics.scene):
             return None
         if "constraints" not in self._numeric:  # shared with copies of other parameters
             self._numeric["constraints"] = constraints.Numeric(self)
@@ -337,7 +337,7 @@ class _KernelWriter:
         state = self.unpack_state()
         if mech.matrix_form is not None and wanted & {"rhs", "hamiltonian", "velocities"}:
             parts.append(matrix_solve.kernel_source())
-        if "rhs" in wanted and constraints.count(scene):
+        if "rhs" in wanted and constraints.constrained(scene):
             parts.append(constraints.kernel_source(self, mech))  # rhs with the multipliers
         elif "rhs" in wanted:
             parts.append(self.function("rhs(t, y, P, out)", state, mech.hamilton_equations))

@@ -88,6 +88,15 @@ def count(scene) -> int:
     return len(getattr(scene, "holonomic_constraints", ()))
 
 
+def constrained(scene) -> bool:
+    """True if the scene declares constraints of any kind (``[constraints]``): its
+    equations carry multipliers and only the ``constrained`` family integrates it."""
+    return any(
+        getattr(scene, f"{kind}_constraints", ())
+        for kind in ("holonomic", "nonholonomic", "unilateral")
+    )
+
+
 def declared(scene) -> Constraints:
     """The scene's constraints as ``systems.classification.Constraints``."""
     k = count(scene)

@@ -386,7 +386,9 @@ def analyse(
     ModeAnalysis
         Never raises for a scene that derived.
     """
-    if getattr(mechanics.scene, "holonomic_constraints", ()):
+    from systems.constraints import constrained
+
+    if constrained(mechanics.scene):
         # the free coordinates' U and M would give wrong modes (the Cartesian pendulum's
         # x "moves freely"): small oscillations on the constraint need its tangent space
         return ModeAnalysis(

@@ -213,9 +213,11 @@ def _remembered_choice(mechanics) -> tuple[str, str]:
 
 
 def _choose(mechanics) -> tuple[str, str]:
-    if getattr(mechanics.scene, "holonomic_constraints", ()):
+    from systems.constraints import constrained
+
+    if constrained(mechanics.scene):
         return "constrained_dop853", (
-            "holonomic constraints: adaptive 8th-order Runge-Kutta on the equations with "
+            "constraints: adaptive 8th-order Runge-Kutta on the equations with "
             "Lagrange multipliers, projected onto the constraints after every step "
             f"(tolerance {DEFAULT_TOL:g})"
         )

@@ -215,8 +215,10 @@ CONSTRAINED_METHODS = "constrained_dop853 or constrained_rk4"
 
 
 def _constraints_fit(mechanics, stepper: Stepper) -> str | None:
-    """Why ``stepper`` cannot integrate a scene with (or without) holonomic constraints."""
-    constrained = bool(getattr(mechanics.scene, "holonomic_constraints", ()))
+    """Why ``stepper`` cannot integrate a scene with (or without) constraints."""
+    from systems.constraints import constrained as has_constraints
+
+    constrained = has_constraints(mechanics.scene)
     if constrained == stepper.family.constrained:
         return None
     if not constrained:

@@ -339,7 +339,9 @@ def not_computed(mechanics: Mechanics) -> str | None:
     dU/dq = 0 of free coordinates, which would give a wrong answer (none, for the
     Cartesian pendulum), so it says so instead.
     """
-    if getattr(mechanics.scene, "holonomic_constraints", ()):
+    from systems.constraints import constrained
+
+    if constrained(mechanics.scene):
         return (
             "equilibria of a system with constraints are not computed yet: they need the "
             "constraint forces (dU/dq + \u03a6_q\u1d40\u03bb = 0 on \u03a6 = 0), "

@@ -190,7 +190,9 @@ def _refuse_constraints(mechanics) -> None:
     stationary only among paths that keep the constraints, and these jobs vary the path
     freely (the Cartesian pendulum's S(eps) then has a slope of -7.5: a principle that
     seems to fail, a wrong answer)."""
-    if getattr(mechanics.scene, "holonomic_constraints", ()):
+    from systems.constraints import constrained
+
+    if constrained(mechanics.scene):
         raise ValueError(
             "the scene has constraints: the action is stationary only among paths that "
             "keep them, and this tab varies the path freely (not done yet for constrained "
