@@ -173,20 +173,65 @@ def cse(
     way to symengine.
     """
     rename = rename or {}
-    if symengine is not None:
-        try:
-            memo: dict = {}
-            engine = [_to_engine(sympy.sympify(e), rename, memo) for e in exprs]
-            temporaries, reduced = symengine.cse(engine)
-            back: dict = {}
-            return (
-                [(sympy.Symbol(str(s)), _converted(e, back)) for s, e in temporaries],
-                [_converted(e, back) for e in reduced],
-            )
-        except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError):
-            pass
+    try:
+        temporaries, reduced = engine_cse(exprs, rename)
+        back: dict = {}
+        return (
+            [(sympy.Symbol(name), _converted(e, back)) for name, e in temporaries],
+            [_converted(e, back) for e in reduced],
+        )
+    except Unsupported:
+        pass
     renamed = [sympy.sympify(e).xreplace(rename) for e in exprs]
     return sympy.cse(renamed, symbols=sympy.numbered_symbols("x"))
+
+
+def engine_cse(exprs: Sequence[sympy.Expr], rename: dict) -> tuple[list[tuple[str, object]], list]:
+    """``cse`` left in symengine: (temporaries as (name, symengine expression), reduced
+    symengine expressions), for printing without the way back to sympy
+    (``systems.kernel_printer.engine_text``).
+
+    Raises
+    ------
+    Unsupported
+        Without symengine, or for an expression it cannot take.
+    """
+    if symengine is None:
+        raise Unsupported("symengine is not installed")
+    try:
+        memo: dict = {}
+        engine = [_to_engine(sympy.sympify(e), rename, memo) for e in exprs]
+        temporaries, reduced = symengine.cse(engine)
+    except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError) as exc:
+        raise Unsupported(str(exc)) from None
+    return [(str(s), e) for s, e in temporaries], list(reduced)
+
+
+def replaced(expr: sympy.Basic, mapping: dict) -> sympy.Basic:
+    """``expr.xreplace(mapping)`` without re-evaluating the nodes above a replacement.
+
+    xreplace rebuilds each changed node through its constructor, which combines powers
+    and asks sympy's assumptions about every new base: putting a double pendulum's
+    velocities v(q, p) = adj(M) (p - a)/det M into dL/dq spent 10 ms asking whether
+    det M is zero. The result is the same expression, merely not canonicalized; the
+    kernels' printer, CSE and ``systems.display`` take it as it is.
+    """
+    memo: dict = {}
+
+    def walk(node):
+        if node in mapping:
+            return mapping[node]
+        if not node.args:
+            return node
+        found = memo.get(node)
+        if found is None:
+            args = tuple(walk(a) for a in node.args)
+            changed = any(a is not b for a, b in zip(args, node.args, strict=True))
+            found = node.func(*args, evaluate=False) if changed else node
+            memo[node] = found
+        return found
+
+    return walk(sympy.sympify(expr))
 
 
 def _to_engine(expr: sympy.Basic, rename: dict, memo: dict):

@@ -17,12 +17,12 @@ from types import ModuleType
 
 import numpy as np
 import sympy
-from sympy.printing.pycode import PythonCodePrinter
 
 from systems import calculus, constraints, matrix_solve
 from systems.codegen import build_module
 from systems.expressions import as_expr
 from systems.interpreted import KernelHandover
+from systems.kernel_printer import SympyPrinter, Unprintable, engine_text
 from systems.mechanics import DerivationError, Mechanics
 
 WANTS = frozenset(
@@ -290,34 +290,11 @@ def _printed_source(mechanics: Mechanics, wanted: frozenset[str]) -> str:
     )
 
 
-class _Printer(PythonCodePrinter):
-    """Prints ``math.*`` calls numba understands; integer powers as multiplication."""
-
-    def _print_Pow(self, expr, rational=False):
-        base, exponent = expr.as_base_exp()
-        if exponent.is_Integer and 2 <= abs(int(exponent)) <= 4:
-            factor = "*".join([self.parenthesize(base, 100)] * abs(int(exponent)))
-            return f"({factor})" if exponent > 0 else f"(1.0/({factor}))"
-        if exponent == sympy.Rational(1, 2):
-            return f"math.sqrt({self._print(base)})"
-        if exponent == -sympy.Rational(1, 2):
-            return f"(1.0/math.sqrt({self._print(base)}))"
-        return super()._print_Pow(expr, rational=rational)
-
-    def _print_Rational(self, expr):
-        return f"({float(expr.p)}/{float(expr.q)})"
-
-    def _print_Integer(self, expr):
-        return f"{float(expr.p)}"
-
-
 class _KernelWriter:
     def __init__(self, mechanics: Mechanics):
         self.mech = mechanics
         self.scene = mechanics.scene
-        self.printer = _Printer(
-            {"fully_qualified_modules": True, "standard": "python3", "order": "none"}
-        )
+        self.printer = SympyPrinter()
         names = [
             "t",
             *self.scene.coordinates,
@@ -402,9 +379,34 @@ class _KernelWriter:
         return lines + unpack + params
 
     def body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
-        temporaries, reduced = calculus.cse([as_expr(e) for e in exprs], self.rename)
-        lines = [f"{s} = {self.printer.doprint(e)}" for s, e in temporaries]
-        return lines, [self.printer.doprint(e) for e in reduced]
+        temporaries, reduced = self._reduced(exprs)
+        return [f"{name} = {text}" for name, text, _ in temporaries], reduced
+
+    def _reduced(self, exprs: Sequence) -> tuple[list[tuple[str, str, set[str]]], list[str]]:
+        """Common-subexpression elimination of ``exprs``, printed: (temporaries as
+        (name, source, names of the symbols it uses), sources of the reduced ``exprs``).
+        Printed from symengine where ``kernel_printer.engine_text`` can, else through
+        sympy."""
+        exprs = [as_expr(e) for e in exprs]
+        try:
+            temporaries, reduced = calculus.engine_cse(exprs, self.rename)
+            return (
+                [
+                    (name, engine_text(e), {str(s) for s in e.free_symbols})
+                    for name, e in temporaries
+                ],
+                [engine_text(e) for e in reduced],
+            )
+        except (calculus.Unsupported, Unprintable):
+            pass
+        temporaries, reduced = calculus.cse(exprs, self.rename)
+        return (
+            [
+                (str(symbol), self.printer.doprint(e), {str(s) for s in e.free_symbols})
+                for symbol, e in temporaries
+            ],
+            [self.printer.doprint(e) for e in reduced],
+        )
 
     def solved_body(self, exprs: Sequence[sympy.Expr]) -> tuple[list[str], list[str]]:
         """``body`` for a system in matrix form: the velocities in ``exprs`` are solved
@@ -420,16 +422,15 @@ class _KernelWriter:
         n = self.mech.n
         upper = [(i, j) for i in range(n) for j in range(i, n)]
         entries = [form.mass_matrix[i, j] for i, j in upper] + list(form.shift)
-        temporaries, reduced = calculus.cse([as_expr(e) for e in [*entries, *exprs]], self.rename)
-        velocity_names = {sympy.Symbol(self.rename[v].name) for v in qd}
+        temporaries, printed = self._reduced([*entries, *exprs])
+        velocity_names = {self.rename[v].name for v in qd}
         before, after = [], []
-        for symbol, expr in temporaries:
-            if expr.free_symbols & velocity_names:
-                velocity_names.add(symbol)
-                after.append(f"{symbol} = {self.printer.doprint(expr)}")
+        for name, text, uses in temporaries:
+            if uses & velocity_names:
+                velocity_names.add(name)
+                after.append(f"{name} = {text}")
             else:
-                before.append(f"{symbol} = {self.printer.doprint(expr)}")
-        printed = [self.printer.doprint(e) for e in reduced]
+                before.append(f"{name} = {text}")
         lines = [*before, f"W = np.empty(({n}, {n + 2}))"]
         for (i, j), value in zip(upper, printed, strict=False):
             lines.append(f"W[{i}, {j}] = {value}")

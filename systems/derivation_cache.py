@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import os
 import pickle
 from collections.abc import Callable
@@ -95,10 +96,30 @@ def store(mechanics) -> None:
     if not enabled():
         return
     try:
-        data = pickle.dumps(dataclasses.replace(mechanics, _cache={}))
+        buffer = io.BytesIO()
+        _AsBuilt(buffer).dump(dataclasses.replace(mechanics, _cache={}))
+        data = buffer.getvalue()
     except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
         return
     write_checked(_path(mechanics.scene), data, _code_version())
+
+
+_AS_BUILT = (sympy.Add, sympy.Mul, sympy.Pow)
+
+
+def _as_built(cls, args):
+    return cls(*args, evaluate=False)
+
+
+class _AsBuilt(pickle.Pickler):
+    """Pickles sums, products and powers as they are, not as their constructors would
+    rebuild them: the derivation keeps some unevaluated (``systems.calculus.replaced``),
+    and a cached derivation must be the one derived (loading is faster, too)."""
+
+    def reducer_override(self, obj):
+        if type(obj) in _AS_BUILT:
+            return _as_built, (type(obj), obj.args)
+        return NotImplemented
 
 
 def code_hash(*modules) -> str:

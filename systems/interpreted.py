@@ -26,6 +26,8 @@ from types import ModuleType
 
 import numpy as np
 
+from systems.codegen import execute, kernel_prefix
+
 NUMBA_IMPORT = "from numba import njit, prange\n"
 MATH_IMPORT = "import math\n"
 SCALAR_PRELUDE = "def njit(**options):\n    return lambda function: function\n\n\nprange = range\n"
@@ -71,10 +73,10 @@ class _VectorMath:
         return function
 
 
-def _execute(source: str, name: str, path: str) -> ModuleType:
+def _execute(source: str, name: str, path: str, prefix: str = "") -> ModuleType:
     module = ModuleType(name)
     module.__file__ = path
-    exec(compile(source, path, "exec"), module.__dict__)  # noqa: S102 - our own generated code
+    execute(source, path, module.__dict__, prefix)
     return module
 
 
@@ -86,7 +88,8 @@ def scalar_twin(native: ModuleType) -> ModuleType:
     if NUMBA_IMPORT not in source:
         raise RuntimeError(f"{path} does not import numba as systems.codegen writes it")
     source = source.replace(NUMBA_IMPORT, SCALAR_PRELUDE, 1)
-    module = _execute(source, native.__name__ + "_scalar", path)
+    prefix = kernel_prefix().replace(NUMBA_IMPORT, SCALAR_PRELUDE, 1)
+    module = _execute(source, native.__name__ + "_scalar", path, prefix)
     if hasattr(module, "solve_augmented"):
         # the velocity solve of a system in matrix form: LAPACK instead of the kernels'
         # loops, which in plain Python cost milliseconds a call for ten coordinates

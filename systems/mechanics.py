@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import sympy
 
-from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix
+from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix, replaced
 from systems.classification import Classification, classify
 from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
 from systems.display import EXPANSION_LIMIT, expanded_terms
@@ -315,9 +315,7 @@ class _Context:
             )
         to_velocities = dict(zip(qd, velocities, strict=True))
         if matrix_form is None:
-            pdot = tuple(
-                as_expr((gradient[i] + forces[i]).xreplace(to_velocities)) for i in range(self.n)
-            )
+            pdot = tuple(replaced(gradient[i] + forces[i], to_velocities) for i in range(self.n))
         else:  # the kernels' input, never shown at length: no simplification
             pdot = tuple(gradient[i] + forces[i] for i in range(self.n))
         velocity_part = L - L0 if kinetic is None else kinetic
@@ -395,17 +393,26 @@ class _Context:
         )
 
     def legendre_quadratic(self, M, a, L0):
-        p = sympy.Matrix(self.p)
+        """qdot(q, p) = M^-1 (p - a) and H = (p - a)^T M^-1 (p - a)/2 - L0 in closed form.
+
+        Sums are built term by term: sympy's matrix products expand every entry, which
+        cost more than the rest of a double pendulum's derivation."""
+        n = self.n
+        shifted = [pi - ai for pi, ai in zip(self.p, a, strict=True)]
         if _is_diagonal(M):  # any size: particles in Cartesian coordinates, lattices
-            inverse = sympy.diag(*[1 / M[i, i] for i in range(self.n)])
-        elif self.n <= SYMBOLIC_INVERSE_LIMIT:
-            det = as_expr(M.det(method="berkowitz"))
-            inverse = M.adjugate() / det
+            velocities = tuple(shifted[i] / M[i, i] for i in range(n))
+            H = sympy.Add(*[shifted[i] ** 2 / M[i, i] for i in range(n)]) / 2 - L0
+            return velocities, H
+        if n <= SYMBOLIC_INVERSE_LIMIT:
+            det, adjugate = _cofactors(M)
+            # unevaluated: 1/det evaluated asks sympy's assumptions about det (16 ms)
+            scale = sympy.Pow(det, -1, evaluate=False)
         else:  # constant: see needs_matrix_form
-            inverse = M.inv(method="LU")
-        shifted = p - a
-        velocities = tuple(as_expr(e) for e in inverse * shifted)
-        H = as_expr((shifted.T * inverse * shifted)[0, 0] / 2 - L0)
+            adjugate, scale = M.inv(method="LU"), sympy.S.One
+        rows = [sympy.Add(*[adjugate[i, j] * shifted[j] for j in range(n)]) for i in range(n)]
+        velocities = tuple(sympy.Mul(scale, row, evaluate=False) for row in rows)
+        quadratic = sympy.Add(*[shifted[i] * rows[i] for i in range(n)])
+        H = sympy.Mul(sympy.S.Half, scale, quadratic, evaluate=False) - L0
         return velocities, H
 
     def solve_velocities(self, momenta):
@@ -588,7 +595,7 @@ class _Context:
         if H_conserved:
             if momenta is not None:
                 to_p = dict(zip(p, momenta, strict=True))
-                conserved["H"] = as_expr(H.xreplace(to_p))
+                conserved["H"] = replaced(H, to_p)
             else:
                 conserved["H"] = H
         for name in cyclic:
@@ -651,6 +658,43 @@ def _polynomial_degree(expr: sympy.Expr, gens) -> int | None:
         base = _polynomial_degree(expr.base, gens)
         return None if base is None else base * int(expr.exp)
     return None
+
+
+def _cofactors(M: sympy.Matrix) -> tuple[sympy.Expr, sympy.Matrix]:
+    """det(M) and adj(M) of a small square matrix by cofactor expansion, unexpanded.
+
+    Returns
+    -------
+    det : sympy.Expr
+    adjugate : sympy.Matrix, shape (n, n)
+        ``M^-1 = adjugate / det``.
+    """
+    n = M.shape[0]
+
+    def minor(rows: tuple[int, ...], cols: tuple[int, ...]) -> sympy.Expr:
+        if len(rows) == 1:
+            return M[rows[0], cols[0]]
+        return sympy.Add(
+            *[
+                (-1) ** k * M[rows[0], c] * minor(rows[1:], cols[:k] + cols[k + 1 :])
+                for k, c in enumerate(cols)
+                if M[rows[0], c] != 0
+            ]
+        )
+
+    every = tuple(range(n))
+    det = minor(every, every)
+    if n == 1:
+        return det, sympy.Matrix([[1]])
+    adjugate = sympy.Matrix(
+        n,
+        n,
+        lambda i, j: (
+            (-1) ** (i + j)
+            * minor(tuple(r for r in every if r != j), tuple(c for c in every if c != i))
+        ),
+    )
+    return det, adjugate
 
 
 def _degree_at_most(expr: sympy.Expr, gens, degree: int) -> bool:

@@ -170,8 +170,8 @@ def test_the_native_build_child_heals_and_its_line_reaches_this_process(cache, c
 def test_an_edited_kernel_module_is_rewritten_never_run(cache, capsys):
     [module] = (cache / "kernels").glob("pe_kernels_*.py")
     source = module.read_text()
-    assert source.count("out[0] = v_k*v_x") == 1  # grad_potential, the force yoshida8 uses
-    module.write_text(source.replace("out[0] = v_k*v_x", "out[0] = 0.0"))  # would freeze p
+    assert source.count("out[0] = v_x*v_k") == 1  # grad_potential, the force yoshida8 uses
+    module.write_text(source.replace("out[0] = v_x*v_k", "out[0] = 0.0"))  # would freeze p
     assert_healed(capsys, module.name)
     assert module.read_text() == source
 

@@ -18,6 +18,20 @@ def test_a_second_derivation_comes_from_the_cache_and_is_equal(tmp_path, monkeyp
     assert second.cyclic == first.cyclic
 
 
+def test_a_cached_double_pendulum_is_the_one_derived(tmp_path, monkeypatch):
+    """Its Hamilton's equations are kept unevaluated (v(q, p) put into dL/dq as built):
+    the cache gives back the same expressions, not their evaluated forms."""
+    from systems.scene import load_scene
+
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    first = derive(load_scene("double_pendulum"))
+    second = derivation_cache.load(load_scene("double_pendulum"))
+    assert second is not None
+    assert second.hamilton_equations == first.hamilton_equations
+    assert second.hamiltonian == first.hamiltonian
+    assert second.conserved == first.conserved
+
+
 def test_another_scene_text_misses(tmp_path, monkeypatch):
     monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
     derive(scene(PLANETARY))
