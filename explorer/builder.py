@@ -103,8 +103,12 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
 
 
-FIRST_FRAME_WAIT = 1.0
-"""Seconds the builder waits for the window's first frame before describing a system."""
+FIRST_FRAME_WAIT = 10.0
+"""Seconds the builder waits at most for the window's first frame of a new system before
+laying out its derivation (the window says at once when none is coming: paused, or the
+run failed). A ten-link chain's first block takes a second or more while its kernels
+are interpreted; laying out its derivation meanwhile (sympy, holding the GIL) made it
+three times later."""
 
 
 def _remaining(deadline: float) -> float:

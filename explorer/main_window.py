@@ -643,6 +643,7 @@ class MainWindow(QMainWindow):
             worker.add_trajectory(trajectory.key, state)
         if not self.controls.playing:
             worker.pause()
+            self.builder.frame_shown()  # no motion to draw first: lay out the derivation
         self.runner = WorkerThread(worker)
         self.runner.start()
         self.rate_meter.clear()
@@ -677,6 +678,7 @@ class MainWindow(QMainWindow):
         self.frame_received.emit()
 
     def _on_worker_failed(self, message: str) -> None:
+        self.builder.frame_shown()  # no first frame is coming: lay out the derivation
         self.statusBar().showMessage(f"integration failed: {message}", MESSAGE_MS)
 
     def _on_error_reporter_reported(self, summary: str, details: str) -> None:

@@ -208,20 +208,23 @@ class CompiledSystem:
         return solution
 
     def _lambdified(self, key, args, exprs):
-        """``exprs`` as a numpy function of ``args`` at this system's parameter values.
+        """``exprs`` as a numpy function ``f(t, a, b)`` of ``args = (t, a_symbols,
+        b_symbols)`` at this system's parameter values.
 
-        The parameters are an argument of the lambdified function rather than values
-        substituted into ``exprs``: substitution made sympy re-derive assumptions, about
-        80 ms for the double pendulum's momenta, on the way to a scene's first block.
+        The parameters are an argument of the function rather than values substituted
+        into ``exprs``: substitution made sympy re-derive assumptions, about 80 ms for the
+        double pendulum's momenta, on the way to a scene's first block. Made by
+        ``calculus.fast_function`` (sympy.lambdify took 0.1 s for a ten-link chain's
+        momenta).
         """
         if key not in self._numeric:
             params = tuple(self.mechanics.params[name] for name in self.parameter_names)
-            exprs = [as_expr(e) for e in exprs]
-            self._numeric[key] = sympy.lambdify(
-                (*args, params), exprs, modules="numpy", cse=matrix_solve.lambdify_cse
+            t, first, second = args
+            self._numeric[key] = calculus.fast_function(
+                (t, *first, *second, *params), [as_expr(e) for e in exprs]
             )
         function = self._numeric[key]
-        return lambda *values: function(*values, self.parameters)
+        return lambda t, a, b: function(np.concatenate(([t], a, b, self.parameters)))
 
 
 def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:

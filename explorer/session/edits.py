@@ -16,6 +16,14 @@ from explorer.session.script import line, number
 
 EXPRESSIONS = ("kinetic", "potential", "lagrangian", "hamiltonian")
 NOT_RECORDED = "# not recorded: the drawing was edited in the editor (do it again after this line)"
+UNRECORDED_TABLES = ("particles", "constraints", "symmetries")
+"""Tables the editor edits that a script has no lines for: a change is noted, as the
+drawing's is."""
+
+
+def not_recorded(what: list[str]) -> str:
+    """The comment line for edits of the tables ``what`` that a script cannot replay."""
+    return f"# not recorded: {', '.join(what)} edited in the editor (do it again after this line)"
 
 
 def _text(value: Any) -> str:
@@ -26,8 +34,11 @@ def _text(value: Any) -> str:
     return str(value)
 
 
-def kind_of(system: dict) -> str:
-    """How a document's system is given: ``energies``, ``lagrangian`` or ``hamiltonian``."""
+def kind_of(system: dict, particles: bool = False) -> str:
+    """How a document's system is given: ``energies``, ``lagrangian``, ``hamiltonian`` or
+    ``particles`` (the document has ``[particles]``)."""
+    if particles:
+        return "particles"
     return next((k for k in ("lagrangian", "hamiltonian") if k in system), "energies")
 
 
@@ -47,7 +58,7 @@ def form(data: dict, kind: str | None = None, previous: dict | None = None) -> d
     return {
         "title": _text(data.get("title", "")),
         "coordinates": ", ".join(str(q) for q in system.get("coordinates") or []),
-        "given-by": kind or kind_of(system),
+        "given-by": kind or kind_of(system, bool(data.get("particles"))),
         "shown": {key: _text(system[key]) for key in EXPRESSIONS if key in system},
         "texts": texts,
         "parameters": tuple(
@@ -58,6 +69,8 @@ def form(data: dict, kind: str | None = None, previous: dict | None = None) -> d
         "disabled": frozenset(str(key) for key in effects.get("disabled") or ()),
         "initial": {str(name): _text(value) for name, value in (data.get("initial") or {}).items()},
         "drawing": data.get("drawing"),
+        "tables": {key: data.get(key) for key in UNRECORDED_TABLES}
+        | {"gravity": system.get("gravity")},
     }
 
 
@@ -100,6 +113,9 @@ def edit_lines(before: dict, after: dict) -> list[tuple[tuple, str]]:
         lines.append((("initial", names), line("initial", *changed)))
     if after["drawing"] != before["drawing"]:
         lines.append((("drawing",), NOT_RECORDED))
+    changed_tables = [k for k, v in after["tables"].items() if v != before["tables"].get(k)]
+    if changed_tables:
+        lines.append((("tables",), not_recorded(changed_tables)))
     return lines
 
 

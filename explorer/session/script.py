@@ -33,8 +33,8 @@ EDIT_FIELDS = (
     "dissipation",
 )
 """What ``edit`` changes, besides ``forces.<q>`` (the generalized force on ``q``)."""
-KINDS = ("energies", "lagrangian", "hamiltonian")
-"""The values of ``edit given-by``: T and V, a Lagrangian, a Hamiltonian."""
+KINDS = ("energies", "lagrangian", "hamiltonian", "particles")
+"""The values of ``edit given-by``: T and V, a Lagrangian, a Hamiltonian, particles and V."""
 SHOWN_CHARACTERS = 40
 _ESCAPES = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "r": "\r"}
 

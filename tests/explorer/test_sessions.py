@@ -230,6 +230,14 @@ def test_editor_edits_become_edit_initial_and_effect_lines():
     assert [text for _, text in edit_lines(as_l, back)] == ["edit given-by energies"]
     drawn = form({**_pendulum_data(), "drawing": {"points": {"bob": ["x", "y"]}}}, previous=before)
     assert [text for _, text in edit_lines(before, drawn)] == [NOT_RECORDED]
+    # "Given by" particles: a line the script replays; the particles themselves are noted
+    bob = {"bob": {"mass": "m", "position": ["L*sin(theta)", "-L*cos(theta)"]}}
+    system = dict(_pendulum_data()["system"])
+    del system["kinetic"]
+    as_particles = form({**_pendulum_data(), "system": system, "particles": bob}, previous=before)
+    lines = [text for _, text in edit_lines(before, as_particles)]
+    assert lines[0] == "edit given-by particles"
+    assert lines[-1].startswith("# not recorded: particles edited in the editor")
 
 
 # -- replaying in a window ------------------------------------------------------------------------
@@ -318,6 +326,20 @@ def test_parameters_initial_state_and_fields_replayed(qtbot, window):
     player = replay(qtbot, window, "set l 0", expect=2)
     assert player.message.startswith(f"{SOURCE}:1: l = 0 refused")
     assert window.compiled.parameters[names.index("l")] == 1.5  # the refusal kept the value
+
+
+def test_given_by_particles_replayed(qtbot, blank_window):
+    """A scene given by particles: switching "Given by" away and back to particles is a
+    line the script replays, and the particles typed before are kept."""
+    replay(qtbot, blank_window, "open bead_on_rotating_hoop\nedit given-by energies")
+    assert blank_window.editor.kind_combo.currentData() == "energies"
+    replay(qtbot, blank_window, "edit given-by particles")
+    assert blank_window.editor.kind_combo.currentData() == "particles"
+    from systems.scene import load_scene
+
+    [bead] = load_scene("bead_on_rotating_hoop").particles
+    particles = blank_window.editor.document()["particles"]
+    assert particles[bead.name]["position"] == list(bead.position)
 
 
 def test_effects_replayed(qtbot, blank_window):
