@@ -292,15 +292,37 @@ class DrawingSection(QGroupBox):
         row.name_error.setVisible(False)
         row.accepted_name = name
         row.name_edit.setText(name)
-        links = [
-            [name if end == old else end for end in link] for link in parse_links(self.links.text())
-        ]
-        if any(old in link for link in parse_links(self.links.text())):
-            self.links.set_text(links_text(links))
+        self._rename_in_links_and_trace(old, name)
+        self._on_edited()
+
+    def rename_references(self, old: str, new: str, taken: set[str]) -> bool:
+        """Carry a particle's new name into the links and the trace (a particle is a point
+        of the drawing); True if something changed.
+
+        Nothing is renamed if a point of the drawing has either name, or ``new`` is
+        ``origin`` or one of ``taken`` (the other particles' names): two points must not
+        merge into one.
+        """
+        names = set(self.point_names()) | set(taken) | {"origin"}
+        if old in self.point_names() or new in names or not old or not new:
+            return False
+        if not self._rename_in_links_and_trace(old, new):
+            return False
+        self._on_edited()
+        return True
+
+    def _rename_in_links_and_trace(self, old: str, name: str) -> bool:
+        changed = False
+        links = parse_links(self.links.text())
+        if any(old in link for link in links):
+            renamed = [[name if end == old else end for end in link] for link in links]
+            self.links.set_text(links_text(renamed))
+            changed = True
         trace = parse_names(self.trace.text())
         if old in trace:
             self.trace.set_text(", ".join(name if n == old else n for n in trace))
-        self._on_edited()
+            changed = True
+        return changed
 
     def _on_edited(self) -> None:
         if not self._filling:

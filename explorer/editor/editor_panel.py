@@ -13,6 +13,13 @@ Editing the coordinates brings the initial-state table and the force rows along:
 of coordinates that remain keep their values, rows of new coordinates are added (blank:
 0), and the values of coordinates that were removed are remembered in case they return.
 
+The kinds of system: T and V, particles (their positions give T; ``[particles]`` and
+``system.gravity``) and V, L, or H. The fields of the kinds not chosen keep their text
+(also through undo: a history step holds them under ``editor_hidden``), so switching the
+kind back and forth loses nothing; the document holds only the chosen kind's.
+``[constraints]`` and ``[symmetries]`` have sections of their own (``ConstraintsSection``,
+``SymmetriesSection``), whatever the kind.
+
 A parameter value goes out (``parameters_changed``) only once ``parameter_check`` (set by
 the window) finds nothing wrong with it; a refused value is put back in the table and the
 reason shown under it. A parameter name is checked as it is typed (see
@@ -50,19 +57,21 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from explorer.editor.constraints_section import ConstraintsSection
 from explorer.editor.drawing_section import DrawingSection
 from explorer.editor.fields import ExpressionField, error_html
 from explorer.editor.parameters_table import ParameterTableView, fit_rows, number_text
+from explorer.editor.particles_section import ParticlesSection
+from explorer.editor.symmetries_section import SymmetriesSection
 from explorer.labels import coordinate_label
 
 DEBOUNCE_MS = 400
 KINDS = (
     ("energies", "T and V"),
+    ("particles", "Particles and V"),
     ("lagrangian", "Lagrangian L"),
     ("hamiltonian", "Hamiltonian H"),
 )
-# [particles], [constraints], [symmetries] and system.gravity have no fields yet: they are
-# kept as read (see document)
 DOCUMENT_KEYS = (
     "title",
     "description",
@@ -99,8 +108,9 @@ NEW_SCENE: dict = {
 """The template of File > New scene: a mass on a spring, to be typed over."""
 
 NEW_SCENE_NOTE = (
-    "A new scene, starting as a mass on a spring: type your coordinates, T and V (or L, "
-    "or H), the parameters, the initial state, and points to draw it."
+    "A new scene, starting as a mass on a spring: type your coordinates, T and V (or the "
+    "particles and their positions, or L, or H), the parameters, the initial state, and "
+    "points to draw it."
 )
 WARNING_STYLE = (
     "QLabel { background: #fff8e1; border: 1px solid #e0a800; border-radius: 4px; padding: 4px; }"
@@ -127,8 +137,13 @@ def data_from_scene(scene) -> dict:
         data["particles"] = {
             p.name: {"mass": p.mass, "position": list(p.position)} for p in scene.particles
         }
-    if scene.holonomic_constraints:
-        data["constraints"] = {"holonomic": list(scene.holonomic_constraints)}
+    constraints = {
+        kind: list(getattr(scene, f"{kind}_constraints"))
+        for kind in ("holonomic", "nonholonomic", "unilateral")
+        if getattr(scene, f"{kind}_constraints")
+    }
+    if constraints:
+        data["constraints"] = constraints
     if scene.symmetries:
         data["symmetries"] = {name: dict(entries) for name, entries in scene.symmetries}
     effects: dict = {}
@@ -156,6 +171,28 @@ def data_from_scene(scene) -> dict:
     if scene.view:
         data["view"] = dict(scene.view)
     return data
+
+
+KIND_FIELDS = {
+    "energies": ("kinetic", "potential"),
+    "particles": ("potential",),
+    "lagrangian": ("lagrangian",),
+    "hamiltonian": ("hamiltonian",),
+}
+"""The expression fields each kind of system shows (and writes into the document)."""
+
+
+def document_kind(data: Mapping) -> str:
+    """How a document gives its system: a key of ``KINDS``.
+
+    A Lagrangian or Hamiltonian wins (a document that also has particles is refused by
+    the scene, which says why); then ``[particles]``, then T and V.
+    """
+    system = _table(data.get("system"))
+    for kind in ("lagrangian", "hamiltonian"):
+        if kind in system:
+            return kind
+    return "particles" if "particles" in data else "energies"
 
 
 def _number_or_text(text: str):
@@ -269,7 +306,10 @@ class SystemEditorPanel(QWidget):
         self.kind_combo = QComboBox()
         for key, label in KINDS:
             self.kind_combo.addItem(label, key)
-        self.kind_combo.setToolTip("Give the system by its energies T and V, by L, or by H")
+        self.kind_combo.setToolTip(
+            "Give the system by its energies T and V, by its particles (T from their "
+            "positions) and V, by L, or by H"
+        )
         self.kind_combo.currentIndexChanged.connect(self._on_kind_index_changed)
         self.fields = {
             "kinetic": ExpressionField("T(q, q_dot, t), e.g. m*l**2*theta_dot**2/2"),
@@ -290,6 +330,8 @@ class SystemEditorPanel(QWidget):
             ("hamiltonian", "H ="),
         ):
             self.system_form.addRow(label, self.fields[key])
+        self.particles = ParticlesSection()  # in place of T, above V
+        self.system_form.insertRow(self.system_form.rowCount() - 3, self.particles)
 
         self.parameter_table = ParameterTableView()
         self.parameter_table.values_changed.connect(self._on_parameter_values_changed)
@@ -342,6 +384,8 @@ class SystemEditorPanel(QWidget):
 
         self.drawing = DrawingSection()
         self.drawing.edited.connect(self._on_field_edited)
+        self.constraints = ConstraintsSection()
+        self.symmetries = SymmetriesSection()
 
         self.general_error = QLabel()  # at the top: a refused file or build is seen at once
         self.general_error.setWordWrap(True)
@@ -396,7 +440,9 @@ class SystemEditorPanel(QWidget):
         layout.addWidget(system_box)
         layout.addLayout(history)
         layout.addWidget(parameters_box)
+        layout.addWidget(self.constraints)
         layout.addWidget(self.effects_box)
+        layout.addWidget(self.symmetries)
         layout.addWidget(initial_box)
         layout.addWidget(self.drawing)
         layout.addWidget(QLabel("<b>Classification</b>"))
@@ -428,6 +474,10 @@ class SystemEditorPanel(QWidget):
         for field in (self.coordinates, *self.fields.values(), self.dissipation):
             field.edited.connect(self._on_field_edited)
             field.action_requested.connect(self._on_field_action_requested)
+        for section in (self.particles, self.constraints, self.symmetries):
+            section.edited.connect(self._on_field_edited)
+            section.action_requested.connect(self._on_field_action_requested)
+        self.particles.renamed.connect(self._on_particle_renamed)
         self._update_history_buttons()
 
     # -- catalogue ------------------------------------------------------------------------
@@ -562,18 +612,20 @@ class SystemEditorPanel(QWidget):
             self.title_edit.setText(_text(data.get("title", "")))
             coordinates = system.get("coordinates", [])
             self.coordinates.set_text(_text(coordinates))
-            kind = next((k for k in ("lagrangian", "hamiltonian") if k in system), "energies")
+            kind = document_kind(data)
             self.kind_combo.setCurrentIndex([k for k, _ in KINDS].index(kind))
+            hidden = _table(data.get("editor_hidden"))  # a history step: the hidden fields too
+            texts = _table(hidden.get("texts"))
             for key, field in self.fields.items():
-                field.set_text(_text(system.get(key)))
-            particles = _table(data.get("particles"))
-            self.fields["kinetic"].set_derived(
-                f"from [particles] ({', '.join(map(str, particles))}): T is derived from "
-                "their positions; edit them in the scene file"
-                if particles and kind == "energies"
-                else None
-            )
+                field.set_text(texts[key] if key in texts else _text(system.get(key)))
+            if kind == "particles" or "particles" not in hidden:
+                self.particles.set_particles(data.get("particles"), system.get("gravity"))
+            else:
+                self.particles.set_particles(hidden["particles"], hidden.get("gravity"))
             self._show_kind(kind)
+            names = split_names(self.coordinates.text())
+            self.constraints.set_constraints(data.get("constraints"))
+            self.symmetries.set_symmetries(data.get("symmetries"), self._row_coordinates(names))
             ranges = {
                 name: tuple(value) for name, value in _table(data.get("editor_ranges")).items()
             }
@@ -585,7 +637,6 @@ class SystemEditorPanel(QWidget):
             disabled = {str(d) for d in disabled} if isinstance(disabled, list) else set()
             self.dissipation.set_text(_text(effects.get("dissipation")))
             self.dissipation_switch.setChecked("dissipation" not in disabled)
-            names = split_names(self.coordinates.text())
             forces = {
                 str(q): (_text(text), f"forces.{q}" not in disabled)
                 for q, text in _table(effects.get("forces")).items()
@@ -631,6 +682,7 @@ class SystemEditorPanel(QWidget):
                     self._force_memory[q] = entry
             forces = {q: typed.get(q) or self._force_memory.pop(q, ("", True)) for q in coordinates}
             self._set_force_rows(coordinates, forces)
+            self.symmetries.set_coordinates(coordinates, renamed)
         finally:
             self._filling = filling
 
@@ -720,9 +772,10 @@ class SystemEditorPanel(QWidget):
         return row
 
     def _show_kind(self, kind: str) -> None:
-        visible = {"energies": ("kinetic", "potential")}.get(kind, (kind,))
+        visible = KIND_FIELDS[kind]
         for key, field in self.fields.items():
             self.system_form.setRowVisible(field, key in visible)
+        self.system_form.setRowVisible(self.particles, kind == "particles")
 
     # -- the document ------------------------------------------------------------------------
 
@@ -734,21 +787,23 @@ class SystemEditorPanel(QWidget):
         system["parameters"] = {
             name: _number_or_text(value) for name, value in self.parameter_table.parameters()
         }
-        keys = ("kinetic", "potential") if kind == "energies" else (kind,)
-        particles = self._data.get("particles")
+        keys = KIND_FIELDS[kind]
         for key in keys:
             text = self.fields[key].text().strip()
-            if text or (key == keys[0] and not (kind == "energies" and particles)):
+            if text or (key == keys[0] and kind != "particles"):  # T, L or H is required
                 system[key] = text
-        gravity = _table(self._data.get("system")).get("gravity")
-        if gravity is not None:
-            system["gravity"] = gravity
         data: dict = {"title": self.title_edit.text(), "system": system}
-        if particles is not None:
-            data["particles"] = particles
-        for key in ("constraints", "symmetries"):
-            if self._data.get(key) is not None:
-                data[key] = self._data[key]
+        if kind == "particles":
+            gravity = self.particles.gravity_value()
+            if gravity is not None:
+                system["gravity"] = gravity
+            data["particles"] = self.particles.table()
+        constraints = self.constraints.table()
+        if constraints:
+            data["constraints"] = constraints
+        symmetries = self.symmetries.table()
+        if symmetries:
+            data["symmetries"] = symmetries
         if self._data.get("description"):
             data["description"] = _text(self._data["description"])
         effects: dict = {}
@@ -784,9 +839,15 @@ class SystemEditorPanel(QWidget):
         return self.document()
 
     def snapshot(self) -> dict:
-        """``document`` and the sliders' ranges: one step of the undo history."""
+        """``document``, the sliders' ranges and the text of the fields the chosen kind
+        hides: one step of the undo history."""
         data = self.document()
         data["editor_ranges"] = {k: list(v) for k, v in self.parameter_table.ranges().items()}
+        data["editor_hidden"] = {
+            "texts": {key: field.text() for key, field in self.fields.items()},
+            "particles": self.particles.table(),
+            "gravity": self.particles.gravity_value(),
+        }
         return data
 
     def document_text(self) -> str:
@@ -866,6 +927,8 @@ class SystemEditorPanel(QWidget):
         ):
             field.clear_error()
         self.drawing.clear_errors()
+        for section in (self.particles, self.constraints, self.symmetries):
+            section.clear_errors()
         labels = [self.initial_error, self.general_error, self.warning_label]
         for label in labels if keep else [self.parameter_error, *labels]:
             label.clear()
@@ -971,8 +1034,12 @@ class SystemEditorPanel(QWidget):
         field = failure.field or ""
         reason = failure.reason or failure.message
         target = self._field_for(field)
+        action = self._quick_fix(reason)
+        sections = (self.particles, self.constraints, self.symmetries)
         if target is not None:
-            target.show_error(reason, failure.position, self._quick_fix(reason))
+            target.show_error(reason, failure.position, action)
+        elif any(s.show_problem(field, reason, failure.position, action) for s in sections):
+            pass
         elif field.startswith("drawing"):
             self.drawing.show_problem(field, reason, failure.position)
         elif field.startswith("system.parameters"):
@@ -1034,6 +1101,10 @@ class SystemEditorPanel(QWidget):
             self.info_label.setVisible(False)
             self.debounce.start()
 
+    def _on_particle_renamed(self, old: str, new: str) -> None:
+        others = set(self.particles.names()) - {new}
+        self.drawing.rename_references(old, new, others)
+
     def _on_kind_index_changed(self, _index: int) -> None:
         self._show_kind(self.kind_combo.currentData())
         self._on_field_edited()
@@ -1088,7 +1159,7 @@ class SystemEditorPanel(QWidget):
 
     def _emit(self, data: dict) -> None:
         self.state_label.setText("deriving…")
-        document = {k: v for k, v in data.items() if k != "editor_ranges"}
+        document = {k: v for k, v in data.items() if not k.startswith("editor_")}
         self._requested = document
         self.scene_edited.emit(document)
 

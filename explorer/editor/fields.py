@@ -145,29 +145,11 @@ class ExpressionField(QWidget):
         layout.addWidget(self.edit)
         layout.addWidget(self.error_label)
         self._setting = False
-        self._typed_placeholder: str | None = None  # while ``set_derived`` shows a note
         self.edit.textChanged.connect(self._on_edit_text_changed)
 
     def text(self) -> str:
         """The text as typed."""
         return self.edit.toPlainText()
-
-    def set_derived(self, note: str | None) -> None:
-        """Show that the scene derives this expression (``note`` says from what and where
-        to change it): the field is read-only and empty with ``note`` in its place.
-        None: typed by the user again."""
-        if note is None:
-            if self._typed_placeholder is not None:
-                self.edit.setPlaceholderText(self._typed_placeholder)
-                self._typed_placeholder = None
-            self.edit.setReadOnly(False)
-            self.edit.setToolTip("")
-            return
-        if self._typed_placeholder is None:
-            self._typed_placeholder = self.edit.placeholderText()
-        self.edit.setReadOnly(True)
-        self.edit.setPlaceholderText(note)
-        self.edit.setToolTip(note)
 
     def set_text(self, text: str | None) -> None:
         """Show ``text`` (None: empty) without emitting ``edited``; the cursor goes to the end."""

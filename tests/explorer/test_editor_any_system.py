@@ -87,21 +87,21 @@ def _pendulum(editor: SystemEditorPanel):
     return scene
 
 
-def test_a_scene_with_particles_shows_its_t_as_derived_not_as_an_empty_field(editor):
+def test_a_scene_with_particles_is_given_by_its_particles_not_by_an_empty_t(editor):
     editor.show_scene(load_scene("double_pendulum"))
-    kinetic = editor.fields["kinetic"]
-    assert kinetic.text() == "" and kinetic.edit.isReadOnly()
-    note = kinetic.edit.placeholderText()
-    assert "[particles]" in note and "bob1, bob2" in note
+    assert editor.kind_combo.currentData() == "particles"
+    assert not editor.fields["kinetic"].isVisibleTo(editor)
+    assert editor.particles.isVisibleTo(editor) and editor.fields["potential"].isVisibleTo(editor)
+    assert editor.particles.names() == ["bob1", "bob2"]
     document = editor.document()
     assert "kinetic" not in document["system"] and set(document["particles"]) == {
         "bob1",
         "bob2",
     }
-    # a scene that gives T: typed again, with its own placeholder back
+    # a scene that gives T: T and V again, without particles
     _pendulum(editor)
-    assert not kinetic.edit.isReadOnly()
-    assert kinetic.text() and "[particles]" not in kinetic.edit.placeholderText()
+    assert editor.kind_combo.currentData() == "energies"
+    assert editor.fields["kinetic"].text() and not editor.particles.isVisibleTo(editor)
 
 
 # -- New scene -----------------------------------------------------------------------------
@@ -390,9 +390,9 @@ def test_document_text_reads_back_to_the_same_document(qtbot, editor, name):
     other.shutdown()
 
 
-def test_tables_without_fields_are_kept_through_save_and_a_rebuild(qtbot, editor):
-    """[symmetries] and [constraints] have no fields in the editor yet: Save and the
-    document the window builds from keep them as read."""
+def test_symmetries_and_constraints_are_kept_through_save_and_a_rebuild(qtbot, editor):
+    """[symmetries] and [constraints] go through their sections into Save and into the
+    document the window builds from, in the order they were read."""
     text = (
         'title = "Bead on a helix"\n[system]\ncoordinates = ["r", "phi", "z"]\n'
         "parameters = { m = 1.0, k = 1.0, e = 0.5, c = 0.3 }\n"

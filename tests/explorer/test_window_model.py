@@ -3,13 +3,17 @@
 A hypothesis ``RuleBasedStateMachine`` drives the window as a user would (through its
 widgets and menu slots): open any catalogue scene, toggle the Poincaré section, launch
 and delete orbits, clear, change method, step and speed, pause, step, reset, edit a field
-(valid and invalid text), start a new scene, change tab. After every step, once the
-window has settled:
+(valid and invalid text), switch the kind of system (T and V, particles, L, H), type into
+or add and remove entries of the Particles, Constraints and Symmetries sections, start a
+new scene, change tab. After every step, once the window has settled:
 
 - no exception reached the window's error reporter;
 - every panel names the running system's coordinates (phase axes and pair list,
   configuration titles and axes, conserved momenta);
-- what Save writes is exactly the editor's document.
+- what Save writes is exactly the editor's document, and it holds what the new sections
+  show;
+- nothing typed is lost: every text typed into a field of the new sections is still in
+  that field (until the field is removed or another scene is opened).
 
 One window serves every example (a window per example would cost most of the run);
 each example starts from where the last one left it, which only widens what is tried.
@@ -68,12 +72,27 @@ def _type(key: str, text: str) -> None:
     _window.editor.flush()
 
 
+def _section_fields(what: str) -> list:
+    """The expression fields of one of the editor's new sections."""
+    editor = _window.editor
+    if what == "particle":
+        return [f for row in editor.particles.rows for f in row.fields()]
+    if what == "constraint":
+        return [f for entries in editor.constraints.lists.values() for f in entries.fields]
+    return [f for row in editor.symmetries.rows for f in row.components.values()]
+
+
 class WindowModel(RuleBasedStateMachine):
     """The window as a user drives it; see the module docstring."""
+
+    def __init__(self):
+        super().__init__()
+        self.typed: list[tuple[object, str]] = []  # (field, text typed into it)
 
     @rule(name=st.sampled_from(CATALOGUE))
     def open_scene(self, name):
         _window.open_scene(name)
+        self.typed = []
         _settle(build=True)
 
     @rule()
@@ -151,9 +170,59 @@ class WindowModel(RuleBasedStateMachine):
         _type(key, text)
         _settle(build=True)
 
+    @rule(pick=PICK)
+    def switch_kind(self, pick):
+        combo = _window.editor.kind_combo
+        combo.setCurrentIndex(pick % combo.count())
+        _window.editor.flush()
+        _settle(build=True)
+
+    @rule(
+        what=st.sampled_from(["particle", "constraint", "symmetry"]),
+        action=st.sampled_from(["type", "type", "add", "remove"]),
+        valid=st.booleans(),
+        pick=PICK,
+    )
+    def edit_section(self, what, action, valid, pick):
+        editor = _window.editor
+        if what == "particle" and editor.kind_combo.currentData() != "particles":
+            return
+        fields = _section_fields(what)
+        if action == "add":
+            q = editor.coordinates.text().split(",")[0].strip()
+            if what == "particle":
+                editor.particles.add_particle(mass="m", position=(f"{q}", "0"))
+            elif what == "constraint":
+                editor.constraints.lists["holonomic"].add_entry(f"{q}**2 - 1")
+            else:
+                editor.symmetries.add_symmetry(**{q: "1"} if q.isidentifier() else {})
+        elif action == "remove" and fields:
+            if what == "particle":
+                rows = editor.particles.rows
+                editor.particles.remove_particle(rows[pick % len(rows)])
+            elif what == "constraint":
+                field = fields[pick % len(fields)]
+                entries = [e for e in editor.constraints.lists.values() if field in e.fields]
+                entries[0].remove_entry(field)
+            else:
+                rows = editor.symmetries.rows
+                editor.symmetries.remove_symmetry(rows[pick % len(rows)])
+            gone = {id(f) for f in fields} - {id(f) for f in _section_fields(what)}
+            self.typed = [(f, t) for f, t in self.typed if id(f) not in gone]
+        elif action == "type" and fields:
+            field = fields[pick % len(fields)]
+            text = field.text().removesuffix(" + (").removesuffix(" + 0") or "1"
+            text += " + 0" if valid else " + ("
+            field.set_text(text)
+            field.edited.emit()
+            self.typed = [(f, t) for f, t in self.typed if f is not field] + [(field, text)]
+        editor.flush()
+        _settle(build=True)
+
     @rule()
     def new_scene(self):
         _window.new_scene()
+        self.typed = []
         _settle(build=True)
 
     @rule()
@@ -210,6 +279,15 @@ class WindowModel(RuleBasedStateMachine):
             if field.isVisibleTo(editor) and field.text().strip():
                 assert system[key] == field.text().strip(), key
         assert set(system["parameters"]) == set(editor.parameter_table.values())
+        if editor.kind_combo.currentData() == "particles":
+            assert tables.get("particles", {}) == editor.particles.table()
+        assert tables.get("constraints", {}) == editor.constraints.table()
+        assert tables.get("symmetries", {}) == editor.symmetries.table()
+
+    @invariant()
+    def nothing_typed_is_lost(self):
+        for field, text in self.typed:
+            assert field.text() == text
 
 
 def test_random_sequences_of_user_actions(qtbot, window, tmp_path):
