@@ -36,7 +36,11 @@ rheonomic
 holonomic, bilateral
     True unless nonholonomic (velocity) or unilateral (inequality) constraints are
     declared (``Constraints``); a constraint that contains t, or a velocity constraint with
-    a part free of the velocities, makes the system rheonomic.
+    a part free of the velocities, makes the system rheonomic. Such a constraint moves:
+    its force does work, so H is not conserved (and a t in it makes the equations time
+    dependent). Impacts on unilateral constraints are
+    elastic unless the scene has a ``restitution`` parameter; with one (a slider that may
+    go below 1) the system is not conservative and H is not conserved.
 hamiltonian_is_energy
     For a scene given by T and V: H (as Jacobi's h = sum qdot dL/dqdot - L) equals T + V
     identically; this is H = T2 - T0 + V, so it holds when the transformation is
@@ -48,9 +52,9 @@ hamiltonian_is_energy
     can be named: L or H depends on t explicitly (T and V cannot be told apart in a
     time-dependent L), or its velocity part is not a positive kinetic energy.
 hamiltonian_conserved, natural, separable
-    H has no explicit t, no effects act and no holonomic constraint moves (contains t:
-    its force then does work, and time_dependent is true as well); T is quadratic in the
-    velocities (the derivation decides); H = T(p) + V(q, t) (likewise).
+    H has no explicit t, no effects act, no constraint moves (its force then does work)
+    and no impact is inelastic; T is quadratic in the velocities (the derivation decides);
+    H = T(p) + V(q, t) (likewise).
 """
 
 from __future__ import annotations
@@ -81,8 +85,8 @@ evaluated)."""
 class Constraints:
     """The constraints a scene declares, as expressions in (q, qdot, t) and parameters.
 
-    Filled from a scene's ``[constraints]`` table (``systems.constraints.declared``;
-    holonomic ones only so far) and passed to ``classify``.
+    Filled from a scene's ``[constraints]`` table (``systems.constraints.declared``) and
+    passed to ``classify``.
 
     Attributes
     ----------
@@ -290,15 +294,25 @@ def classify(
         hamilton = list(hamilton_equations)
     lagrange_t = any(probe.depends_on(e, (t,)) for e in lagrange)
     hamilton_t = any(probe.depends_on(e, (t,)) for e in hamilton)
-    # a moving constraint puts t into the equations (through its force) and does work
-    moving = any(probe.depends_on(as_expr(c), (t,)) for c in constraints.holonomic)
-    time_dependent = lagrange_t or hamilton_t or moving
+    # a moving constraint puts t into the equations (through its force) and does work;
+    # so does a nonholonomic one with a velocity-free part b (x_dot - v0 = 0 is x = v0 t)
+    every = (*constraints.holonomic, *constraints.nonholonomic, *constraints.unilateral)
+    explicit = any(probe.depends_on(as_expr(c), (t,)) for c in every)
+    zero_velocity = dict.fromkeys(qdot, sympy.S.Zero)
+    moving = explicit or any(
+        not probe.identical(as_expr(c).xreplace(zero_velocity), 0) for c in constraints.nonholonomic
+    )
+    time_dependent = lagrange_t or hamilton_t or explicit
+    # impacts with a coefficient of restitution (a slider, which may be below 1) take
+    # energy away; without that parameter they are elastic
+    inelastic = bool(constraints.unilateral) and "restitution" in dict(scene.parameters)
     conservative = from_potential and not (lagrange_t if lagrange else hamilton_t)
+    conservative = conservative and not inelastic
 
     H_explicit_t = probe.depends_on(hamiltonian, (t,)) or (
         matrix_form is not None and any(probe.depends_on(e, (t,)) for e in matrix_form.mass_matrix)
     )
-    hamiltonian_conserved = not acting and not H_explicit_t and not moving
+    hamiltonian_conserved = not acting and not H_explicit_t and not moving and not inelastic
 
     kind = scene.kind
     if kind == "energies":

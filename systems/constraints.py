@@ -1,38 +1,51 @@
-"""Holonomic constraints f(q, t) = 0 with Lagrange multipliers.
+"""Constraints with Lagrange multipliers: holonomic, nonholonomic and unilateral.
 
 A scene may keep more coordinates than it has degrees of freedom and tie them together
-by equations (``[constraints] holonomic = ["x**2 + y**2 - l**2"]``). The equations of
-motion then carry one multiplier per constraint,
+(``[constraints]``). Three kinds are integrated:
 
-    M(q, t) qddot + Phi_q^T lambda = F(q, qdot, t),
-    Phi_q qddot = gamma(q, qdot, t),
+- holonomic ``Phi(q, t) = 0`` (``holonomic = ["x**2 + y**2 - l**2"]``);
+- nonholonomic ``a(q, t) . qdot + b(q, t) = 0``, linear in the velocities and not
+  integrable to an equation in q (``nonholonomic = ["x_dot - R*cos(phi)*psi_dot"]``);
+- unilateral ``g(q, t) >= 0`` (``unilateral = ["y"]``): a wall or a floor, free until
+  the system reaches it, then an impact (Newton's restitution law) or a resting contact.
 
-where ``Phi(q, t) = 0`` are the k constraints, ``Phi_q`` their Jacobian (k, n) and
-``gamma = -(d(Phi_q qdot)/dq) qdot - 2 Phi_qt qdot - Phi_tt`` minus the part of the second
-time derivative of Phi that does not contain qddot. The force of the constraints on the
-coordinates is ``-Phi_q^T lambda``. For a pendulum in Cartesian x, y with
-``Phi = x**2 + y**2 - l**2`` it is ``-2 lambda (x, y)``: the string's tension is
-``2 lambda l``.
+Every constraint contributes one *velocity row*: the coefficients of qdot in its time
+derivative (``Phi_q``, ``a``, ``G = g_q``), a velocity-free part (``Phi_t``, ``b``,
+``g_t``) and ``gamma``, the part of its second (holonomic, unilateral) or first
+(nonholonomic) time derivative without qddot, with a minus sign. With A the rows that act
+(every holonomic and nonholonomic one; a unilateral one only while in contact) the
+equations of motion are
+
+    M(q, t) qddot + A^T lambda = F(q, qdot, t),
+    A qddot = gamma(q, qdot, t),
+
+one multiplier per row; the force of the constraints on the coordinates is
+``-A^T lambda``. For a pendulum in Cartesian x, y with ``Phi = x**2 + y**2 - l**2`` it is
+``-2 lambda (x, y)``: the string's tension is ``2 lambda l``. With the same convention a
+unilateral contact pushes (``-G^T lambda`` points into g > 0) while lambda <= 0, and is
+released when lambda would turn positive (pull).
 
 The derivation itself (``systems.mechanics``) stays that of the free coordinates: M, F,
 the momenta p = dL/dqdot and H(q, p) are those of the unconstrained Lagrangian, and a
 state is still ``(q, p)``. What this module adds:
 
-- the symbolic pieces (``holonomic``: Phi, Phi_q, Phi_t and gamma), the constraints for
-  the classification (``declared``), and the degrees of freedom (``degrees_of_freedom``:
-  coordinates minus the rank of Phi_q at random states);
+- the symbolic pieces (``rows``, ``holonomic``: values, velocity rows and gamma), the
+  constraints for the classification (``declared``), and the degrees of freedom
+  (``degrees_of_freedom``, ``configuration_degrees_of_freedom``);
 - the kernel source for a constrained scene (``kernel_source``): its ``rhs`` is Hamilton's
-  equations with the constraint force, ``pdot = dL/dq + Q - Phi_q^T lambda``, lambda from
-  the saddle-point system ``[[M, Phi_q^T], [Phi_q, 0]] [qddot; lambda] = [F; gamma]``
-  solved at every evaluation, and ``project`` puts a state back onto the constraint
-  manifold after every step of the ``constrained`` integrator family;
+  equations with the constraint force, ``pdot = dL/dq + Q - A^T lambda``, lambda from
+  the saddle-point system ``[[M, A^T], [A, 0]] [qddot; lambda] = [F; gamma]`` solved at
+  every evaluation, and ``c_project`` puts a state back onto the constraints after every
+  step of the ``constrained`` integrator family; the impacts and contacts of unilateral
+  constraints are handled by that family's step (``systems/integrators/kernels.py``);
 - numpy counterparts for diagnostics (``Numeric``: multipliers, violation, projection of
   an initial state).
 
 The projection (Hairer, Lubich & Wanner, *Geometric Numerical Integration*, IV.4) moves q
-by Newton's iterations on ``Phi(q, t) = 0`` along the correction of least kinetic
-metric, ``dq = -M^-1 Phi_q^T (Phi_q M^-1 Phi_q^T)^-1 Phi``, and then the velocities onto
-``Phi_q qdot + Phi_t = 0`` the same way; the momenta are then p(q, qdot).
+by Newton's iterations on ``Phi(q, t) = 0`` (and ``g = 0`` for the contacts) along the
+correction of least kinetic metric, ``dq = M^-1 A^T (A M^-1 A^T)^-1 Phi``, and then the
+velocities onto ``A qdot + c = 0`` (every acting row, nonholonomic ones included) the same
+way; the momenta are then p(q, qdot).
 """
 
 from __future__ import annotations
@@ -49,30 +62,51 @@ import sympy
 from systems.classification import NO_CONSTRAINTS, Constraints
 from systems.expressions import as_expr
 from systems.mechanics import DerivationError
+from systems.scene import CONSTRAINT_KINDS
+
+KINDS = tuple(CONSTRAINT_KINDS)
+"""The kinds of ``[constraints]``, in the order of their rows and multipliers."""
 
 RANK_TOLERANCE = 1e-9
-"""Singular values of Phi_q below this fraction of the largest count as zero."""
+"""Singular values of the rows below this fraction of the largest count as zero."""
 
 PROJECTION_ITERATIONS = 8
 """Newton iterations of the position projection before it is given up."""
 
+RESTITUTION = "restitution"
+"""The parameter that holds Newton's coefficient of restitution e of every unilateral
+constraint (1, elastic impacts, when the scene has no such parameter)."""
+
+CONTACT_GAP = 1e-10
+"""A state is in contact with a unilateral constraint when |g| <= CONTACT_GAP max(1, |q|)
+and |G qdot + g_t| <= CONTACT_SPEED max(1, |qdot|) (and the contact pushes): how a run
+starts and how the multipliers of a stored state are computed."""
+
+CONTACT_SPEED = 1e-8
+"""See ``CONTACT_GAP``: the normal velocity of a state in contact, relative to max(1,
+|qdot|). A rebound that would rise less than the contact gap (v+**2 <= 2 |a_n| CONTACT_GAP
+max(1, |q|)) makes a resting contact instead (``c_switch``)."""
+
 
 @dataclass(frozen=True, eq=False)
-class Holonomic:
-    """The symbolic pieces of k holonomic constraints on n coordinates.
+class Rows:
+    """The symbolic pieces of k constraints on n coordinates, one velocity row each.
 
     Attributes
     ----------
+    kinds : tuple of k str
+        ``"holonomic"``, ``"nonholonomic"`` or ``"unilateral"``, in this order.
     values : tuple of k sympy.Expr
-        Phi(q, t).
+        Phi(q, t), a(q, t) . qdot + b(q, t), or g(q, t).
     jacobian : sympy.Matrix, shape (k, n)
-        Phi_q = dPhi/dq.
+        The velocity coefficients: Phi_q, a, or G = g_q.
     time_derivative : tuple of k sympy.Expr
-        Phi_t = dPhi/dt (explicit).
+        The velocity-free part of the row: Phi_t, b, or g_t.
     gamma : tuple of k sympy.Expr
-        The right-hand side of ``Phi_q qddot = gamma``, in (q, qdot, t).
+        The right-hand side of ``A qddot = gamma``, in (q, qdot, t).
     """
 
+    kinds: tuple[str, ...]
     values: tuple[sympy.Expr, ...]
     jacobian: sympy.Matrix
     time_derivative: tuple[sympy.Expr, ...]
@@ -82,84 +116,156 @@ class Holonomic:
     def k(self) -> int:
         return len(self.values)
 
+    def of_kind(self, kind: str) -> Rows | None:
+        """The rows of one kind, or None if there are none."""
+        index = [i for i, k in enumerate(self.kinds) if k == kind]
+        if not index:
+            return None
+        return Rows(
+            tuple(self.kinds[i] for i in index),
+            tuple(self.values[i] for i in index),
+            self.jacobian.extract(index, list(range(self.jacobian.cols))),
+            tuple(self.time_derivative[i] for i in index),
+            tuple(self.gamma[i] for i in index),
+        )
+
+
+Holonomic = Rows
+"""The holonomic rows (``holonomic(mechanics)``) are ``Rows`` of that kind only."""
+
+
+def counts(scene) -> dict[str, int]:
+    """The number of constraints of each kind the scene declares."""
+    return {kind: len(getattr(scene, f"{kind}_constraints", ())) for kind in KINDS}
+
 
 def count(scene) -> int:
-    """The number of holonomic constraints the scene declares (0 for most scenes)."""
-    return len(getattr(scene, "holonomic_constraints", ()))
+    """The number of constraints of every kind (= multipliers) the scene declares (0 for
+    most scenes)."""
+    return sum(counts(scene).values())
 
 
 def constrained(scene) -> bool:
     """True if the scene declares constraints of any kind (``[constraints]``): its
     equations carry multipliers and only the ``constrained`` family integrates it."""
-    return any(
-        getattr(scene, f"{kind}_constraints", ())
-        for kind in ("holonomic", "nonholonomic", "unilateral")
-    )
+    return count(scene) > 0
 
 
 def declared(scene) -> Constraints:
     """The scene's constraints as ``systems.classification.Constraints``."""
-    k = count(scene)
-    if not k:
+    if not constrained(scene):
         return NO_CONSTRAINTS
     return Constraints(
-        holonomic=tuple(scene.expression(f"constraints.holonomic[{i}]") for i in range(k))
+        **{
+            kind: tuple(
+                scene.expression(f"constraints.{kind}[{i}]") for i in range(counts(scene)[kind])
+            )
+            for kind in KINDS
+        }
     )
 
 
 def multiplier_names(scene) -> list[str]:
-    """The CSV columns of the multipliers: ``lambda_1`` .. ``lambda_k`` (none without
+    """The CSV columns of the multipliers: ``lambda_1`` .. ``lambda_k``, one per
+    constraint, holonomic ones first, then nonholonomic, then unilateral (none without
     constraints)."""
     return [f"lambda_{i + 1}" for i in range(count(scene))]
 
 
+def restitution_index(scene) -> int | None:
+    """The index of the ``restitution`` parameter in the parameter vector, or None."""
+    names = [name for name, _ in scene.parameters]
+    return names.index(RESTITUTION) if RESTITUTION in names else None
+
+
 def constrains(scene, coordinate: str) -> bool:
-    """True if some constraint of the scene contains ``coordinate``: its force then acts
-    on it, so the momentum of a cyclic coordinate is not conserved."""
-    symbol = scene.symbols[coordinate]
-    return any(symbol in f.free_symbols for f in declared(scene).holonomic)
+    """True if some constraint contains ``coordinate`` or its velocity: the coordinate is
+    then not cyclic, and its momentum is not reported as conserved.
 
-
-def holonomic(mechanics) -> Holonomic | None:
-    """Phi, Phi_q, Phi_t and gamma of ``mechanics``' scene, or None without constraints.
-
-    Remembered on the mechanics.
+    A holonomic or unilateral constraint that contains it pushes along it. A nonholonomic
+    one may not (the rolling disk's heading phi appears only in cos(phi), and p_phi is
+    conserved), but the Routhian reduction by such a coordinate would drop the
+    constraints of the others, which depend on it: it is not offered.
     """
+    symbols = {scene.symbols[coordinate], scene.symbols[f"{coordinate}_dot"]}
+    given = declared(scene)
+    every = (*given.holonomic, *given.nonholonomic, *given.unilateral)
+    return any(symbols & f.free_symbols for f in every)
+
+
+def rows(mechanics) -> Rows | None:
+    """Every constraint's velocity row (holonomic, nonholonomic, then unilateral), or
+    None without constraints. Remembered on the mechanics."""
     scene = mechanics.scene
-    if not count(scene):
+    if not constrained(scene):
         return None
     cache = mechanics._cache
-    if "holonomic" not in cache:
+    if "constraint rows" not in cache:
         q, qd, t = mechanics.q, mechanics.qdot, mechanics.t
-        values = declared(scene).holonomic
-        jacobian = sympy.Matrix([[sympy.diff(f, x) for x in q] for f in values])
-        time_derivative = tuple(sympy.diff(f, t) for f in values)
-        gamma = []
-        for i in range(len(values)):
-            # c = Phi_q qdot + Phi_t; dc/dt = Phi_q qddot + (dc/dq) qdot + dc/dt
-            c = sum((jacobian[i, j] * qd[j] for j in range(len(q))), time_derivative[i])
-            rest = sum((sympy.diff(c, x) * v for x, v in zip(q, qd, strict=True)), sympy.diff(c, t))
-            gamma.append(as_expr(-rest))
-        cache["holonomic"] = Holonomic(tuple(values), jacobian, time_derivative, tuple(gamma))
-    return cache["holonomic"]
+        given = declared(scene)
+        kinds, values, jacobian, free, gamma = [], [], [], [], []
+        for kind in KINDS:
+            for f in getattr(given, kind):
+                if kind == "nonholonomic":
+                    row = [sympy.diff(f, v) for v in qd]
+                    part = as_expr(f.xreplace(dict.fromkeys(qd, sympy.S.Zero)))
+                    c = f  # a . qdot + b; dc/dt = a qddot + (dc/dq) qdot + dc/dt
+                else:
+                    row = [sympy.diff(f, x) for x in q]
+                    part = sympy.diff(f, t)
+                    # c = Phi_q qdot + Phi_t; dc/dt = Phi_q qddot + (dc/dq) qdot + dc/dt
+                    c = sum((row[j] * qd[j] for j in range(len(q))), part)
+                rest = sum(
+                    (sympy.diff(c, x) * v for x, v in zip(q, qd, strict=True)), sympy.diff(c, t)
+                )
+                kinds.append(kind)
+                values.append(f)
+                jacobian.append(row)
+                free.append(part)
+                gamma.append(as_expr(-rest))
+        cache["constraint rows"] = Rows(
+            tuple(kinds), tuple(values), sympy.Matrix(jacobian), tuple(free), tuple(gamma)
+        )
+    return cache["constraint rows"]
+
+
+def holonomic(mechanics) -> Rows | None:
+    """Phi, Phi_q, Phi_t and gamma of the holonomic constraints, or None without any."""
+    pieces = rows(mechanics)
+    return None if pieces is None else pieces.of_kind("holonomic")
 
 
 def degrees_of_freedom(mechanics) -> int:
-    """Coordinates minus independent constraints: n - rank(Phi_q).
+    """The velocity degrees of freedom: coordinates minus independent bilateral
+    constraints, n - rank([Phi_q; a]) (holonomic and nonholonomic rows).
 
-    The rank is the largest found at a few random states (coordinates, t and parameters
-    drawn from [0.3, 1.7]), so a rank that drops only on a special set does not count.
+    Without nonholonomic constraints this is the textbook's count (coordinates minus
+    independent constraints). Nonholonomic ones restrict the velocities only: the
+    configuration still needs ``configuration_degrees_of_freedom`` coordinates.
+    Unilateral constraints restrict where the system may go, not how many numbers
+    describe it: they do not count. The rank is the largest found at a few random states
+    (coordinates, t and parameters drawn from [0.3, 1.7]), so a rank that drops only on
+    a special set does not count.
     """
-    n = mechanics.n
-    pieces = holonomic(mechanics)
+    return mechanics.n - _rank(mechanics, ("holonomic", "nonholonomic"))
+
+
+def configuration_degrees_of_freedom(mechanics) -> int:
+    """Coordinates minus independent holonomic constraints, n - rank(Phi_q): how many
+    coordinates the configuration needs (nonholonomic constraints do not reduce them)."""
+    return mechanics.n - _rank(mechanics, ("holonomic",))
+
+
+def _rank(mechanics, kinds: Sequence[str]) -> int:
+    pieces = rows(mechanics)
     if pieces is None:
-        return n
-    return n - _rank(mechanics, pieces)
-
-
-def _rank(mechanics, pieces: Holonomic) -> int:
+        return 0
+    index = [i for i, kind in enumerate(pieces.kinds) if kind in kinds]
+    if not index:
+        return 0
     symbols = [mechanics.t, *mechanics.q, *mechanics.params.values()]
-    f = sympy.lambdify(symbols, [as_expr(e) for e in pieces.jacobian], modules="math")
+    matrix = [as_expr(pieces.jacobian[i, j]) for i in index for j in range(mechanics.n)]
+    f = sympy.lambdify(symbols, matrix, modules="math")
     rng = random.Random(4321)
     best = 0
     for _ in range(5):
@@ -169,50 +275,54 @@ def _rank(mechanics, pieces: Holonomic) -> int:
             continue
         if not np.all(np.isfinite(values)):
             continue
-        s = np.linalg.svd(values.reshape(pieces.k, mechanics.n), compute_uv=False)
+        s = np.linalg.svd(values.reshape(len(index), mechanics.n), compute_uv=False)
         if s.size and s[0] > 0:
             best = max(best, int(np.sum(s > RANK_TOLERANCE * s[0])))
     return best
 
 
 def check(mechanics) -> None:
-    """Refuse constraints this slice cannot integrate, naming the field and why.
+    """Refuse constraints that cannot be integrated, naming the field and why.
 
     Raises
     ------
     DerivationError
-        For dependent constraints or as many independent ones as coordinates, a system
-        without a Lagrangian mass matrix, a mass matrix that depends on the velocities
-        (L not quadratic in them), or a large system in matrix form.
+        For dependent bilateral (holonomic and nonholonomic) constraints or as many
+        independent ones as coordinates, a system without a Lagrangian mass matrix, a
+        mass matrix that depends on the velocities (L not quadratic in them), a large
+        system in matrix form, or a ``restitution`` outside [0, 1].
     """
     scene = mechanics.scene
-    for kind in ("nonholonomic", "unilateral"):
-        if getattr(scene, f"{kind}_constraints", ()):
-            raise DerivationError(
-                f"{kind} constraints are not supported yet; only holonomic constraints "
-                "f(q, t) = 0 can be integrated for now",
-                source=scene.source,
-                field=f"constraints.{kind}",
-            )
-    pieces = holonomic(mechanics)
-    if pieces is None:
+    k = counts(scene)
+    if not sum(k.values()):
         return
-    n, k = mechanics.n, pieces.k
+    n = mechanics.n
+    first = next(f"constraints.{kind}" for kind in KINDS if k[kind])
 
-    def fail(reason: str, field: str = "constraints.holonomic") -> DerivationError:
+    def fail(reason: str, field: str = first) -> DerivationError:
         return DerivationError(reason, source=scene.source, field=field)
 
-    rank = _rank(mechanics, pieces)
-    if rank < k:
-        raise fail(
-            f"the {k} constraints are not independent (the rank of their Jacobian dPhi/dq "
-            f"is {rank}): leave out the ones that follow from the others"
-        )
-    if k >= n:
-        raise fail(
-            f"{k} independent constraints on {n} coordinates leave no degree of freedom; "
-            "there is nothing to move"
-        )
+    bilateral = k["holonomic"] + k["nonholonomic"]
+    if bilateral:
+        field = "constraints.nonholonomic" if k["nonholonomic"] else "constraints.holonomic"
+        rank = _rank(mechanics, ("holonomic", "nonholonomic"))
+        if rank < bilateral:
+            what = (
+                "their Jacobian dPhi/dq"
+                if not k["nonholonomic"]
+                else "their velocity coefficients (dPhi/dq and a)"
+            )
+            raise fail(
+                f"the {bilateral} constraints are not independent (the rank of {what} is "
+                f"{rank}): leave out the ones that follow from the others",
+                field,
+            )
+        if bilateral >= n:
+            raise fail(
+                f"{bilateral} independent constraints on {n} coordinates leave no degree of "
+                "freedom; there is nothing to move",
+                field,
+            )
     if mechanics.mass_matrix is None:
         raise fail(
             "constraints need the mass matrix d2L/dqdot2, and this Hamiltonian's Legendre "
@@ -228,6 +338,15 @@ def check(mechanics) -> None:
             "constraints need a Lagrangian quadratic in the velocities (a mass matrix "
             "d2L/dqdot2 that does not depend on them)"
         )
+    index = restitution_index(scene)
+    if k["unilateral"] and index is not None:
+        e = scene.parameters[index][1]
+        if not 0.0 <= e <= 1.0:
+            raise fail(
+                f"the coefficient of restitution must lie between 0 (plastic impacts) and 1 "
+                f"(elastic ones), not {e:g}",
+                "system.parameters",
+            )
 
 
 # -- kernel source ------------------------------------------------------------------------
@@ -237,28 +356,53 @@ def kernel_source(writer, mechanics) -> str:
     """The system functions of a constrained scene, for ``systems.compiled``.
 
     ``writer`` is the compiled module's kernel writer (its ``header``, ``body``,
-    ``unpack``, ``unpack_state``). Defines, for the state ``y = (q, p)`` (shape (2n,)):
+    ``unpack``, ``unpack_state``). With K constraints (``N_CONSTRAINTS``; the first
+    ``N_HOLONOMIC`` holonomic, up to ``N_BILATERAL`` nonholonomic, then unilateral) it
+    defines, for the state ``y = (q, p)`` (shape (2n,)) and an array ``act`` (K,) that
+    says which rows act (1.0) and which do not (0.0; every bilateral row acts):
 
-    - ``rhs(t, y, P, out)``: Hamilton's equations with the constraint force;
-    - ``multipliers(t, y, P, out)``: lambda, shape (k,);
-    - ``constraint_values(t, y, P, out)``: Phi, shape (k,);
-    - ``project(t, y, P) -> bool``: y onto Phi = 0 and Phi_q qdot + Phi_t = 0, in place;
-      False if Newton's iteration did not converge;
-    - helpers ``c_*`` (the free equations, the saddle-point system, the Jacobian with
-      Phi_t as column n, M, qdot and p) and ``c_solve`` (dense Gaussian elimination).
+    - ``rhs(t, y, P, out)``: Hamilton's equations with the force of the bilateral
+      constraints (no contact acts), and ``c_rhs(t, y, P, act, out)`` with the rows
+      ``act`` selects;
+    - ``multipliers(t, y, P, out)``: lambda (K,), a unilateral row's only where the state
+      is in contact (``c_contacts``), 0 elsewhere;
+    - ``constraint_values(t, y, P, out)``: Phi, a . qdot + b and g (K,);
+    - ``project(t, y, P) -> bool`` and ``c_project(t, y, P, act) -> bool``: y onto the
+      position rows (Phi = 0, g = 0 of the acting contacts) and the velocity rows, in
+      place; False if Newton's iteration did not converge;
+    - ``c_contacts(t, y, P, act)``: which unilateral rows the state is in contact with;
+    - ``c_event_values(t, y, P, act, out)``: g (free unilateral rows) and -lambda
+      (acting contacts), negative when a step went through a wall or a contact pulls;
+    - ``c_switch(t, y, P, act, which)``: at a located event, the release of a contact or
+      Newton's restitution law (a resting contact where the rebound would rise less
+      than the contact gap);
+    - helpers ``c_*`` (the free equations, the saddle-point system, the rows with their
+      velocity-free parts as column n, M, qdot and p) and ``c_solve`` (dense Gaussian
+      elimination).
     """
-    pieces = holonomic(mechanics)
+    pieces = rows(mechanics)
     scene = mechanics.scene
     n, k = mechanics.n, pieces.k
     m = n + k
+    kh = sum(kind == "holonomic" for kind in pieces.kinds)
+    kb = kh + sum(kind == "nonholonomic" for kind in pieces.kinds)
+    index = restitution_index(scene)
     state = writer.unpack_state()
     to_velocities = _velocity_lines(writer, mechanics)
-    parts = [f"N_CONSTRAINTS = {k}\n", _SOLVE]
+    parts = [
+        f"N_CONSTRAINTS = {k}\nN_HOLONOMIC = {kh}\nN_BILATERAL = {kb}\n"
+        f"RESTITUTION_INDEX = {-1 if index is None else index}\n",
+        _SOLVE,
+    ]
     parts.append(_function(writer, "c_free_rhs(t, y, P, out)", state, mechanics.hamilton_equations))
-    parts.append(_function(writer, "c_values(t, y, P, out)", state, pieces.values))
+    positions = [
+        sympy.S.Zero if kind == "nonholonomic" else f
+        for kind, f in zip(pieces.kinds, pieces.values, strict=True)
+    ]
+    parts.append(_function(writer, "c_positions(t, y, P, out)", state, positions))
     jacobian = [(f"out[{i}, {j}]", pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
     jacobian += [(f"out[{i}, {n}]", pieces.time_derivative[i]) for i in range(k)]
-    parts.append(_assign(writer, "c_jacobian(t, y, P, out)", state, jacobian))
+    parts.append(_assign(writer, "c_rows(t, y, P, out)", state, jacobian))
     M = mechanics.mass_matrix
     mass = [(f"out[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)]
     parts.append(_assign(writer, "c_mass(t, y, P, out)", state, mass))
@@ -270,7 +414,18 @@ def kernel_source(writer, mechanics) -> str:
     saddle += [(f"W[{n + i}, {m}]", pieces.gamma[i]) for i in range(k)]
     saddle += [(f"W[{n + i}, {j}]", pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
     parts.append(_assign(writer, "c_saddle(t, y, P, W)", state, saddle, before=to_velocities))
-    parts.append(_KERNELS.format(n=n, k=k, m=m, maxit=PROJECTION_ITERATIONS))
+    gamma = [(f"out[{i}]", pieces.gamma[i]) for i in range(k)]
+    parts.append(_assign(writer, "c_gamma(t, y, P, out)", state, gamma, before=to_velocities))
+    parts.append(
+        _KERNELS.format(
+            n=n,
+            k=k,
+            m=m,
+            maxit=PROJECTION_ITERATIONS,
+            gap=CONTACT_GAP,
+            speed=CONTACT_SPEED,
+        )
+    )
     return "\n\n".join(parts)
 
 
@@ -335,109 +490,318 @@ def _settled(size, previous, scale):
     return size <= 1e-10 * scale and size > 0.5 * previous
 
 
-def c_lambda(t, y, P, W):
-    """Fill and solve the saddle-point system: W[{n}:{m}, {m}] is lambda, W[:{n}, {m}] qddot."""
+def c_bilateral(act):
+    """act = 1 for the bilateral rows, 0 for the unilateral ones (no contact)."""
+    for i in range({k}):
+        act[i] = 1.0 if i < N_BILATERAL else 0.0
+
+
+def c_lambda(t, y, P, act, W):
+    """Fill and solve the saddle-point system of the rows with act > 0 (a row that does
+    not act gets an identity row and lambda = 0): W[{n}:{m}, {m}] is lambda, W[:{n}, {m}]
+    qddot."""
     for i in range({k}):
         for j in range({k}):
             W[{n} + i, {n} + j] = 0.0
     c_saddle(t, y, P, W)
-    for i in range({n}):
-        for j in range({k}):
-            W[i, {n} + j] = W[{n} + j, i]
+    for i in range({k}):
+        if act[i] > 0.0:
+            for j in range({n}):
+                W[j, {n} + i] = W[{n} + i, j]
+        else:
+            for j in range({n}):
+                W[j, {n} + i] = 0.0
+                W[{n} + i, j] = 0.0
+            W[{n} + i, {n} + i] = 1.0
+            W[{n} + i, {m}] = 0.0
     c_solve(W, {m}, 1)
 
 
-def rhs(t, y, P, out):
+def c_rhs(t, y, P, act, out):
     W = np.empty(({m}, {m} + 1))
-    c_lambda(t, y, P, W)
-    J = np.empty(({k}, {n} + 1))
-    c_jacobian(t, y, P, J)
+    c_lambda(t, y, P, act, W)
+    R = np.empty(({k}, {n} + 1))
+    c_rows(t, y, P, R)
     c_free_rhs(t, y, P, out)
     for i in range({n}):
         acc = 0.0
         for j in range({k}):
-            acc += J[j, i] * W[{n} + j, {m}]
+            acc += R[j, i] * W[{n} + j, {m}]
         out[{n} + i] -= acc
 
 
-def multipliers(t, y, P, out):
+def rhs(t, y, P, out):
+    act = np.empty({k})
+    c_bilateral(act)
+    c_rhs(t, y, P, act, out)
+
+
+def c_normal_speeds(t, y, P, qd, R, out):
+    """out[i] = R[i, :n] . qd + R[i, n]: each row's velocity (a . qdot + b, G qdot + g_t)."""
+    for i in range({k}):
+        acc = R[i, {n}]
+        for j in range({n}):
+            acc += R[i, j] * qd[j]
+        out[i] = acc
+
+
+def c_contacts(t, y, P, act):
+    """act for the state y: the bilateral rows, and the unilateral rows it touches (g and
+    the normal velocity at zero) where the contact pushes (lambda <= 0)."""
+    c_bilateral(act)
+    if N_BILATERAL == {k}:
+        return
+    g = np.empty({k})
+    c_positions(t, y, P, g)
+    qd = np.empty({n})
+    c_velocities(t, y, P, qd)
+    R = np.empty(({k}, {n} + 1))
+    c_rows(t, y, P, R)
+    v = np.empty({k})
+    c_normal_speeds(t, y, P, qd, R, v)
+    qscale = 1.0
+    vscale = 1.0
+    for j in range({n}):
+        qscale = max(qscale, abs(y[j]))
+        vscale = max(vscale, abs(qd[j]))
+    touching = 0
+    for i in range(N_BILATERAL, {k}):
+        if abs(g[i]) <= {gap} * qscale and abs(v[i]) <= {speed} * vscale:
+            act[i] = 1.0
+            touching += 1
     W = np.empty(({m}, {m} + 1))
-    c_lambda(t, y, P, W)
+    while touching > 0:
+        c_lambda(t, y, P, act, W)
+        pulling = False
+        for i in range(N_BILATERAL, {k}):
+            if act[i] > 0.0 and W[{n} + i, {m}] > 0.0:
+                act[i] = 0.0
+                touching -= 1
+                pulling = True
+                break
+        if not pulling:
+            break
+
+
+def multipliers(t, y, P, out):
+    act = np.empty({k})
+    c_contacts(t, y, P, act)
+    W = np.empty(({m}, {m} + 1))
+    c_lambda(t, y, P, act, W)
     for j in range({k}):
         out[j] = W[{n} + j, {m}]
 
 
 def constraint_values(t, y, P, out):
-    c_values(t, y, P, out)
+    c_positions(t, y, P, out)
+    if N_BILATERAL > N_HOLONOMIC:
+        qd = np.empty({n})
+        c_velocities(t, y, P, qd)
+        R = np.empty(({k}, {n} + 1))
+        c_rows(t, y, P, R)
+        v = np.empty({k})
+        c_normal_speeds(t, y, P, qd, R, v)
+        for i in range(N_HOLONOMIC, N_BILATERAL):
+            out[i] = v[i]
 
 
-def c_metric_solve(t, y, P, J, rhs_k, dq):
-    """dq = M^-1 J^T (J M^-1 J^T)^-1 rhs_k for J = Phi_q at y (the least-metric step)."""
-    B = np.empty(({n}, {n} + {k}))
-    Mq = np.empty(({n}, {n}))
-    c_mass(t, y, P, Mq)
-    for i in range({n}):
-        for j in range({n}):
-            B[i, j] = Mq[i, j]
-        for j in range({k}):
-            B[i, {n} + j] = J[j, i]
-    c_solve(B, {n}, {k})
-    S = np.empty(({k}, {k} + 1))
-    for i in range({k}):
-        for j in range({k}):
-            acc = 0.0
-            for l in range({n}):
-                acc += J[i, l] * B[l, {n} + j]
-            S[i, j] = acc
-        S[i, {k}] = rhs_k[i]
-    c_solve(S, {k}, 1)
+def c_metric(t, y, P, R, use, top, r, out):
+    """out = x of [[M, R_u^T], [R_u, 0]] [x; mu] = [M top; r_u] over the rows with
+    use > 0: x = top - M^-1 R_u^T (R_u M^-1 R_u^T)^-1 (R_u top - r_u), the point of
+    R_u x = r_u nearest to ``top`` in the kinetic metric."""
+    W = np.empty(({m}, {m} + 1))
+    c_mass(t, y, P, W)
     for i in range({n}):
         acc = 0.0
-        for j in range({k}):
-            acc += B[i, {n} + j] * S[j, {k}]
-        dq[i] = acc
+        for j in range({n}):
+            acc += W[i, j] * top[j]
+        W[i, {m}] = acc
+    for a in range({k}):
+        for b in range({k}):
+            W[{n} + a, {n} + b] = 0.0
+        if use[a] > 0.0:
+            for j in range({n}):
+                W[{n} + a, j] = R[a, j]
+                W[j, {n} + a] = R[a, j]
+            W[{n} + a, {m}] = r[a]
+        else:
+            for j in range({n}):
+                W[{n} + a, j] = 0.0
+                W[j, {n} + a] = 0.0
+            W[{n} + a, {n} + a] = 1.0
+            W[{n} + a, {m}] = 0.0
+    c_solve(W, {m}, 1)
+    for i in range({n}):
+        out[i] = W[i, {m}]
 
 
-def project(t, y, P):
-    """Move y = (q, p) onto Phi(q, t) = 0 and Phi_q qdot + Phi_t = 0, in place."""
+def c_project(t, y, P, act):
+    """Move y = (q, p) onto the position rows (holonomic, and the acting contacts) and
+    every acting velocity row, in place; False if Newton's iteration did not converge."""
     qd = np.empty({n})
     c_velocities(t, y, P, qd)
-    phi = np.empty({k})
-    J = np.empty(({k}, {n} + 1))
+    pos = np.empty({k})
+    R = np.empty(({k}, {n} + 1))
     dq = np.empty({n})
-    converged = False
-    previous = math.inf
-    for it in range({maxit}):
-        c_values(t, y, P, phi)
-        c_jacobian(t, y, P, J)
-        c_metric_solve(t, y, P, J, phi, dq)
-        size = 0.0
-        scale = 1.0
-        for i in range({n}):
-            y[i] -= dq[i]
-            size = max(size, abs(dq[i]))
-            scale = max(scale, abs(y[i]))
-        if not size == size:
-            return False
-        if _settled(size, previous, scale):
-            converged = True
-            break
-        previous = size
-    c_jacobian(t, y, P, J)
-    r = np.empty({k})
-    for i in range({k}):
-        acc = J[i, {n}]
-        for l in range({n}):
-            acc += J[i, l] * qd[l]
-        r[i] = acc
-    c_metric_solve(t, y, P, J, r, dq)
+    zero = np.empty({n})
+    use = np.empty({k})
+    npos = 0
     for i in range({n}):
-        qd[i] -= dq[i]
+        zero[i] = 0.0
+    for i in range({k}):
+        use[i] = 0.0
+        if act[i] > 0.0 and (i < N_HOLONOMIC or i >= N_BILATERAL):
+            use[i] = 1.0
+            npos += 1
+    converged = True
+    if npos > 0:
+        converged = False
+        previous = math.inf
+        for _ in range({maxit}):
+            c_positions(t, y, P, pos)
+            c_rows(t, y, P, R)
+            c_metric(t, y, P, R, use, zero, pos, dq)
+            size = 0.0
+            scale = 1.0
+            for i in range({n}):
+                y[i] -= dq[i]
+                size = max(size, abs(dq[i]))
+                scale = max(scale, abs(y[i]))
+            if not size == size:
+                return False
+            if _settled(size, previous, scale):
+                converged = True
+                break
+            previous = size
+    c_rows(t, y, P, R)
+    for i in range({k}):
+        pos[i] = -R[i, {n}]
+    c_metric(t, y, P, R, act, qd, pos, dq)
     p = np.empty({n})
-    c_momenta(t, y, qd, P, p)
+    c_momenta(t, y, dq, P, p)
     for i in range({n}):
         y[{n} + i] = p[i]
     return converged
+
+
+def project(t, y, P):
+    """Move y = (q, p) onto Phi(q, t) = 0 and the bilateral velocity rows, in place."""
+    act = np.empty({k})
+    c_bilateral(act)
+    return c_project(t, y, P, act)
+
+
+def c_restitution(P):
+    if RESTITUTION_INDEX < 0:
+        return 1.0
+    return max(P[RESTITUTION_INDEX], 0.0)
+
+
+def c_event_values(t, y, P, act, out):
+    """out[i] for the unilateral rows: g (a free row) or -lambda (an acting contact);
+    inf for the bilateral rows. A negative value means the state went through a wall or
+    a contact pulls."""
+    for i in range({k}):
+        out[i] = math.inf
+    if N_BILATERAL == {k}:
+        return
+    g = np.empty({k})
+    c_positions(t, y, P, g)
+    contact = False
+    for i in range(N_BILATERAL, {k}):
+        if act[i] > 0.0:
+            contact = True
+        else:
+            out[i] = g[i]
+    if contact:
+        W = np.empty(({m}, {m} + 1))
+        c_lambda(t, y, P, act, W)
+        for i in range(N_BILATERAL, {k}):
+            if act[i] > 0.0:
+                out[i] = -W[{n} + i, {m}]
+
+
+def c_switch(t, y, P, act, which):
+    """At the located event of row ``which``: release it if it is an acting contact (its
+    multiplier reached zero); otherwise Newton's restitution law on it (and on every other
+    free row as close, g <= its g, that approaches), jointly and keeping every acting row:
+    G qdot+ + g_t = -e (G qdot- + g_t), then p = p(q, qdot+). A rebound that would rise
+    less than the contact gap (v+**2 <= 2 |a_n| CONTACT_GAP max(1, |q|), with a_n the
+    normal acceleration of the free motion after the impact: e = 0, or the end of a Zeno
+    sequence of ever lower bounces) makes the contact a resting one instead (normal
+    velocity 0, act = 1). Contacts that would pull are then released, one at a time.
+    Returns False if nothing changed."""
+    if act[which] > 0.0:
+        act[which] = 0.0
+        return True
+    e = c_restitution(P)
+    qd = np.empty({n})
+    c_velocities(t, y, P, qd)
+    g = np.empty({k})
+    c_positions(t, y, P, g)
+    R = np.empty(({k}, {n} + 1))
+    c_rows(t, y, P, R)
+    v = np.empty({k})
+    c_normal_speeds(t, y, P, qd, R, v)
+    qscale = 1.0
+    for j in range({n}):
+        qscale = max(qscale, abs(y[j]))
+    use = np.empty({k})
+    target = np.empty({k})
+    hit = np.empty({k})
+    level = max(g[which], 0.0)
+    changed = False
+    for i in range({k}):
+        use[i] = act[i]
+        target[i] = -R[i, {n}]
+        hit[i] = 0.0
+        if i >= N_BILATERAL and act[i] == 0.0 and (i == which or g[i] <= level):
+            if v[i] > 0.0:
+                continue  # leaving already
+            use[i] = 1.0
+            hit[i] = 1.0
+            target[i] = -R[i, {n}] - e * v[i]
+            changed = True
+    if not changed:
+        return False
+    new = np.empty({n})
+    c_metric(t, y, P, R, use, qd, target, new)
+    p = np.empty({n})
+    c_momenta(t, y, new, P, p)
+    for i in range({n}):
+        y[{n} + i] = p[i]
+    # how high each rebound would rise: v+**2 / (2 |a_n|) with the free motion's a_n
+    W = np.empty(({m}, {m} + 1))
+    c_lambda(t, y, P, act, W)
+    gamma = np.empty({k})
+    c_gamma(t, y, P, gamma)
+    resting = False
+    for i in range(N_BILATERAL, {k}):
+        if hit[i] > 0.0:
+            a_n = -gamma[i]
+            for j in range({n}):
+                a_n += R[i, j] * W[j, {m}]
+            rebound = -e * v[i]
+            if rebound * rebound <= 2.0 * max(-a_n, 0.0) * {gap} * qscale:
+                act[i] = 1.0
+                target[i] = -R[i, {n}]
+                resting = True
+    if resting:
+        c_metric(t, y, P, R, use, qd, target, new)
+        c_momenta(t, y, new, P, p)
+        for i in range({n}):
+            y[{n} + i] = p[i]
+    for _ in range({k}):
+        c_lambda(t, y, P, act, W)
+        pulling = False
+        for i in range(N_BILATERAL, {k}):
+            if act[i] > 0.0 and W[{n} + i, {m}] > 0.0:
+                act[i] = 0.0
+                pulling = True
+                break
+        if not pulling:
+            break
+    return changed
 '''
 
 
@@ -450,24 +814,31 @@ class Numeric:
     Parameters
     ----------
     compiled : CompiledSystem
-        Of a scene with holonomic constraints; its parameter values are used (see
-        ``bound_to``).
+        Of a scene with constraints; its parameter values are used (see ``bound_to``).
     """
 
     def __init__(self, compiled):
         self.compiled = compiled
         mech = compiled.mechanics
-        self.n, self.pieces = mech.n, holonomic(mech)
+        self.n, self.pieces = mech.n, rows(mech)
         if self.pieces is None:
             raise ValueError("the scene has no constraints")
         self.k = self.pieces.k
+        kinds = np.array(self.pieces.kinds)
+        self.holonomic = kinds == "holonomic"
+        self.nonholonomic = kinds == "nonholonomic"
+        self.unilateral = kinds == "unilateral"
         params = tuple(mech.params[name] for name in compiled.parameter_names)
         t, q, qd = mech.t, mech.q, mech.qdot
 
         def lam(args, exprs):
             return sympy.lambdify((*args, params), [as_expr(e) for e in exprs], modules="numpy")
 
-        self._phi = lam((t, q), self.pieces.values)
+        positions = [
+            sympy.S.Zero if kind == "nonholonomic" else f
+            for kind, f in zip(self.pieces.kinds, self.pieces.values, strict=True)
+        ]
+        self._positions = lam((t, q), positions)
         self._jacobian = lam((t, q), [*self.pieces.jacobian, *self.pieces.time_derivative])
         self._mass = lam((t, q, qd), list(mech.mass_matrix))
         self._forcing = lam((t, q, qd), list(mech.forcing))
@@ -495,37 +866,93 @@ class Numeric:
         ts = np.broadcast_to(np.asarray(t, dtype=float), (N,))
         return ts, Y, N
 
+    def _rows(self, ts, Q, N) -> tuple[np.ndarray, np.ndarray]:
+        """(A (N, k, n), c (N, k)): the velocity rows and their velocity-free parts."""
+        n, k = self.n, self.k
+        both = self._stack(self._jacobian, ((n + 1) * k,), N, ts, Q)
+        return both[:, : n * k].reshape(N, k, n), both[:, n * k :]
+
     def values(self, t, Y: np.ndarray) -> np.ndarray:
-        """Phi at states Y (N, 2n); returns (N, k)."""
+        """Phi, a . qdot + b and g at states Y (N, 2n); returns (N, k)."""
         ts, Y, N = self._split(t, Y)
-        return self._stack(self._phi, (self.k,), N, ts, Y[:, : self.n].T)
+        Q = Y[:, : self.n].T
+        out = self._stack(self._positions, (self.k,), N, ts, Q)
+        if self.nonholonomic.any():
+            A, c = self._rows(ts, Q, N)
+            speeds = np.einsum("akn,an->ak", A, self.qdot(ts, Y)) + c
+            out[:, self.nonholonomic] = speeds[:, self.nonholonomic]
+        return out
 
     def violation(self, t, Y: np.ndarray) -> float:
-        """The largest |Phi_i| over the states Y (N, 2n)."""
-        return float(np.max(np.abs(self.values(t, Y)))) if len(np.atleast_2d(Y)) else 0.0
+        """The largest violation over the states Y (N, 2n): |Phi_i| of the holonomic
+        constraints, |a . qdot + b| of the nonholonomic ones and max(0, -g) of the
+        unilateral ones."""
+        if not len(np.atleast_2d(Y)):
+            return 0.0
+        values = self.values(t, Y)
+        values[:, self.unilateral] = np.maximum(0.0, -values[:, self.unilateral])
+        return float(np.max(np.abs(values)))
 
     def qdot(self, t, Y: np.ndarray) -> np.ndarray:
         ts, Y, N = self._split(t, Y)
         n = self.n
         return self._stack(self._velocities, (n,), N, ts, Y[:, :n].T, Y[:, n:].T)
 
+    def contacts(self, t, Y: np.ndarray) -> np.ndarray:
+        """Which rows act at states Y (N, 2n), as the kernels' ``c_contacts`` decides:
+        every bilateral row, and the unilateral rows a state touches (g and the normal
+        velocity at zero, see ``CONTACT_GAP``) where the contact pushes. Returns a
+        boolean array (N, k)."""
+        return self._solve(t, Y)[1]
+
     def multipliers(self, t, Y: np.ndarray) -> np.ndarray:
-        """lambda at states Y (N, 2n) from the saddle-point system; returns (N, k)."""
+        """lambda at states Y (N, 2n) from the saddle-point system; returns (N, k). A
+        unilateral row's multiplier is 0 where the state is not in contact with it."""
+        return self._solve(t, Y)[0]
+
+    def _solve(self, t, Y):
         ts, Y, N = self._split(t, Y)
         n, k = self.n, self.k
-        Q, Qd = Y[:, :n].T, self.qdot(ts, Y).T
-        M = self._stack(self._mass, (n, n), N, ts, Q, Qd)
-        F = self._stack(self._forcing, (n,), N, ts, Q, Qd)
-        gamma = self._stack(self._gamma, (k,), N, ts, Q, Qd)
-        J = self._stack(self._jacobian, ((n + 1) * k,), N, ts, Q)[:, : n * k].reshape(N, k, n)
+        Q, Qd = Y[:, :n].T, self.qdot(ts, Y)
+        M = self._stack(self._mass, (n, n), N, ts, Q, Qd.T)
+        F = self._stack(self._forcing, (n,), N, ts, Q, Qd.T)
+        gamma = self._stack(self._gamma, (k,), N, ts, Q, Qd.T)
+        J, c = self._rows(ts, Q, N)
+        act = np.broadcast_to(~self.unilateral, (N, k)).copy()
+        if self.unilateral.any():
+            g = self._stack(self._positions, (k,), N, ts, Q)
+            speeds = np.einsum("akn,an->ak", J, Qd) + c
+            qscale = np.maximum(1.0, np.abs(Y[:, :n]).max(axis=1))[:, None]
+            vscale = np.maximum(1.0, np.abs(Qd).max(axis=1))[:, None]
+            touching = (np.abs(g) <= CONTACT_GAP * qscale) & (
+                np.abs(speeds) <= CONTACT_SPEED * vscale
+            )
+            act |= touching & self.unilateral
+        for _ in range(int(self.unilateral.sum()) + 1):
+            lam = self._saddle(M, F, gamma, J, act)
+            pulling = act & self.unilateral & (lam > 0.0)
+            if not pulling.any():
+                break
+            # release one pulling contact per state and try again, as the kernel does
+            first = np.argmax(pulling, axis=1)
+            rows_ = np.flatnonzero(pulling.any(axis=1))
+            act[rows_, first[rows_]] = False
+        return lam, act
+
+    def _saddle(self, M, F, gamma, J, act) -> np.ndarray:
+        """lambda of [[M, A^T], [A, 0]] [qddot; lambda] = [F; gamma] over the rows ``act``
+        (the others: lambda = 0), for N states at once; nan where it is singular."""
+        N, n, k = len(M), self.n, self.k
+        Ja = np.where(act[:, :, None], J, 0.0)
         A = np.zeros((N, n + k, n + k))
         A[:, :n, :n] = M
-        A[:, :n, n:] = np.transpose(J, (0, 2, 1))
-        A[:, n:, :n] = J
-        b = np.concatenate([F, gamma], axis=1)[..., None]
+        A[:, :n, n:] = np.transpose(Ja, (0, 2, 1))
+        A[:, n:, :n] = Ja
+        A[:, n:, n:] = np.where(act, 0.0, 1.0)[:, :, None] * np.eye(k)
+        b = np.concatenate([F, np.where(act, gamma, 0.0)], axis=1)[..., None]
         try:
             return np.linalg.solve(A, b)[:, n:, 0]
-        except np.linalg.LinAlgError:  # some state where Phi_q loses rank: nan there
+        except np.linalg.LinAlgError:  # some state where the rows lose rank: nan there
             out = np.full((N, k), np.nan)
             for row in range(N):
                 try:
@@ -535,21 +962,50 @@ class Numeric:
             return out
 
     def project(self, t: float, y: np.ndarray) -> np.ndarray:
-        """One state (2n,) moved onto the constraints (positions, then velocities), as
-        the kernels' ``project`` does; for an initial state off the manifold.
+        """One state (2n,) moved onto the constraints (positions onto Phi = 0, then the
+        velocities onto the holonomic and nonholonomic rows), as the kernels' ``project``
+        does; for an initial state off the constraints.
 
         Raises
         ------
         DerivationError
-            If Newton's iteration does not converge (no nearby point satisfies Phi = 0).
+            If Newton's iteration does not converge (no nearby point satisfies Phi = 0),
+            or the state lies beyond a unilateral constraint (g < 0).
         """
         n = self.n
         y = np.array(y, dtype=float)
         qd = self.qdot(t, y)[0]
+        if self.holonomic.any():
+            self._project_positions(t, y, qd)
+        if self.unilateral.any():
+            g = self._stack(self._positions, (self.k,), 1, t, y[:n])[0]
+            scale = max(1.0, float(np.max(np.abs(y[:n]))))
+            for i in np.flatnonzero(self.unilateral & (g < -CONTACT_GAP * scale)):
+                number = int(np.sum(self.unilateral[:i]))
+                raise DerivationError(
+                    f"the initial state lies beyond the unilateral constraint "
+                    f"{self.pieces.values[i]} >= 0 (it is {g[i]:.6g} there): start where "
+                    "it holds",
+                    source=self.compiled.mechanics.scene.source,
+                    field=f"constraints.unilateral[{number}]",
+                )
+        bilateral = ~self.unilateral
+        if bilateral.any():
+            try:
+                qd = self._metric_step(t, y[:n], qd, bilateral, None)
+            except np.linalg.LinAlgError:
+                raise self._cannot(y) from None
+        p = np.asarray(self._momenta(t, y[:n], qd, self.compiled.parameters), float)
+        y[n:] = p.reshape(n)
+        return y
+
+    def _project_positions(self, t, y, qd) -> None:
+        n = self.n
         previous = math.inf
         for _ in range(4 * PROJECTION_ITERATIONS):
+            residual = self._stack(self._positions, (self.k,), 1, t, y[:n])[0]
             try:
-                J, dq = self._metric_step(t, y[:n], qd, self.values(t, y)[0])
+                dq = qd - self._metric_step(t, y[:n], qd, self.holonomic, residual)
             except np.linalg.LinAlgError:  # Phi_q (or M) singular here
                 break
             y[:n] -= dq
@@ -557,29 +1013,26 @@ class Numeric:
                 break
             size, scale = np.max(np.abs(dq)), max(1.0, np.max(np.abs(y[:n])))
             if size <= 1e-14 * scale or (size <= 1e-10 * scale and size > 0.5 * previous):
-                try:
-                    J, dq = self._metric_step(t, y[:n], qd, None)
-                except np.linalg.LinAlgError:
-                    break
-                qd = qd - dq
-                p = np.asarray(self._momenta(t, y[:n], qd, self.compiled.parameters), float)
-                y[n:] = p.reshape(n)
-                return y
+                return
             previous = size
-        raise DerivationError(
+        raise self._cannot(y)
+
+    def _cannot(self, y) -> DerivationError:
+        return DerivationError(
             "the initial state cannot be moved onto the constraints (Newton's iteration "
-            f"on Phi(q) = 0 did not converge from q = {list(np.round(y[:n], 6))})",
+            f"on Phi(q) = 0 did not converge from q = {list(np.round(y[: self.n], 6))})",
             source=self.compiled.mechanics.scene.source,
             field="initial",
         )
 
-    def _metric_step(self, t, q, qd, residual):
-        """(J, M^-1 J^T (J M^-1 J^T)^-1 r) for r = residual, or r = J qdot + Phi_t."""
+    def _metric_step(self, t, q, qd, use, residual):
+        """qd - M^-1 A^T (A M^-1 A^T)^-1 r over the rows ``use``, for r = residual, or
+        r = A qdot + c (the velocities' violation)."""
         n, k = self.n, self.k
         P = self.compiled.parameters
         both = np.asarray(self._jacobian(t, q, P), float).reshape(-1)
-        J, Jt = both[: n * k].reshape(k, n), both[n * k :]
+        J, c = both[: n * k].reshape(k, n)[use], both[n * k :][use]
         M = np.asarray(self._mass(t, q, qd, P), float).reshape(n, n)
-        r = J @ qd + Jt if residual is None else residual
+        r = J @ qd + c if residual is None else residual[use]
         X = np.linalg.solve(M, J.T)
-        return J, X @ np.linalg.solve(J @ X, r)
+        return qd - X @ np.linalg.solve(J @ X, r)

@@ -157,7 +157,11 @@ def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]
     scene = mechanics.scene
     lines: list[str] = []
     # with constraints these are the free coordinates' equations (see constraints_lines)
-    free = " (free, without −Φ_qᵀ λ)" if scene.holonomic_constraints else ""
+    free = ""
+    if scene.nonholonomic_constraints or scene.unilateral_constraints:
+        free = " (free, without the constraint force −Aᵀ λ)"
+    elif scene.holonomic_constraints:
+        free = " (free, without −Φ_qᵀ λ)"
     if mechanics.lagrangian is not None:
         lines += _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
         equations = [(f"({i + 1})", eq) for i, eq in enumerate(mechanics.lagrange_equations())]
@@ -289,55 +293,144 @@ def particles_lines(scene: Scene) -> list[str]:
 
 
 def degrees_of_freedom_sentence(mechanics: Mechanics) -> str:
-    """``degrees of freedom: f`` and, with constraints, where f comes from."""
-    from systems.constraints import count, degrees_of_freedom
+    """``degrees of freedom: f`` and, with constraints, where f comes from.
 
-    f, n, k = degrees_of_freedom(mechanics), mechanics.n, count(mechanics.scene)
-    if not k:
+    With nonholonomic constraints both counts are given: the velocity degrees of freedom
+    (coordinates minus independent holonomic and nonholonomic constraints, the f of
+    ``derive --json``) and the configuration's (nonholonomic constraints do not reduce
+    the coordinates). Unilateral constraints reduce neither.
+    """
+    from systems.constraints import (
+        configuration_degrees_of_freedom,
+        counts,
+        degrees_of_freedom,
+    )
+
+    f, n, k = degrees_of_freedom(mechanics), mechanics.n, counts(mechanics.scene)
+    if not sum(k.values()):
         return f"degrees of freedom: {f} (one per coordinate, no constraints)"
-    plural = "s" if n - f != 1 else ""
-    return f"degrees of freedom: {f} = {n} coordinates − {n - f} independent constraint{plural}"
+    kh = n - configuration_degrees_of_freedom(mechanics)
+    if k["nonholonomic"]:
+        kn = n - f - kh
+        holonomic = f"{kh} independent holonomic − " if kh else ""
+        text = (
+            f"degrees of freedom: {f} for the velocities = {n} coordinates − {holonomic}"
+            f"{kn} nonholonomic constraint{'s' if kn != 1 else ''}; "
+            f"the configuration needs {n - kh} coordinates (nonholonomic constraints do not "
+            "integrate to equations between them)"
+        )
+    elif k["holonomic"]:
+        plural = "s" if kh != 1 else ""
+        text = f"degrees of freedom: {f} = {n} coordinates − {kh} independent constraint{plural}"
+    else:
+        text = f"degrees of freedom: {f} (one per coordinate)"
+    if k["unilateral"]:
+        text += (
+            f"; {k['unilateral']} unilateral constraint{'s' if k['unilateral'] != 1 else ''} "
+            "g ≥ 0 restrict where the system may go, not how many coordinates it needs"
+        )
+    return text
 
 
 def constraints_lines(mechanics: Mechanics) -> list[str]:
-    """The holonomic constraints Φ(q, t) = 0 and the equations with multipliers, or
-    ``[]`` for a scene without constraints."""
-    from systems.constraints import holonomic
+    """The constraints (holonomic Φ(q, t) = 0 with γ, nonholonomic a·q̇ + b = 0 with γ,
+    unilateral g(q, t) ≥ 0 with the coefficient of restitution) and a sentence on the
+    equations with multipliers, or ``[]`` for a scene without constraints."""
+    from systems.constraints import RESTITUTION, restitution_index, rows
 
-    pieces = holonomic(mechanics)
+    pieces = rows(mechanics)
     if pieces is None:
         return []
     scene = mechanics.scene
     index = [_subscript(i, pieces.k) for i in range(pieces.k)]
-    rows = [(f"Φ{index[i]}", f) for i, f in enumerate(pieces.values)]
-    rows += [(f"γ{index[i]}", g) for i, g in enumerate(pieces.gamma)]
-    lines = _block("Holonomic constraints Φ(q, t) = 0", rows, scene)
+    lines: list[str] = []
+    titles = {
+        "holonomic": ("Holonomic constraints Φ(q, t) = 0", "Φ"),
+        "nonholonomic": ("Nonholonomic constraints a(q, t)·q̇ + b(q, t) = 0", "Ψ"),
+        "unilateral": ("Unilateral constraints g(q, t) ≥ 0", "g"),
+    }
+    for kind, (title, letter) in titles.items():
+        chosen = [i for i, k in enumerate(pieces.kinds) if k == kind]
+        if not chosen:
+            continue
+        rows_ = [(f"{letter}{index[i]}", pieces.values[i]) for i in chosen]
+        if kind != "unilateral":
+            rows_ += [(f"γ{index[i]}", pieces.gamma[i]) for i in chosen]
+        lines += _block(title, rows_, scene)
     lines.append(
         "The equations below are those of the free coordinates. With the constraints they "
-        "carry one Lagrange multiplier λ each: M q̈ + Φ_qᵀ λ = F and Φ_q q̈ = γ, solved for "
-        "q̈ and λ at every step; ṗ gets the constraint force −Φ_qᵀ λ, and every step is "
-        "projected back onto Φ = 0 (the constrained integrators)."
+        "carry one Lagrange multiplier λ each: M q̈ + Aᵀ λ = F and A q̈ = γ, with A the "
+        "rows ∂Φ/∂q and a, solved for q̈ and λ at every step; ṗ gets the constraint force "
+        "−Aᵀ λ, and every step is projected back onto the constraints (the constrained "
+        "integrators)."
     )
+    if "unilateral" in pieces.kinds:
+        at = restitution_index(scene)
+        e = "1 (elastic: the scene has no restitution parameter)"
+        if at is not None:
+            e = f"{scene.parameters[at][1]:g} (the parameter {RESTITUTION})"
+        lines.append(
+            "A unilateral constraint acts only in contact. Where a step reaches g = 0 it "
+            "ends there: an impact reverses the normal velocity G q̇ + g_t times the "
+            f"coefficient of restitution e = {e}; a rebound too slow to leave makes a "
+            "resting contact, a row of A whose λ ≤ 0 pushes, released when λ would pull."
+        )
     return lines
 
 
 def constraints_json(mechanics: Mechanics) -> dict | None:
-    """The holonomic constraints as JSON-ready data, or None without constraints:
-    ``holonomic`` (Φ_i), ``jacobian`` (rows of ∂Φ_i/∂q) and ``gamma`` (the right-hand sides
-    of Φ_q q̈ = γ), in the scene's names."""
-    from systems.constraints import holonomic
+    """The constraints as JSON-ready data, or None without constraints, in the scene's
+    names: ``holonomic`` (Φ_i), ``jacobian`` (rows of ∂Φ_i/∂q) and ``gamma`` (the
+    right-hand sides of Φ_q q̈ = γ); ``nonholonomic`` (a·q̇ + b), ``coefficients`` (rows
+    of a), ``free_terms`` (b) and ``nonholonomic_gamma`` (those of a q̈ = γ);
+    ``unilateral`` (g, each ≥ 0), ``unilateral_gradient`` (rows of ∂g/∂q) and
+    ``restitution`` (e, 1 without the parameter; None without unilateral constraints);
+    ``multipliers`` (the CSV columns, one per constraint in this order);
+    ``configuration_degrees_of_freedom`` (n minus independent holonomic constraints) and
+    ``velocity_degrees_of_freedom`` (the top-level ``degrees_of_freedom``: nonholonomic
+    constraints subtracted too)."""
+    from systems.constraints import (
+        configuration_degrees_of_freedom,
+        degrees_of_freedom,
+        multiplier_names,
+        restitution_index,
+        rows,
+    )
 
-    pieces = holonomic(mechanics)
+    pieces = rows(mechanics)
     if pieces is None:
         return None
     scene = mechanics.scene
+    n = mechanics.n
+
+    def kind(name: str) -> list[int]:
+        return [i for i, k in enumerate(pieces.kinds) if k == name]
+
+    def matrix(chosen: list[int]) -> list[list[str | None]]:
+        return [[_text(pieces.jacobian[i, j], scene) for j in range(n)] for i in chosen]
+
+    def texts(values, chosen: list[int]) -> list[str | None]:
+        return [_text(values[i], scene) for i in chosen]
+
+    h, nh, u = kind("holonomic"), kind("nonholonomic"), kind("unilateral")
+    at = restitution_index(scene)
+    restitution = None
+    if u:
+        restitution = 1.0 if at is None else float(scene.parameters[at][1])
     return {
-        "holonomic": [_text(f, scene) for f in pieces.values],
-        "jacobian": [
-            [_text(pieces.jacobian[i, j], scene) for j in range(mechanics.n)]
-            for i in range(pieces.k)
-        ],
-        "gamma": [_text(g, scene) for g in pieces.gamma],
+        "holonomic": texts(pieces.values, h),
+        "jacobian": matrix(h),
+        "gamma": texts(pieces.gamma, h),
+        "nonholonomic": texts(pieces.values, nh),
+        "coefficients": matrix(nh),
+        "free_terms": texts(pieces.time_derivative, nh),
+        "nonholonomic_gamma": texts(pieces.gamma, nh),
+        "unilateral": texts(pieces.values, u),
+        "unilateral_gradient": matrix(u),
+        "restitution": restitution,
+        "multipliers": multiplier_names(scene),
+        "configuration_degrees_of_freedom": configuration_degrees_of_freedom(mechanics),
+        "velocity_degrees_of_freedom": degrees_of_freedom(mechanics),
     }
 
 
@@ -466,7 +559,8 @@ def derivation_json(mechanics: Mechanics) -> dict:
         ``equilibria``, ``matrix_form`` (bool), ``mass_matrix``, ``shift`` and
         ``rest`` (None unless ``matrix_form``), and ``particles`` (``particles_json``:
         the transformation equations, None without particles), ``degrees_of_freedom``
-        (coordinates minus independent constraints) and ``constraints``
+        (coordinates minus independent holonomic and nonholonomic constraints: the
+        velocity degrees of freedom) and ``constraints``
         (``constraints_json``, None without constraints; the accelerations and
         Hamilton's equations are then those of the free coordinates, without the
         multipliers' force), with the scene's own names; every expression is a string

@@ -418,8 +418,9 @@ class Sampler:
     worst : float
         The largest |H - H0| seen in any block (0 without the ``"H"`` diagnostic).
     violation : float or None
-        The largest |Phi_i(q, t)| of the holonomic constraints over the states of every
-        block (None for a scene without constraints).
+        The largest violation of the constraints over the states of every block
+        (``constraints.Numeric.violation``: |Phi|, |a . qdot + b|, and how far a unilateral
+        g(q, t) >= 0 is passed; None for a scene without constraints).
     interrupted : bool
     events_t : list of float
     events_y : list of ndarray, shape (2n,)

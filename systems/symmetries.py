@@ -337,12 +337,12 @@ def conserved_charges(
         for i, name in enumerate(scene.coordinates)
         if f"p_{name}" in listed
     ]
+    # the directions each constraint's force acts along: grad f of a holonomic or
+    # unilateral f(q, t), the velocity coefficients a of a nonholonomic a . qdot + b
     constraints = [
-        [sympy.diff(f, qj) for qj in q]
-        for f in (
-            scene.expression(f"constraints.holonomic[{k}]")
-            for k in range(len(getattr(scene, "holonomic_constraints", ())))
-        )
+        [sympy.diff(scene.expression(f"constraints.{kind}[{k}]"), x) for x in by]
+        for kind, by in (("holonomic", q), ("unilateral", q), ("nonholonomic", qdot))
+        for k in range(len(getattr(scene, f"{kind}_constraints", ())))
     ]
     charges = []
     for generator in candidates:

@@ -555,26 +555,213 @@ def dop853_step(y, comp, clock, P, coef, work):
 
 
 # -- constrained systems: a step, then the projection onto the constraints ------------------
-# ``project(t, y, P) -> bool`` exists only in the kernel module of a scene with holonomic
+# ``c_rhs``, ``c_project``, ``project``, ``c_event_values``, ``c_switch`` and the constants
+# ``N_CONSTRAINTS``, ``N_BILATERAL`` exist only in the kernel module of a scene with
 # constraints (``systems.constraints``), whose ``rhs`` already carries the multipliers'
 # force; numba compiles these steps only when such a scene calls them.
+#
+# The contacts of unilateral constraints are part of the step's work: ``act`` (one entry
+# per constraint, 1.0 where the row acts) and ``act0``, its value at the start of the last
+# step. The driver zeroes the work's flag when it undoes a step; the next step then takes
+# ``act0`` back (or, at the very start, finds the contacts of the state: ``c_contacts``).
+# A step that ends beyond a wall or with a pulling contact is redone shorter, to the
+# event (regula falsi, Illinois variant, on the step size: every trial is a DOP853 step
+# from the same state, projected), and ends there with the impact or release applied: the
+# driver never sees the penetrated state.
+
+
+def _c_stages(t, y, P, act, h, tableau, buffers, stages):
+    """``_rk_stages`` on the constrained ``c_rhs`` with the rows ``act``."""
+    A, c = tableau
+    K, Yst = buffers
+    first, last = stages
+    for i in range(first, last):
+        for k in range(y.shape[0]):
+            acc = 0.0
+            for j in range(i):
+                acc += A[i, j] * K[j, k]
+            Yst[k] = y[k] + h * acc
+        c_rhs(t + c[i] * h, Yst, P, act, K[i])
 
 
 def cdop853_work(coef, m):
-    return dop853_work(coef, m)
+    S = coef[1].shape[0]
+    k = N_CONSTRAINTS
+    # K, ynew, ys, y at the left end of an event's bracket, act, act0, mask (the rows
+    # watched for an event: value >= 0 at the start of the step), event values, flags
+    # [step kept (the driver zeroes it when it undoes one), last rejected, K[0] valid,
+    # contacts known]
+    return (
+        np.empty((S + 1, m)),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(k),
+        np.empty(k),
+        np.empty(k),
+        np.empty(k),
+        np.zeros(4),
+    )
+
+
+def _c_trial(t, y, P, act, h, coef, work):
+    """ynew = the DOP853 step of size h from y (K[0] = f(t, y) already), not projected;
+    returns the error norm."""
+    A, B, C, E3, E5, rtol, atol = coef
+    K, ynew, ys = work[0], work[1], work[2]
+    S = B.shape[0]
+    _c_stages(t, y, P, act, h, (A, C), (K, ys), (1, S))
+    for k in range(y.shape[0]):
+        ynew[k] = y[k] + h * _rk_sum(K, B, k)
+    c_rhs(t + h, ynew, P, act, K[S])
+    return _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol)
+
+
+def _c_first(values, mask):
+    """(the smallest of ``values`` over the rows with mask > 0, its row)."""
+    worst = math.inf
+    which = -1
+    for i in range(values.shape[0]):
+        if mask[i] > 0.0 and values[i] < worst:
+            worst = values[i]
+            which = i
+    return worst, which
+
+
+def _c_locate(t, y, P, h, coef, work):
+    """The event inside a step of size h whose end ``ynew`` has a negative event value:
+    the largest step size a found with value >= 0 (regula falsi, Illinois), its state in
+    ``ynew``. Returns (a, the event's row, evaluations). ``mask`` (in ``work[6]``) holds the
+    rows whose value was >= 0 at the start of the step."""
+    K, ynew, ys, ya, act, act0, mask, values, flags = work
+    S = coef[1].shape[0]
+    evals = 0
+    c_event_values(t, y, P, act, values)
+    fa, _ = _c_first(values, mask)
+    fa = max(fa, 0.0)
+    for k in range(y.shape[0]):
+        ya[k] = y[k]
+    a = 0.0
+    b = h
+    c_event_values(t + h, ynew, P, act, values)
+    fb, which = _c_first(values, mask)
+    tol = 1e-15 * max(fa, -fb)
+    side = 0
+    ga = fa  # the true value at a (fa and fb are weighted down by the Illinois rule)
+    for _ in range(120):
+        if b - a <= 4e-16 * (abs(t) + b) or (ga <= tol and a > 0.0):
+            break
+        s = b - fb * (b - a) / (fb - fa)
+        if ga <= tol or not (a < s and s < b):
+            # a row at zero at the start that leaves and comes back within the step (a
+            # low bounce): halve until the bracket's left end is clearly inside
+            s = 0.5 * (a + b)
+        _c_trial(t, y, P, act, s, coef, work)
+        evals += S
+        if not c_project(t + s, ynew, P, act) or not _finite(ynew):
+            b = s  # no good state there: look before it
+            side = 0
+            continue
+        c_event_values(t + s, ynew, P, act, values)
+        fs, row = _c_first(values, mask)
+        if fs < 0.0:
+            b = s
+            fb = fs
+            which = row
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a = s
+            fa = fs
+            ga = fs
+            for k in range(y.shape[0]):
+                ya[k] = ynew[k]
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    for k in range(y.shape[0]):
+        ynew[k] = ya[k]
+    return a, which, evals
 
 
 def cdop853_step(y, comp, clock, P, coef, work):
-    """A DOP853 step on the constrained ``rhs``; an accepted step is projected onto the
-    constraints (positions, then velocities), so they hold to round-off after every step."""
-    code, evals = dop853_step(y, comp, clock, P, coef, work)
-    if code == STATUS_RUNNING:
-        if not project(clock[CLOCK_T], y, P):
-            return STATUS_NOT_CONVERGED, evals
-        for k in range(y.shape[0]):
-            comp[k] = 0.0
-        work[-1][0] = 0.0  # the carried-over f (first same as last) is of the unprojected y
-    return code, evals
+    """A DOP853 step on the constrained ``c_rhs``; an accepted step is projected onto the
+    constraints (positions, then velocities), so they hold to round-off after every step.
+
+    With unilateral constraints, a step that ends beyond a wall (g < 0 on a free row) or
+    with a contact that pulls (lambda > 0 on an acting one) is shortened to the event,
+    where ``c_switch`` applies the impact or the release; the next step starts there.
+    """
+    A, B, C, E3, E5, rtol, atol = coef
+    K, ynew, ys, ya, act, act0, mask, values, flags = work
+    t = clock[CLOCK_T]
+    evals = 0
+    if flags[0] == 0.0:  # the start, or the driver undid the last step
+        if flags[3] == 0.0:
+            c_contacts(t, y, P, act)
+            flags[3] = 1.0
+        else:
+            for i in range(act.shape[0]):
+                act[i] = act0[i]
+        flags[2] = 0.0
+        flags[0] = 1.0
+    for i in range(act.shape[0]):
+        act0[i] = act[i]
+    if flags[2] == 0.0:  # K[0] is f at the start of the step
+        c_rhs(t, y, P, act, K[0])
+        evals += 1
+        flags[2] = 1.0
+    S = B.shape[0]
+    h = clock[CLOCK_H]
+    t_end = clock[CLOCK_T_END]
+    last = h >= t_end - t
+    if last:
+        h = t_end - t
+    if h < 1e-14 * max(abs(t), 1.0) * 4.0:
+        return STATUS_STEP_COLLAPSED, evals
+    err = _c_trial(t, y, P, act, h, coef, work)
+    evals += S
+    if not err == err or not _finite(ynew):
+        clock[CLOCK_H] = h * 0.2
+        flags[1] = 1.0
+        return STATUS_REJECTED, evals
+    if err >= 1.0:
+        clock[CLOCK_H] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
+        flags[1] = 1.0
+        return STATUS_REJECTED, evals
+    factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
+    if flags[1] != 0.0:
+        factor = min(1.0, factor)
+    if not c_project(t + h, ynew, P, act):
+        return STATUS_NOT_CONVERGED, evals
+    following = h * factor
+    if N_BILATERAL < N_CONSTRAINTS:
+        c_event_values(t + h, ynew, P, act, values)
+        event = False
+        for i in range(act.shape[0]):
+            if values[i] < 0.0:
+                event = True
+        if event:
+            c_event_values(t, y, P, act, mask)
+            for i in range(act.shape[0]):
+                mask[i] = 1.0 if mask[i] >= 0.0 and mask[i] < math.inf else 0.0
+            _, first = _c_first(values, mask)
+            if first >= 0:
+                following = h
+                h, which, used = _c_locate(t, y, P, h, coef, work)
+                evals += used
+                last = False
+                if not c_switch(t + h, ynew, P, act, which) and h == 0.0:
+                    return STATUS_NOT_CONVERGED, evals  # an event that changes nothing
+    for k in range(y.shape[0]):
+        y[k] = ynew[k]
+        comp[k] = 0.0
+    clock[CLOCK_T] = t_end if last else t + h
+    clock[CLOCK_H] = following
+    flags[1] = 0.0
+    flags[2] = 0.0  # the carried-over f (first same as last) is of the unprojected y
+    return STATUS_RUNNING, evals
 
 
 def cerk_work(coef, m):
@@ -582,7 +769,8 @@ def cerk_work(coef, m):
 
 
 def cerk_step(y, comp, clock, P, coef, work):
-    """A fixed explicit Runge-Kutta step on the constrained ``rhs``, then the projection."""
+    """A fixed explicit Runge-Kutta step on the constrained ``rhs`` (bilateral
+    constraints only: the registry refuses unilateral ones), then the projection."""
     code, evals = erk_step(y, comp, clock, P, coef, work)
     if code == STATUS_RUNNING:
         if not project(clock[CLOCK_T], y, P):

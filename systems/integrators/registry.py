@@ -71,8 +71,8 @@ class Family:
     ensemble: bool = False
     teaching: bool = False
     constrained: bool = False
-    """Projects onto holonomic constraints after every step: only these families
-    integrate a scene with ``[constraints]``, and only scenes with constraints."""
+    """Projects onto the constraints after every step: only these families integrate a
+    scene with ``[constraints]``, and only scenes with constraints."""
 
     @property
     def run_kernel(self) -> str | None:
@@ -308,6 +308,18 @@ def _explicit_coef(stepper, compiled, t0, y0, compensated):
     return (A, b, c, bool(compensated))
 
 
+def _fixed_step_constraints_apply(mechanics, stepper: Stepper) -> str | None:
+    """A fixed step cannot stop at an impact: unilateral constraints need the adaptive
+    family, whose step ends at each located contact."""
+    if getattr(mechanics.scene, "unilateral_constraints", ()):
+        return (
+            f"{stepper.name} takes fixed steps and cannot stop at the impacts of the "
+            "scene's unilateral constraints; use constrained_dop853, which locates each "
+            "contact and release"
+        )
+    return None
+
+
 def _constrained_rk4_coef(stepper, compiled, t0, y0, compensated):
     A, b, c = EXPLICIT_TABLEAUX["rk4"]
     return (A, b, c, False)  # each step's projection resets the Kahan terms
@@ -409,7 +421,8 @@ FAMILIES: dict[str, Family] = {
         Family(
             name="constrained",
             description="adaptive DOP853 on the equations with multipliers, projected onto "
-            "the holonomic constraints after every step",
+            "the constraints after every step; impacts and contacts of unilateral ones "
+            "located and applied",
             kernel="cdop853",
             setting="tol",
             runner=runners.AdaptiveRunner,
@@ -422,13 +435,13 @@ FAMILIES: dict[str, Family] = {
         Family(
             name="constrained_fixed",
             description="classical RK4 on the equations with multipliers, projected onto "
-            "the holonomic constraints after every step",
+            "the holonomic and nonholonomic constraints after every step",
             kernel="cerk",
             setting="dt",
             runner=runners.FixedStepRunner,
             coefficients=_constrained_rk4_coef,
             default_setting=stepsize.default_step,
-            applies=_applies_always,
+            applies=_fixed_step_constraints_apply,
             constrained=True,
         ),
         Family(
@@ -527,13 +540,14 @@ STEPPERS: dict[str, Stepper] = {
             "constrained_dop853",
             8,
             "constrained",
-            "adaptive Dormand-Prince 8(5,3) with projection onto the holonomic constraints",
+            "adaptive Dormand-Prince 8(5,3) with projection onto the constraints and "
+            "located impacts",
         ),
         _method(
             "constrained_rk4",
             4,
             "constrained_fixed",
-            "classical RK4 with projection onto the holonomic constraints",
+            "classical RK4 with projection onto the holonomic and nonholonomic constraints",
         ),
         _method("radau", 5, "scipy", "scipy Radau IIA (implicit, stiff)", stiff=True),
         _method("bdf", 5, "scipy", "scipy BDF (implicit multistep, stiff)", stiff=True),

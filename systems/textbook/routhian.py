@@ -133,12 +133,22 @@ def reduce(mechanics: Mechanics, cyclic: Sequence[str] | None = None) -> Reducti
     Raises
     ------
     ValueError
-        If a named coordinate is not cyclic or its momentum is not conserved (a force acts
-        on it), or there is nothing left to reduce to.
+        If the scene has constraints, a named coordinate is not cyclic or its momentum is
+        not conserved (a force acts on it), or there is nothing left to reduce to.
     NeedsClosedForm
         (a ValueError) For a system in matrix form (``Mechanics.matrix_form``): its H and
         Hamilton's equations hold the velocities unsolved, so there is no reduced H.
     """
+    from systems.constraints import constrained
+
+    if constrained(mechanics.scene):
+        # the reduced system would still carry the constraints (a floor, rolling), which
+        # the reduced H and its portrait leave out: a wrong picture
+        raise ValueError(
+            "the scene has [constraints]: Routh's reduction here works on free coordinates "
+            "and would leave them out of the reduced system (not done yet for constrained "
+            "systems)"
+        )
     names = mechanics.scene.coordinates
     conserved = [name for name in mechanics.cyclic if f"p_{name}" in mechanics.conserved]
     cyclic = tuple(conserved if cyclic is None else cyclic)

@@ -42,20 +42,24 @@ T, F, N = True, False, None
 #        time_dependent, H conserved, H = T + V, natural, separable), reason
 CATALOGUE = {
     "atwood_machine":           ((F, T, T, T, T, F, T, T, T, T), "fixed pulley, gravity only: simple; H = T + V"),  # noqa: E501
+    "atwood_rope":              ((F, T, T, T, T, F, T, T, T, T), "y1, y2 tied by the fixed rope -y1 - y2 - L = 0: scleronomic, holonomic, bilateral; gravity only: simple; H = T + V, M = diag(m1, m2)"),  # noqa: E501
     "bead_on_rotating_hoop":    ((T, T, T, T, F, F, T, F, F, T), "hoop turned at omega: T0 = m a^2 omega^2 sin^2/2 shows r(q, t); L has no t, so H = T2 - T0 + V is conserved but is not T + V; the t in the drawing changes nothing"),  # noqa: E501
     "cartesian_pendulum":       ((F, T, T, T, T, F, T, T, T, T), "x, y tied by the fixed equation x^2 + y^2 - l^2 = 0: scleronomic, holonomic, bilateral; gravity only: simple; H = T + V, M = m I"),  # noqa: E501
+    "bouncing_ball":            ((F, T, F, F, F, F, F, T, T, T), "the floor y >= 0 is unilateral; its impacts keep a fraction e (the restitution slider) of the normal speed and so may take energy away: not conservative, H not conserved (or watched), though between impacts H = T + V"),  # noqa: E501
     "coupled_oscillators":      ((F, T, T, T, T, F, T, T, T, T), "springs, no constraint in motion: simple"),  # noqa: E501
     "damped_pendulum":          ((F, T, T, F, F, F, F, T, T, T), "Rayleigh dissipation acts: not conservative, H not conserved; the equations have no t"),  # noqa: E501
     "double_pendulum":          ((F, T, T, T, T, F, T, T, T, F), "fixed pivot: simple; M(q) couples the angles, so H is not separable"),  # noqa: E501
     "driven_damped_pendulum":   ((F, T, T, F, F, T, F, T, T, T), "the force A cos(w t) puts t in the equations: time dependent, not conservative; T and V have no t: scleronomic"),  # noqa: E501
     "figure_eight":             ((F, T, T, T, T, F, T, T, T, T), "three free bodies, Newtonian gravity: simple"),  # noqa: E501
     "fpu_chain":                ((F, T, T, T, T, F, T, T, T, T), "a lattice of springs: simple, separable"),  # noqa: E501
+    "gas_in_box":               ((F, T, F, T, T, F, T, T, T, T), "four walls, unilateral and fixed; elastic impacts (no restitution parameter: e = 1) do no work: conservative and simple, H = T conserved"),  # noqa: E501
     "harmonic_oscillator":      ((F, T, T, T, T, F, T, T, T, T), "the textbook's simple system"),  # noqa: E501
     "henon_heiles":             ((F, T, T, T, T, F, T, T, T, T), "given by a t-free H with a positive kinetic form: H is the energy"),  # noqa: E501
     "kepler_cartesian":         ((F, T, T, T, T, F, T, T, T, T), "free particle in a central potential: simple"),  # noqa: E501
     "pendulum_chain":           ((F, T, T, T, T, F, T, T, T, F), "fixed pivot, rigid links (matrix form): simple; M(q) couples"),  # noqa: E501
     "pendulum_ring":            ((F, T, T, T, T, F, T, T, T, T), "pendulums and torsion springs: simple"),  # noqa: E501
     "planetary_motion":         ((F, T, T, T, T, F, T, T, T, F), "central force in polar coordinates: simple; M(r) so not separable"),  # noqa: E501
+    "rolling_disk":             ((F, F, T, T, F, F, T, T, T, T), "rolling without slipping: two velocity constraints a(q) . qdot = 0 that do not integrate: nonholonomic, so not simple; no t and no velocity-free part: scleronomic, the rolling does no work and H = T is conserved"),  # noqa: E501
     "simple_pendulum":          ((F, T, T, T, T, F, T, T, T, T), "fixed pivot, gravity: simple"),  # noqa: E501
     "spherical_pendulum":       ((F, T, T, T, T, F, T, T, T, F), "fixed pivot: simple; M(theta)"),  # noqa: E501
     "stiff_spring_pendulum":    ((F, T, T, T, T, F, T, T, T, F), "spring and gravity, fixed pivot: simple"),  # noqa: E501

@@ -65,6 +65,15 @@ def test_reduce_refuses_a_system_without_cyclic_coordinates():
         reduce(derive(scene(PENDULUM)))
 
 
+@pytest.mark.parametrize("name", ["bouncing_ball", "cartesian_pendulum"])
+def test_reduce_refuses_a_constrained_scene(name):
+    """The ball's x is cyclic, but its reduced portrait in y would leave out the floor."""
+    from systems.scene import load_scene
+
+    with pytest.raises(ValueError, match="constraints"):
+        reduce(derive(load_scene(name)))
+
+
 def test_spinning_hoop_conserves_H_but_not_T_plus_V():
     mech = derive(scene(HOOP))
     t = np.linspace(0.0, 3.0, 601)
