@@ -40,6 +40,7 @@ from explorer.error_report import ErrorReporter
 from explorer.gui_gc import GuiThreadCollector
 from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
+from explorer.panels.constraint_forces_view import attach as attach_constraint_view
 from explorer.panels.mode_energy_view import attach as attach_mode_view
 from explorer.panels.phase_view import PhaseView
 from explorer.preferences import Preferences
@@ -138,6 +139,8 @@ class MainWindow(QMainWindow):
         self._add_workprecision_dock()
         # the normal-mode energies, in a dock offered where modes apply (lattices, chains)
         self.mode_view = attach_mode_view(self)
+        # the constraint forces, in a dock offered for scenes with constraints or particles
+        self.constraint_view = attach_constraint_view(self)
         self.resizeDocks(
             [self.docks["editor"], self.docks["configuration"]],
             [440, 440],
@@ -634,6 +637,7 @@ class MainWindow(QMainWindow):
         self.configuration_view.set_system(compiled)
         self.conserved_view.set_system(compiled)
         self.mode_view.set_system(compiled, y0)
+        self.constraint_view.set_system(compiled)
         self.settings = self._current_settings()
         worker = SimulationWorker(compiled, self.settings, self._generation, runs=self._runs)
         worker.blocks_ready.connect(self._on_worker_blocks_ready)
