@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
+from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QLabel, QSizePolicy, QStackedWidget, QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
@@ -46,6 +46,7 @@ from explorer.panels.curves import (
     style_plot,
 )
 from explorer.panels.log_axis import SparseLogAxis
+from explorer.panels.offered_dock import OfferedDockLink
 from explorer.trajectories import is_gap
 from systems import constraint_forces as cf
 
@@ -495,25 +496,19 @@ def _subscript(k: int) -> str:
     return f"<sub>{k}</sub>"
 
 
-class ConstraintDockLink(QObject):
+class ConstraintDockLink(OfferedDockLink):
     """Offers the view's dock for scenes with constraint forces: the dock's tab is shown
     for a new such scene and hidden for one without (View > Constraint forces)."""
 
     def __init__(self, window, view: ConstraintForcesView, dock):
-        super().__init__(window)
-        self.window = window
-        self.view = view
-        self.dock = dock
         self._scene_key = None
-        self.offered = False
-        dock.visibilityChanged.connect(self._on_dock_visibility_changed)
-        window.installEventFilter(self)
-        self._offer(False, "no system yet")
-
-    def eventFilter(self, watched, event) -> bool:  # noqa: N802 - Qt override
-        if watched is self.window and event.type() == QEvent.Type.Close:
-            self.view.shutdown()
-        return False
+        super().__init__(
+            window,
+            view,
+            dock,
+            "The constraint forces, their virtual work and their power",
+            "No constraint forces in this system: {why}",
+        )
 
     def system_set(self, compiled) -> None:
         scene = compiled.mechanics.scene
@@ -527,20 +522,6 @@ class ConstraintDockLink(QObject):
                 self.dock.show()
             else:
                 self.dock.hide()
-
-    def _offer(self, offered: bool, why: str) -> None:
-        action = self.dock.toggleViewAction()
-        self.offered = offered
-        action.setEnabled(offered or not self.dock.isHidden())
-        action.setStatusTip(
-            "The constraint forces, their virtual work and their power"
-            if offered
-            else f"No constraint forces in this system: {why}"
-        )
-
-    def _on_dock_visibility_changed(self, _visible: bool) -> None:
-        action = self.dock.toggleViewAction()
-        action.setEnabled(self.offered or not self.dock.isHidden())
 
 
 def attach(window, key: str = DOCK_KEY) -> ConstraintForcesView:

@@ -24,7 +24,7 @@ import threading
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QEvent, QObject, Qt, Signal
+from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QDockWidget,
@@ -40,6 +40,7 @@ from PySide6.QtWidgets import (
 from explorer.buffers import GrowingArray
 from explorer.panels.curves import OutsideLegend, RangeKeeper, set_title, style_plot
 from explorer.panels.log_axis import SparseLogAxis
+from explorer.panels.offered_dock import OfferedDockLink
 from explorer.trajectories import is_gap
 from systems.display import pretty_name
 from systems.normal_modes import ModeAnalysis, analyse_compiled
@@ -526,22 +527,21 @@ def _where(names, q0: np.ndarray) -> str:
     return ", ".join(f"{pretty_name(n)} = {v:.4g}" for n, v in zip(names, q0, strict=True))
 
 
-class ModeDockLink(QObject):
+class ModeDockLink(OfferedDockLink):
     """Offers the mode view in a window's dock where modes apply (see the module)."""
 
     def __init__(self, window: QMainWindow, view: ModeEnergyView, dock: QDockWidget):
-        super().__init__(window)
-        self.window = window
-        self.view = view
-        self.dock = dock
         self._coordinates: tuple | None = None
         self._fresh = False
-        self.offered = False
+        super().__init__(
+            window,
+            view,
+            dock,
+            "The energy in each linear normal mode over time",
+            "No normal modes for this system: {why}",
+        )
         window.system_started.connect(self._on_system_started)
         view.analysed.connect(self._on_view_analysed)
-        dock.visibilityChanged.connect(self._on_dock_visibility_changed)
-        window.installEventFilter(self)
-        self._offer(False, "no system yet")
 
     def _on_system_started(self, built) -> None:
         coordinates = tuple(built.scene.coordinates)
@@ -560,25 +560,6 @@ class ModeDockLink(QObject):
                 self.dock.raise_()
             else:
                 self.dock.hide()
-
-    def _offer(self, offered: bool, why: str) -> None:
-        action = self.dock.toggleViewAction()
-        self.offered = offered
-        action.setEnabled(offered or not self.dock.isHidden())
-        action.setStatusTip(
-            "The energy in each linear normal mode over time"
-            if offered
-            else f"No normal modes for this system: {why}"
-        )
-
-    def _on_dock_visibility_changed(self, _visible: bool) -> None:
-        action = self.dock.toggleViewAction()
-        action.setEnabled(self.offered or not self.dock.isHidden())
-
-    def eventFilter(self, watched, event) -> bool:  # noqa: N802 - Qt override
-        if watched is self.window and event.type() == QEvent.Type.Close:
-            self.view.shutdown()
-        return False
 
 
 def attach(window, key: str = DOCK_KEY) -> ModeEnergyView:

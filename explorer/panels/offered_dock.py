@@ -1,0 +1,54 @@
+"""A panel's dock offered only where the panel means something.
+
+The normal-mode energies and the constraint forces each live in a dock tabbed with the
+conserved quantities. ``OfferedDockLink`` keeps the dock's View-menu action enabled
+where the panel applies (or while the dock is still open), with a status tip saying why
+not, and shuts the view's background work down when the window closes.
+"""
+
+from __future__ import annotations
+
+from PySide6.QtCore import QEvent, QObject
+
+
+class OfferedDockLink(QObject):
+    """Ties ``view``'s ``dock`` to ``window``: subclasses decide when it is offered.
+
+    Parameters
+    ----------
+    window : QMainWindow
+    view : QWidget
+        Has ``shutdown()``, called when the window closes.
+    dock : QDockWidget
+    offered_tip : str
+        The View-menu action's status tip where the panel applies.
+    refused_tip : str
+        Where it does not, with ``{why}`` for the reason.
+    """
+
+    def __init__(self, window, view, dock, offered_tip: str, refused_tip: str):
+        super().__init__(window)
+        self.window = window
+        self.view = view
+        self.dock = dock
+        self.offered = False
+        self._tips = (offered_tip, refused_tip)
+        dock.visibilityChanged.connect(self._on_dock_visibility_changed)
+        window.installEventFilter(self)
+        self._offer(False, "no system yet")
+
+    def _offer(self, offered: bool, why: str) -> None:
+        action = self.dock.toggleViewAction()
+        self.offered = offered
+        action.setEnabled(offered or not self.dock.isHidden())
+        offered_tip, refused_tip = self._tips
+        action.setStatusTip(offered_tip if offered else refused_tip.format(why=why))
+
+    def _on_dock_visibility_changed(self, _visible: bool) -> None:
+        action = self.dock.toggleViewAction()
+        action.setEnabled(self.offered or not self.dock.isHidden())
+
+    def eventFilter(self, watched, event) -> bool:  # noqa: N802 - Qt override
+        if watched is self.window and event.type() == QEvent.Type.Close:
+            self.view.shutdown()
+        return False
