@@ -386,6 +386,11 @@ class BuildService(QObject):
         if not self._stopped:
             self._warm_thread = warm_in_background()
 
+    @property
+    def awaits_frame(self) -> bool:
+        """True while the builder waits for the window to show a new system's motion."""
+        return not self._worker.first_frame.is_set()
+
     def request(self, source) -> int:
         """Build ``source`` (TOML text or a ``Scene``); returns the request number.
 

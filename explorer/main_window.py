@@ -50,6 +50,9 @@ from explorer.wheel_guard import install_wheel_guard
 from explorer.worker import RateMeter, RunSettings, SimulationWorker, WorkerThread
 
 REDRAW_MS = 25
+FIRST_PAINT_MS = 60
+"""After the redraw that holds a new system's first blocks: time for its paint (the
+panels repaint at most every 40 ms) before the builder's slower work begins."""
 PARAMETER_DEBOUNCE_MS = 80
 POINCARE_T_END = 5000.0
 CLOSE_SECONDS = 0.8
@@ -88,6 +91,7 @@ class MainWindow(QMainWindow):
         self.rate_meter = RateMeter()
         self._last_error = math.nan
         self.redraws = 0
+        self._frame_due = False  # a new system's first blocks arrived, not yet painted
         self.panel_refreshes = 0  # redraws of the phase view (for the speed benchmark)
         self._closed = False
         self._opening = 0  # the build request of a file being opened, until it reports
@@ -677,8 +681,8 @@ class MainWindow(QMainWindow):
         for key, block in frame.blocks:
             self.store.append(key, block)
         self.rate_meter.add(time.perf_counter(), frame.steps)
-        if frame.steps:
-            self.builder.frame_shown()  # the builder may go on to the slower layout work
+        if frame.steps and self.builder.awaits_frame:
+            self._frame_due = True  # told to the builder once the redraw has painted it
         self.frame_received.emit()
 
     def _on_worker_failed(self, message: str) -> None:
@@ -820,6 +824,11 @@ class MainWindow(QMainWindow):
                 panel.refresh(self.store)
                 if key == "phase":
                     self.panel_refreshes += 1
+        if self._frame_due:
+            # the builder's layout and numba's warm-up hold the GIL for a second or more:
+            # they begin once this redraw has been painted, so the motion shows first
+            self._frame_due = False
+            QTimer.singleShot(FIRST_PAINT_MS, self.builder.frame_shown)
         self.redraws += 1
         self._update_status()
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from types import ModuleType
 
@@ -100,6 +100,24 @@ class CompiledSystem:
         self.kernels.rhs(float(t), np.ascontiguousarray(y, dtype=float), self.parameters, out)
         return out
 
+    def probe_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
+        """A function ``f(t, y)`` like ``rhs``, for Python loops that call it thousands of
+        times (the default step's probe).
+
+        Hamilton's equations compiled by symengine's LLVM backend, the same whether numba's
+        kernels are ready or still interpreted (0.2 ms a call for a ten-link chain, most of
+        its first block), so the probe's answer never depends on how far numba has got. A
+        system in matrix form solves M qdot = p - a with numpy in between. ``rhs`` itself
+        where that cannot be made (constraints, an expression LLVM does not take).
+        """
+        if "probe_rhs" not in self._numeric:
+            self._numeric["probe_rhs"] = _llvm_rhs(self.mechanics, self.parameter_names)
+        evaluate = self._numeric["probe_rhs"]
+        if evaluate is None or "rhs" not in self.wanted:
+            return self.rhs
+        parameters = self.parameters
+        return lambda t, y: evaluate(float(t), np.asarray(y, dtype=float), parameters)
+
     def hamiltonian(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
         """H at many states; ``Y`` shape (N, 2n), ``t`` scalar or (N,); returns (N,)."""
         self.require("hamiltonian")
@@ -157,7 +175,7 @@ class CompiledSystem:
         return y if numeric is None else numeric.project(t0, y)
 
     def constraints(self) -> constraints.Numeric | None:
-        """The scene's holonomic constraints evaluated with numpy (multipliers, violation,
+        """The scene's constraints (every kind) evaluated with numpy (multipliers, violation,
         projection), or None for a scene without constraints."""
         if not constraints.constrained(self.mechanics.scene):
             return None
@@ -225,6 +243,44 @@ class CompiledSystem:
             )
         function = self._numeric[key]
         return lambda t, a, b: function(np.concatenate(([t], a, b, self.parameters)))
+
+
+def _llvm_rhs(mechanics: Mechanics, parameter_names: Sequence[str]):
+    """``evaluate(t, y, P) -> dy/dt`` (shapes (2n,), (k,) -> (2n,)) by
+    ``calculus.llvm_function``, or None where it cannot be made."""
+    if constraints.constrained(mechanics.scene):
+        return None  # the multipliers' saddle-point solve lives in the kernels only
+    n = mechanics.n
+    params = tuple(mechanics.params[name] for name in parameter_names)
+    form = mechanics.matrix_form
+    try:
+        if form is None:
+            whole = calculus.llvm_function(
+                (mechanics.t, *mechanics.q, *mechanics.p, *params), mechanics.hamilton_equations
+            )
+
+            def evaluate(t: float, y: np.ndarray, P: np.ndarray) -> np.ndarray:
+                return whole(np.concatenate(([t], y, P)))
+
+            return evaluate
+        entries = [form.mass_matrix[i, j] for i in range(n) for j in range(n)]
+        mass = calculus.llvm_function((mechanics.t, *mechanics.q, *params), [*entries, *form.shift])
+        forces = calculus.llvm_function(
+            (mechanics.t, *mechanics.q, *mechanics.qdot, *mechanics.p, *params),
+            mechanics.hamilton_equations[n:],
+        )
+    except calculus.Unsupported:
+        return None
+
+    def evaluate_solved(t: float, y: np.ndarray, P: np.ndarray) -> np.ndarray:
+        values = mass(np.concatenate(([t], y[:n], P)))
+        qdot = np.linalg.solve(values[: n * n].reshape(n, n), y[n:] - values[n * n :])
+        out = np.empty(2 * n)
+        out[:n] = qdot
+        out[n:] = forces(np.concatenate(([t], y[:n], qdot, y[n:], P)))
+        return out
+
+    return evaluate_solved
 
 
 def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:

@@ -75,13 +75,14 @@ def jacobian(f, y0: np.ndarray, central: bool = True) -> np.ndarray | None:
     return J if np.all(np.isfinite(J)) else None
 
 
-def fastest_rate(compiled, t0: float, y0: np.ndarray, central: bool = True) -> float:
+def fastest_rate(compiled, t0: float, y0: np.ndarray, central: bool = True, rhs=None) -> float:
     """Largest |eigenvalue| of the Jacobian of the compiled rhs at ``y0`` (shape (2n,)).
 
-    Finite differences on ``compiled.rhs`` (see ``jacobian``); 0.0 when it is not finite
-    there.
+    Finite differences (see ``jacobian``) on ``rhs(t, y)`` (default ``compiled.rhs``);
+    0.0 when it is not finite there.
     """
-    J = jacobian(lambda y: compiled.rhs(t0, y), y0, central)
+    f = compiled.rhs if rhs is None else rhs
+    J = jacobian(lambda y: f(t0, y), y0, central)
     return 0.0 if J is None else float(np.abs(np.linalg.eigvals(J)).max())
 
 
@@ -147,8 +148,9 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     if math.isfinite(t_end) and t_end > t0:
         probe_dt = min(probe_dt, (t_end - t0) / 10.0)
     found = rate
+    probe_rhs = compiled.probe_rhs() if hasattr(compiled, "probe_rhs") else compiled.rhs
     for _ in range(6):
-        states = _probe(compiled, t0, y0, probe_dt, 20 * PROBE_STEPS_PER_PERIOD)
+        states = _probe(probe_rhs, t0, y0, probe_dt, 20 * PROBE_STEPS_PER_PERIOD)
         if states is not None:
             break
         probe_dt /= 2.0
@@ -158,7 +160,7 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     # probe's cost bounded (a ten-link chain's took a second while still interpreted)
     every = max(1, len(y0) * max(len(states), 1) // PROBE_JACOBIAN_BUDGET)
     for t, y in states[every - 1 :: every]:  # forward differences: half the evaluations
-        found = max(found, fastest_rate(compiled, t, y, central=False))
+        found = max(found, fastest_rate(compiled, t, y, central=False, rhs=probe_rhs))
     with _probed_lock:
         if len(memory) >= PROBE_MEMORY:
             memory.pop(next(iter(memory)))
@@ -166,15 +168,16 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     return found
 
 
-def _probe(compiled, t0, y0, dt, nsteps, samples=PROBE_SAMPLES):
-    """States ``(t, y)`` along ``nsteps`` classical Runge-Kutta steps of ``dt``, or None.
+def _probe(f, t0, y0, dt, nsteps, samples=PROBE_SAMPLES):
+    """States ``(t, y)`` along ``nsteps`` classical Runge-Kutta steps of ``dt`` on
+    ``f(t, y)``, or None.
 
-    RK4 on ``compiled.rhs`` rather than the method itself: the states only show where the
-    motion gets fast, and this loop costs the same (a few ms) whether the kernels are
-    compiled yet or still interpreted (``systems.interpreted``), so the step chosen never
-    depends on how far numba has got. None when the state stops being finite.
+    RK4 on ``CompiledSystem.probe_rhs`` rather than the method itself: the states only
+    show where the motion gets fast, and that function costs the same (a few ms for the
+    whole loop) whether the kernels are compiled yet or still interpreted
+    (``systems.interpreted``), so the step chosen never depends on how far numba has
+    got. None when the state stops being finite.
     """
-    f = compiled.rhs
     y = np.array(y0, dtype=float)
     stride = max(1, nsteps // samples)
     states = []
