@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 import sympy
 
-from systems.expressions import FUNCTIONS
+from systems.expressions import FUNCTIONS, as_expr
 
 try:
     import symengine
@@ -25,6 +25,14 @@ except ImportError:  # pragma: no cover - a dependency; sympy alone is only slow
 
 class Unsupported(Exception):
     """symengine could not take these derivatives; use sympy."""
+
+
+def to_symengine(value):
+    """``value`` (sympy, symengine or a number) as a symengine object; never parses text
+    (``symengine.sympify`` would parse a string)."""
+    if isinstance(value, symengine.Basic):
+        return value
+    return symengine.sympify(as_expr(value))
 
 
 if symengine is not None:
@@ -58,7 +66,7 @@ def _converted(value, memo: dict) -> sympy.Expr:
         return found
     node = _SYMPY_NODES.get(type(value).__name__)
     if node is None or isinstance(value, SceneSymbol):
-        result = sympy.sympify(value)
+        result = as_expr(value)
     else:
         result = node(*(_converted(a, memo) for a in value.args))
     memo[value] = result
@@ -87,7 +95,7 @@ class Calculus:
         if symengine is None:
             raise Unsupported("symengine is not installed")
         try:
-            return symengine.sympify(expr).subs(self._plain)
+            return to_symengine(expr).subs(self._plain)
         except (RuntimeError, TypeError, ValueError, NotImplementedError) as exc:
             raise Unsupported(str(exc)) from None
 
@@ -182,7 +190,7 @@ def cse(
         )
     except Unsupported:
         pass
-    renamed = [sympy.sympify(e).xreplace(rename) for e in exprs]
+    renamed = [as_expr(e).xreplace(rename) for e in exprs]
     return sympy.cse(renamed, symbols=sympy.numbered_symbols("x"))
 
 
@@ -200,7 +208,7 @@ def engine_cse(exprs: Sequence[sympy.Expr], rename: dict) -> tuple[list[tuple[st
         raise Unsupported("symengine is not installed")
     try:
         memo: dict = {}
-        engine = [_to_engine(sympy.sympify(e), rename, memo) for e in exprs]
+        engine = [_to_engine(as_expr(e), rename, memo) for e in exprs]
         temporaries, reduced = symengine.cse(engine)
     except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError) as exc:
         raise Unsupported(str(exc)) from None
@@ -231,7 +239,7 @@ def replaced(expr: sympy.Basic, mapping: dict) -> sympy.Basic:
             memo[node] = found
         return found
 
-    return walk(sympy.sympify(expr))
+    return walk(as_expr(expr))
 
 
 def _to_engine(expr: sympy.Basic, rename: dict, memo: dict):
@@ -254,7 +262,7 @@ def _to_engine(expr: sympy.Basic, rename: dict, memo: dict):
         function = getattr(symengine, type(expr).__name__)
         result = function(*(_to_engine(a, rename, memo) for a in expr.args))
     else:  # numbers, constants and anything rarer: symengine's own conversion
-        result = symengine.sympify(expr.xreplace(rename) if rename else expr)
+        result = to_symengine(expr.xreplace(rename) if rename else expr)
     memo[expr] = result
     return result
 
@@ -278,7 +286,7 @@ def fast_function(
         try:
             memo: dict = {}
             engine_arguments = [_to_engine(a, {}, memo) for a in arguments]
-            engine_exprs = [_to_engine(sympy.sympify(e), {}, memo) for e in exprs]
+            engine_exprs = [_to_engine(as_expr(e), {}, memo) for e in exprs]
             function = symengine.Lambdify(
                 engine_arguments, engine_exprs, real=True, cse=True, backend="lambda"
             )
@@ -319,7 +327,7 @@ def llvm_function(
         memo: dict = {}
         function = symengine.Lambdify(
             [_to_engine(a, {}, memo) for a in arguments],
-            [_to_engine(sympy.sympify(e), {}, memo) for e in exprs],
+            [_to_engine(as_expr(e), {}, memo) for e in exprs],
             real=True,
             cse=True,
             backend="llvm",
@@ -337,9 +345,10 @@ def numeric_evaluator(expr: sympy.Expr):
     0.1 s in sympy's 20-digit ``evalf``), sympy otherwise. Raises TypeError, ValueError,
     ZeroDivisionError or RuntimeError where the value is not a finite number.
     """
+    expr = as_expr(expr)
     if symengine is not None:
         try:
-            engine = _to_engine(sympy.sympify(expr), {}, {})
+            engine = _to_engine(expr, {}, {})
         except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError):
             engine = None
         if engine is not None:

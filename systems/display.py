@@ -134,7 +134,7 @@ def combine_trig(expr: sympy.Expr) -> sympy.Expr:
     The terms of a pendulum chain's mass matrix; ``sympy.trigsimp`` finds the same at a
     hundred times the cost (27 s for a twenty-link chain's 210 entries).
     """
-    expr = sympy.sympify(expr)
+    expr = as_expr(expr)
     if expr.is_Atom:
         return expr
     args = [combine_trig(a) for a in expr.args]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import keyword
 import math
+import numbers
 from collections.abc import Callable, Mapping
 
 import sympy
@@ -511,9 +512,20 @@ def _exact_digits(number: sympy.Rational) -> float:
 
 
 def as_expr(value: sympy.Basic | int | float) -> sympy.Basic:
-    """A sympy object for a sympy object (or matrix) or a plain number; never parses text."""
+    """A sympy object for a sympy object (or matrix), a symengine object or a plain number.
+
+    Never parses text: ``sympy.sympify`` would ``eval`` a string, so every conversion of
+    a derived value goes through here (user text goes through ``parse_expression``).
+    """
     if isinstance(value, sympy.Basic | sympy.MatrixBase):
         return value
-    if isinstance(value, bool) or not isinstance(value, int | float):
+    if isinstance(value, str | bytes | bool):
         raise TypeError(f"expected a sympy expression or a number, got {type(value).__name__}")
-    return sympy.Integer(value) if isinstance(value, int) else sympy.Float(value)
+    if isinstance(value, numbers.Integral):
+        return sympy.Integer(int(value))
+    if isinstance(value, numbers.Real):
+        return sympy.Float(float(value))
+    convert = getattr(type(value), "_sympy_", None)  # symengine's objects
+    if convert is None:
+        raise TypeError(f"expected a sympy expression or a number, got {type(value).__name__}")
+    return convert(value)

@@ -44,6 +44,7 @@ import scipy.linalg
 import sympy
 
 from systems.angles import angle_flags
+from systems.calculus import to_symengine
 from systems.deadline import TimeLimitExceeded, time_limit
 from systems.mechanics import Mechanics
 
@@ -244,7 +245,7 @@ def _engine_parts(args, q, U, kinetic, velocities, zero, mass, p, zero_p, *, che
     try:
         plain = {s: symengine.Symbol(s.name) for s in {*args, *velocities, *p}}
         qs = [plain[s] for s in q]
-        EU = symengine.sympify(U)
+        EU = to_symengine(U)
         gradient = [EU.diff(x) for x in qs]
         hessian = {}
         for i, g in enumerate(gradient):
@@ -254,9 +255,9 @@ def _engine_parts(args, q, U, kinetic, velocities, zero, mass, p, zero_p, *, che
                     hessian[i, j] = g.diff(qs[j])
         h_entries, h_index = _upper_entries(len(q), lambda i, j: hessian.get((i, j), 0))
         if mass is not None:
-            m_entries, m_index = _upper_entries(len(q), lambda i, j: symengine.sympify(mass[i, j]))
+            m_entries, m_index = _upper_entries(len(q), lambda i, j: to_symengine(mass[i, j]))
         else:
-            T = symengine.sympify(kinetic)
+            T = to_symengine(kinetic)
             at_rest = {plain[s]: 0 for s in p}
             first = [T.diff(plain[s]) for s in p]
             W = {}
@@ -266,7 +267,7 @@ def _engine_parts(args, q, U, kinetic, velocities, zero, mass, p, zero_p, *, che
             m_entries, m_index = _upper_entries(len(q), lambda i, j: W[i, j])
         rest = []
         if check_rest:
-            T = symengine.sympify(kinetic)
+            T = to_symengine(kinetic)
             stop = {plain[s]: 0 for s in zero}
             rest = [T.diff(plain[v]).subs(stop) for v in velocities]
         expressions = [EU, *gradient, *h_entries, *m_entries, *rest]

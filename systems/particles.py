@@ -27,6 +27,7 @@ import sympy
 
 from systems.calculus import numeric_evaluator
 from systems.display import combine_trig, expanded_terms
+from systems.expressions import as_expr
 
 TRIGSIMP_OPS = 80
 """Entries of M, b and T0 with at most this many operations (after the cheap trig
@@ -164,8 +165,8 @@ def transformation(
     Transformation
         Each entry of M and b, and T0, is simplified (sines and cosines combined).
     """
-    positions = tuple(tuple(sympy.sympify(c) for c in r) for r in positions)
-    masses = tuple(sympy.sympify(m) for m in masses)
+    positions = tuple(tuple(as_expr(c) for c in r) for r in positions)
+    masses = tuple(as_expr(m) for m in masses)
     n = len(q)
     # columns[i][j]: dr_i/dq_j; rates[i]: the explicit dr_i/dt
     columns = [[[sympy.diff(c, x) for c in r] for x in q] for r in positions]
@@ -225,7 +226,7 @@ def _simplified(expr: sympy.Expr) -> sympy.Expr:
 
     Every candidate equals ``expr`` identically: these are sympy's exact rewritings.
     """
-    expr = sympy.sympify(expr)
+    expr = as_expr(expr)
     if expr.is_Atom:
         return expr
     candidates = [expr, sympy.factor_terms(combine_trig(expr))]

@@ -17,8 +17,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy
 
-from systems.calculus import Calculus, Unsupported
+from systems.calculus import Calculus, Unsupported, to_symengine
 from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
+from systems.expressions import as_expr
 from systems.symmetries import ROTATIONS, TRANSLATIONS
 
 try:
@@ -689,7 +690,7 @@ def _rows(rows: list[tuple[str, object]], scene: Scene) -> list[str]:
                 names = names or display_names(scene)
                 lines.append(f"{label} = {_display_text(text, names)}")
                 continue
-            expr = sympy.sympify(expr)
+            expr = as_expr(expr)
         shown = for_display(_for_reading(expr, scene), scene)
         head = f"{label}: " if isinstance(expr, sympy.Eq) else f"{label} = "
         if _larger(shown, PRETTY_NODES):
@@ -883,7 +884,7 @@ class _Algebra:
             self.zero = sympy.S.Zero
 
     def to(self, expr):
-        return self.calculus.to_engine(sympy.sympify(expr)) if self.engine else sympy.sympify(expr)
+        return self.calculus.to_engine(as_expr(expr)) if self.engine else as_expr(expr)
 
     def diff(self, expr, x):
         if self.engine:
@@ -929,7 +930,7 @@ class _Checker:
         try:
             f = symengine.Lambdify(
                 [symengine.Symbol(s.name) for s in self.symbols],
-                [symengine.sympify(e) for e in exprs],
+                [to_symengine(e) for e in exprs],
                 real=False,
             )
             with np.errstate(all="ignore"):
@@ -946,7 +947,7 @@ EXPAND_TERMS = 400
 def _tidy_small(expr: sympy.Expr) -> sympy.Expr:
     """The shortest of ``expr``, ``combine_trig(expr)`` and, when its expansion is small,
     ``combine_trig(expand(expr))`` with common factors pulled out."""
-    expr = sympy.sympify(expr)
+    expr = as_expr(expr)
     candidates = [expr, combine_trig(expr)]
     if expanded_terms(expr) <= EXPAND_TERMS:
         candidates.append(sympy.factor_terms(combine_trig(sympy.expand(expr))))

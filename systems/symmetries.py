@@ -56,6 +56,7 @@ import numpy as np
 import sympy
 
 from systems.calculus import Calculus
+from systems.expressions import as_expr
 
 try:
     import symengine
@@ -401,7 +402,7 @@ def _values(
     draw = np.random.default_rng(rng.getrandbits(64))
     states = draw.uniform(0.3, 1.7, size=(ATTEMPTS, len(symbols)))
     states[:, : len(signed)] *= draw.choice((-1.0, 1.0), size=(ATTEMPTS, len(signed)))
-    exprs = [sympy.sympify(e) for e in exprs]
+    exprs = [as_expr(e) for e in exprs]
     result = np.empty((ATTEMPTS, len(exprs)))
     # numbers (most of a Jacobian, a translation) need no evaluator: building one is
     # the cost here

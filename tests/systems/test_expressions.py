@@ -105,3 +105,30 @@ def test_deep_nesting_is_still_refused_quickly():
         with pytest.raises(ExpressionError, match="nested too deeply|too long"):
             parse_expression(text, x)
         assert time.perf_counter() - start < 1.0
+
+
+def test_derived_values_are_converted_without_parsing_text():
+    """``as_expr`` is the one conversion of derived values (sympy, symengine, numbers):
+    text would be ``eval``-ed by ``sympy.sympify``, so it is refused, here and in the
+    helpers that convert through it."""
+    import numpy as np
+    import symengine
+
+    from systems import calculus, display, report
+    from systems.expressions import as_expr
+
+    x = sympy.Symbol("x")
+    assert as_expr(symengine.sin(symengine.Symbol("x"))) == sympy.sin(x)
+    assert as_expr(np.int64(3)) == 3 and as_expr(np.float64(0.5)) == sympy.Float(0.5)
+    hostile = "__import__('os').system('true')"
+    for convert in (
+        as_expr,
+        calculus.to_symengine,
+        display.combine_trig,
+        report._tidy_small,
+        lambda text: calculus.replaced(text, {}),
+        lambda text: calculus.cse([text]),
+        lambda text: calculus.numeric_evaluator(text),
+    ):
+        with pytest.raises(TypeError):
+            convert(hostile)
