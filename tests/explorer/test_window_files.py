@@ -44,6 +44,11 @@ def test_a_step_typed_for_one_scene_does_not_carry_over(qtbot, window):
         if controls.method_combo.model().item(i).isEnabled()
     )
     controls.method_combo.setCurrentIndex(index)
+    chosen = controls.method_combo.itemData(index)
+    assert isinstance(chosen, str)
+    # the chosen method runs before the switch: a worker still in numba's first compile
+    # of it is waited for, not cut short, and would outlive the test (a slow CI machine)
+    qtbot.waitUntil(lambda: window.store.main.method == chosen, timeout=120000)
     window.statusBar().showMessage("stopped: energy_error: from the last scene")
     _open(qtbot, window, "double_pendulum")
     assert controls.step_edit.text() == ""
