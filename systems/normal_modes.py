@@ -28,6 +28,16 @@ some coordinate (the Kepler problem's angle), terms of L linear in the velocitie
 no minimum reached from the start, or a zero frequency (a free translation of a ring).
 Dissipation and driving forces are ignored: the modes are those of the conservative part.
 
+With holonomic constraints ``Phi(q) = 0`` (and unilateral ones in contact) the small
+oscillations keep to the constraints: the equilibrium and its modes come from
+``systems.textbook.equilibria`` (the stable isolated equilibrium nearest the start), where
+``K v = w**2 M v`` is solved on the tangent space ``ker Phi_q`` with the stiffness
+``U_qq + sum_i lambda_i Phi_i,qq``. There are then d = n - k modes, and the mode shapes
+(n, d) are displacements that keep the constraints to first order; ``Q = V^T M (q - q0)``
+is the M-orthogonal projection onto them and ``P = V^T p`` their momenta (the point
+transformation ``q = q0 + V Q`` restricted to the constraints). Nonholonomic constraints
+are refused (see ``equilibria.not_computed``).
+
 Headless (sympy, symengine, numpy, scipy); nothing is cached on disk. The symbolic preparation is
 kept in memory as long as its ``Mechanics`` lives.
 """
@@ -68,14 +78,17 @@ class NormalModes:
     coordinates : tuple of str
         The scene's coordinate names.
     q0 : ndarray, shape (n,)
-        The equilibrium (a strict minimum of U).
-    omega : ndarray, shape (n,)
-        Angular frequencies, ascending, all > 0.
-    shapes : ndarray, shape (n, n)
+        The equilibrium (a strict minimum of U, on the constraints if there are any).
+    omega : ndarray, shape (d,)
+        Angular frequencies, ascending, all > 0; d = n without constraints, the degrees of
+        freedom n - k with k acting constraints.
+    shapes : ndarray, shape (n, d)
         Column k is the shape of mode k + 1, normalized so that ``shapes.T @ M @ shapes``
         is the identity.
     mass, stiffness : ndarray, shape (n, n)
-        M and K = d2U/dq2 at ``q0``.
+        M and K at ``q0``, with ``K v = w**2 M v`` for every mode: d2U/dq2 without
+        constraints; with them, the stiffness on the tangent space,
+        ``M V diag(w**2) V^T M`` (zero across the constraints).
     angles : ndarray of bool, shape (n,)
         Angle coordinates: their displacement from ``q0`` is wrapped to (-pi, pi].
     potential : float
@@ -96,14 +109,15 @@ class NormalModes:
 
     @property
     def n(self) -> int:
-        return len(self.q0)
+        """The number of modes d (the number of coordinates without constraints)."""
+        return len(self.omega)
 
     def amplitudes(self, Y: np.ndarray, modes: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Modal coordinates and momenta ``(Q, P)``, each shape (N, n), of states ``Y``
+        """Modal coordinates and momenta ``(Q, P)``, each shape (N, d), of states ``Y``
         (shape (N, 2n) or (2n,), canonical ``(q, p)``); (N, modes) for the first
         ``modes`` only."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
-        n = self.n
+        n = len(self.q0)
         dq = Y[:, :n] - self.q0
         if self.angles.any():
             wrapped = np.mod(dq + math.pi, 2 * math.pi) - math.pi
@@ -114,7 +128,7 @@ class NormalModes:
         return Q, P
 
     def energies(self, Y: np.ndarray, modes: int | None = None) -> np.ndarray:
-        """The energy in each mode, ``E_k = (P_k**2 + w_k**2 Q_k**2) / 2``: shape (N, n)
+        """The energy in each mode, ``E_k = (P_k**2 + w_k**2 Q_k**2) / 2``: shape (N, d)
         for states ``Y`` of shape (N, 2n), or (N, modes) for the first ``modes`` only.
         Non-finite states give NaN rows."""
         Q, P = self.amplitudes(Y, modes)
@@ -391,12 +405,8 @@ def analyse(
 
     if constrained(mechanics.scene):
         # the free coordinates' U and M would give wrong modes (the Cartesian pendulum's
-        # x "moves freely"): small oscillations on the constraint need its tangent space
-        return ModeAnalysis(
-            None,
-            "normal modes of a system with constraints are not computed yet: small "
-            "oscillations must keep to the constraints, which this analysis does not include",
-        )
+        # x "moves freely"): small oscillations keep to the constraints' tangent space
+        return _constrained_modes(mechanics, parameters, start)
     try:
         prepared = prepare(mechanics)
     except TimeLimitExceeded as exc:
@@ -437,6 +447,119 @@ def analyse(
         )
     q0 = min(minima, key=lambda m: float(np.linalg.norm(m - start)))
     return _modes_at(prepared, mechanics, q0, p)
+
+
+def _constrained_modes(
+    mechanics: Mechanics,
+    parameters: Sequence[float] | Mapping[str, float] | None,
+    start: Sequence[float] | None,
+) -> ModeAnalysis:
+    """``analyse`` for a scene with ``[constraints]``: the stable isolated equilibrium of
+    ``systems.textbook.equilibria`` nearest ``start`` and its modes on the tangent space
+    of the constraints acting there."""
+    from systems.constraints import counts
+    from systems.textbook._numeric import vectorize, with_parameters
+    from systems.textbook.equilibria import search_equilibria
+
+    if counts(mechanics.scene)["nonholonomic"]:
+        return ModeAnalysis(
+            None,
+            "normal modes of a system with nonholonomic constraints are not computed: its "
+            "equilibria form manifolds, and the linearised motion about them is not a "
+            "symmetric eigenproblem K v = \u03c9\u00b2 M v (the reduced stiffness "
+            "Z\u1d40(U_qq + \u03a3\u03bb\u1d62 \u2202a\u1d62/\u2202q)Z is not symmetric)",
+        )
+
+    names = [name for name, _ in mechanics.scene.parameters]
+    if parameters is None:
+        values = {}
+    elif isinstance(parameters, Mapping):
+        values = {k: float(v) for k, v in parameters.items()}
+    else:
+        values = dict(zip(names, (float(v) for v in parameters), strict=True))
+    search = search_equilibria(mechanics, parameters=values, symbolic=False)
+    if not search.equilibria:
+        reason = search.reason or "the search found none"
+        return ModeAnalysis(None, f"no equilibrium to oscillate about ({reason})")
+    if search.free:
+        free = ", ".join(search.free)
+        moves = "that coordinate moves" if len(search.free) == 1 else "those coordinates move"
+        return ModeAnalysis(
+            None,
+            f"neither the potential nor the constraints depend on {free}: {moves} freely "
+            "(a zero frequency), so there are no normal modes of small oscillation",
+        )
+    candidates = [e for e in search.equilibria if e.stable and e.continuum is None]
+    if not candidates:
+        if any(e.stable for e in search.equilibria):
+            return ModeAnalysis(
+                None,
+                "the stable equilibria form a set (a zero frequency along it), so not every "
+                "mode oscillates",
+            )
+        return ModeAnalysis(None, "no stable equilibrium on the constraints")
+    n = mechanics.n
+    angles = np.asarray(angle_flags(mechanics), dtype=bool)
+    if start is None:
+        initial = mechanics.scene.initial_values
+        start = [float(initial.get(name, 0.0)) for name in mechanics.scene.coordinates]
+    start = np.asarray(start, dtype=float)[:n]
+
+    def distance(e) -> float:
+        d = np.array(list(e.q.values())) - start
+        d = np.where(angles, np.mod(d + math.pi, 2 * math.pi) - math.pi, d)
+        return float(np.linalg.norm(d))
+
+    e = min(candidates, key=distance)
+    q0 = np.array(list(e.q.values()), dtype=float)
+    where = _describe(mechanics.scene.coordinates, q0)
+    if np.any(np.asarray(e.gyroscopic) != 0):
+        return ModeAnalysis(
+            None,
+            "the kinetic energy has terms linear in the velocities (gyroscopic or "
+            "magnetic), so the small oscillations are not the normal modes of K v = ω² M v",
+        )
+    shapes = np.asarray(e.modes, dtype=float)
+    if e.kind != "minimum" or not shapes.shape[1] or len(e.frequencies) != shapes.shape[1]:
+        if not shapes.shape[1]:
+            return ModeAnalysis(
+                None,
+                f"the constraints acting at {where} leave no motion to oscillate "
+                "(no degree of freedom)",
+            )
+        return ModeAnalysis(
+            None,
+            f"the equilibrium at {where} has a zero frequency (a neutral direction), so not "
+            "every mode oscillates",
+        )
+    zero = {**dict.fromkeys(mechanics.qdot, 0), mechanics.t: 0}
+    entries = [
+        with_parameters(entry, mechanics, values).xreplace(zero) for entry in mechanics.mass_matrix
+    ]
+    M = np.asarray(vectorize(entries, mechanics.q)(*q0), dtype=float).reshape(n, n)
+    omega = np.asarray(e.frequencies, dtype=float)
+    signs = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])])
+    shapes = shapes * np.where(signs == 0, 1.0, signs)
+    MV = M @ shapes
+    notes = []
+    if any(force != 0 for force in mechanics.generalized_forces):
+        notes.append("modes of the conservative part (dissipation and forces ignored)")
+    if e.contacts:
+        held = ", ".join(f"{name} = {e.multipliers[name]:.4g}" for name in e.contacts)
+        notes.append(f"along a resting contact ({held}), while it holds")
+    return ModeAnalysis(
+        NormalModes(
+            coordinates=tuple(mechanics.scene.coordinates),
+            q0=q0,
+            omega=omega,
+            shapes=shapes,
+            mass=M,
+            stiffness=MV @ np.diag(omega**2) @ MV.T,
+            angles=angles,
+            potential=e.potential,
+            note="; ".join(notes),
+        )
+    )
 
 
 def analyse_compiled(compiled, y0: np.ndarray | None = None) -> ModeAnalysis:

@@ -407,7 +407,7 @@ class ModeEnergyView(QWidget):
         """Take the main orbit's rows not seen yet from ``store`` and redraw."""
         self._store = store
         main = store.main
-        if self.modes is None or main is None or main.y.data.shape[1] != 2 * self.modes.n:
+        if self.modes is None or main is None or main.y.data.shape[1] != 2 * len(self.modes.q0):
             return
         t = main.t.data
         start = int(np.searchsorted(t, self._seen_t, side="right"))

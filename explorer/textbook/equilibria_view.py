@@ -45,9 +45,11 @@ def kind_text(equilibrium) -> str:
         if e.verdict == "undecided":
             return "undecided (degenerate)"
         return f"unstable (degenerate{order})"
+    where = " on the constraints" if e.multipliers else ""
     if e.kind in ("saddle", "maximum") and e.stable:
-        return f"stable (gyroscopic; {e.kind} of U)"
-    return KIND_TEXT.get(e.kind, e.kind)
+        return f"stable (gyroscopic; {e.kind} of U{where})"
+    text = KIND_TEXT.get(e.kind, e.kind)
+    return text.replace(" of U)", f" of U{where})")
 
 
 def _number(value: float) -> str:
@@ -91,6 +93,17 @@ def frequency_text(equilibrium) -> str:
                 f"ω = {w:.4g}" for w in others
             )
     return text
+
+
+def force_text(equilibrium) -> str:
+    """The multipliers that hold the equilibrium, ``"λ₁ = 4.905"``, a contact marked
+    ``"λ₂ = −9.81 (contact)"``; "" without constraints."""
+    parts = []
+    for name, value in equilibrium.multipliers.items():
+        label = "λ" + name.rsplit("_", 1)[-1].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
+        contact = " (contact)" if name in equilibrium.contacts else ""
+        parts.append(f"{label} = {_number(value)}{contact}")
+    return ",  ".join(parts)
 
 
 def _subscript(i: int) -> str:
@@ -204,11 +217,24 @@ class EquilibriaView(TextbookTabView):
                 small = "det(−ω² M + iω G + K) = 0, with the gyroscopic terms G of L"
             else:
                 small = "K v = ω² M v"
-            lines.append(
-                f"<b>{count}</b> where the generalized forces −∂U/∂q vanish ({how}). "
-                f"Small oscillations solve {small}; where K is singular, the terms of U "
-                "beyond the quadratic ones decide."
-            )
+            if search.multipliers:
+                push = (
+                    "; a contact must push, λ ≤ 0"
+                    if any(e.contacts for e in search.equilibria)
+                    else ""
+                )
+                lines.append(
+                    f"<b>{count}</b> where the constraint force −Aᵀλ balances −∂U/∂q "
+                    f"(∂U/∂q + Aᵀλ = 0 on the constraints; {how}){push}. Small "
+                    f"oscillations solve {small} on the constraints' tangent space; where K "
+                    "is singular, the terms of U beyond the quadratic ones decide."
+                )
+            else:
+                lines.append(
+                    f"<b>{count}</b> where the generalized forces −∂U/∂q vanish ({how}). "
+                    f"Small oscillations solve {small}; where K is singular, the terms of U "
+                    "beyond the quadratic ones decide."
+                )
         else:
             lines.append("<b>No equilibria.</b>")
         if search.reason:
@@ -226,7 +252,11 @@ class EquilibriaView(TextbookTabView):
         headers = [pretty_name(name) for name in shown]
         if exact:
             headers.append("closed form (sympy)")
-        headers += ["kind", "U (= H at rest)", "small oscillations"]
+        headers += ["kind", "U (= H at rest)"]
+        forces = bool(search.multipliers)
+        if forces:
+            headers.append("constraint force (multipliers)")
+        headers.append("small oscillations")
         if len(names) > 1:
             headers.append("normal modes (" + ", ".join(pretty_name(n) for n in names) + ")")
         headers.append("decided by")
@@ -245,7 +275,10 @@ class EquilibriaView(TextbookTabView):
                 ]
                 cells.append(",  ".join(forms) if self._symbolic(e) else "")
             kind_column = len(cells)
-            cells += [kind_text(e), f"{e.potential:.6g}", frequency_text(e)]
+            cells += [kind_text(e), f"{e.potential:.6g}"]
+            if forces:
+                cells.append(force_text(e))
+            cells.append(frequency_text(e))
             if len(names) > 1:
                 cells.append(mode_text(e, names) if e.continuum is None else "—")
             cells.append(e.decided_by)

@@ -33,6 +33,7 @@ velocity-linear terms are reduced the same way, to quadratic order).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -58,6 +59,8 @@ from systems.textbook._numeric import (
 DEFAULT_HALF_WIDTH = 10.0
 SYMBOLIC_TIMEOUT = 2.0
 SYMBOLIC_MAX_COORDINATES = 3
+SYMBOLIC_MAX_UNKNOWNS = 5
+"""With constraints sympy solves for the coordinates and the multipliers together."""
 SYMBOLIC_MAX_OPS = 200
 Box = Mapping[str, tuple[float, float]]
 
@@ -165,6 +168,12 @@ class Equilibrium:
         ``"stable: flat gyroscopic"``, ``"unstable: flat"`` or ``"undecided"``.
     continuum : EquilibriumSet or None
         The set this entry stands for (``kind == "continuum"``).
+    multipliers : dict[str, float]
+        With ``[constraints]``: the multiplier of every constraint in row order
+        (``lambda_1``, ...), the constraint force ``-A^T lambda`` that holds the system
+        there (0 for a unilateral constraint out of contact); empty without constraints.
+    contacts : tuple of str
+        The multipliers of the unilateral constraints in contact (g = 0) there.
     """
 
     q: dict[str, float]
@@ -183,6 +192,8 @@ class Equilibrium:
     decided_by: str = ""
     verdict: str = ""
     continuum: EquilibriumSet | None = None
+    multipliers: dict[str, float] = field(default_factory=dict)
+    contacts: tuple[str, ...] = ()
 
     @property
     def growth_rates(self) -> list[float]:
@@ -197,7 +208,8 @@ class Equilibrium:
     def as_json(self) -> dict:
         """``{"q", "stable", "frequencies", "kind", "decided_by"}``, and ``"order"`` for a
         degenerate equilibrium, ``"growth_rates"`` for an unstable one with a growing
-        mode, ``"set"`` (``EquilibriumSet.as_json``) for a continuum."""
+        mode, ``"set"`` (``EquilibriumSet.as_json``) for a continuum, ``"multipliers"``
+        and ``"contacts"`` for a system with constraints."""
         data = {
             "q": {name: _clean(value) for name, value in self.q.items()},
             "stable": bool(self.stable),
@@ -211,6 +223,9 @@ class Equilibrium:
             data["growth_rates"] = self.growth_rates
         if self.continuum is not None:
             data["set"] = self.continuum.as_json()
+        if self.multipliers:
+            data["multipliers"] = {k: _clean(v) for k, v in self.multipliers.items()}
+            data["contacts"] = list(self.contacts)
         return data
 
 
@@ -235,6 +250,9 @@ class EquilibriumSearch:
         The numeric search box of each searched coordinate.
     potential : sympy.Expr or None
         The U(q) used, in the scene's symbols (parameters left symbolic).
+    multipliers : tuple[str, ...]
+        With ``[constraints]``: the names of their multipliers (``lambda_1``, ...), the
+        keys of each ``Equilibrium.multipliers``; empty without constraints.
     """
 
     equilibria: list[Equilibrium]
@@ -245,6 +263,7 @@ class EquilibriumSearch:
     periodic: tuple[str, ...] = ()
     box: dict[str, tuple[float, float]] = field(default_factory=dict)
     potential: sympy.Expr | None = None
+    multipliers: tuple[str, ...] = ()
 
 
 SEARCH_SECONDS = 15.0
@@ -334,20 +353,36 @@ def search_equilibria(
 def not_computed(mechanics: Mechanics) -> str | None:
     """Why the equilibria of ``mechanics`` are not computed (None: they are).
 
-    A system with constraints is in equilibrium where dU/dq + Phi_q^T lambda = 0 on
-    Phi(q, t) = 0 (virtual work with the constraint forces): the search solves
-    dU/dq = 0 of free coordinates, which would give a wrong answer (none, for the
-    Cartesian pendulum), so it says so instead.
+    Holonomic and unilateral constraints are solved with their forces (see
+    ``_search_constrained``). Nonholonomic ones are refused where U depends on the
+    coordinates: at rest ``a . qdot = 0`` holds everywhere, so the equilibria
+    ``dU/dq + a^T lambda = 0`` (n equations in n + k unknowns) form manifolds of dimension
+    k, and the linearised motion about them has the stiffness
+    ``Z^T (U_qq + sum_i lambda_i da_i/dq) Z``, not symmetric and not a Hessian: Lyapunov's
+    first method leaves the k zero roots of the manifold critical, and the energy decides
+    only where U itself has a strict minimum. A reduced Hessian would be a wrong answer.
     """
-    from systems.constraints import constrained
+    rows = _constraint_rows(mechanics)
+    if rows is None or "nonholonomic" not in rows.kinds:
+        return None
+    U, _ = equilibrium_potential(mechanics)
+    if not U.has(*mechanics.q):
+        return None  # every configuration at rest, lambda = 0 (``_search_constrained``)
+    return (
+        "equilibria of a system with nonholonomic constraints are not computed: at rest "
+        "a\u00b7q\u0307 = 0 holds everywhere, so the equilibria \u2202U/\u2202q + "
+        "a\u1d40\u03bb = 0 form manifolds, and the stiffness of their linearisation, "
+        "Z\u1d40(U_qq + \u03a3\u03bb\u1d62 \u2202a\u1d62/\u2202q)Z, is not symmetric: "
+        "neither a reduced Hessian nor Lyapunov's first method (its zero roots are "
+        "critical) decides their stability"
+    )
 
-    if constrained(mechanics.scene):
-        return (
-            "equilibria of a system with constraints are not computed yet: they need the "
-            "constraint forces (dU/dq + \u03a6_q\u1d40\u03bb = 0 on \u03a6 = 0), "
-            "which the search does not include"
-        )
-    return None
+
+def _constraint_rows(mechanics: Mechanics):
+    """``systems.constraints.rows(mechanics)`` (None without ``[constraints]``)."""
+    from systems.constraints import constrained, rows
+
+    return rows(mechanics) if constrained(mechanics.scene) else None
 
 
 def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> EquilibriumSearch:
@@ -365,6 +400,9 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
             "no equilibria in these coordinates",
             potential=U,
         )
+    rows = _constraint_rows(mechanics)
+    if rows is not None:
+        return _search_constrained(mechanics, rows, U, box, parameters, symbolic, timeout)
     notes = []
     if any(f != 0 for f in mechanics.generalized_forces):
         notes.append("equilibria of the conservative part (dissipation and forces ignored)")
@@ -384,44 +422,13 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
         )
     symbol_of = dict(zip(names, mechanics.q, strict=True))
     unknowns = [symbol_of[name] for name in searched]
-    everything = [*mechanics.q, *mechanics.qdot, *mechanics.p]
-    numeric_expression = with_parameters(expression, mechanics, parameters)
-    angles = periodic_symbols(numeric_expression, unknowns, everything)
-    periodic = tuple(name for name in searched if symbol_of[name] in angles)
+    periodic = _periodic(mechanics, expression, unknowns, searched, parameters)
     region = _region(searched, periodic, box, mechanics.scene.view)
     U_numeric = with_parameters(U, mechanics, parameters)
     problem = _Problem(mechanics, U_numeric, unknowns, searched, free, periodic, region, parameters)
-
-    found: list[tuple[np.ndarray, dict[str, str]]] = []
-    method = "numeric"
-    if symbolic and len(unknowns) <= SYMBOLIC_MAX_COORDINATES:
-        # Parameters stay symbolic, so one solve serves every slider position.
-        cache = cache_for(mechanics)
-        key = ("equilibria.symbolic", tuple(unknowns))
-        if key not in cache:
-            cache[key] = _symbolic_solutions(mechanics, U, unknowns, timeout)
-        exact = cache[key]
-        if exact is not None:
-            method = "symbolic"
-            for solution in exact:
-                point = problem.evaluate_exact(solution, keep_outside=box is None)
-                if point is not None:
-                    found.append(
-                        (
-                            point,
-                            {n: str(solution[s]) for n, s in zip(searched, unknowns, strict=True)},
-                        )
-                    )
-    numeric = problem.scan()
-    added = False
-    known = [point for point, _ in found]
-    for point in numeric:
-        if problem.index(point, known) < 0:
-            found.append((point, {}))
-            added = True
-    if method == "symbolic" and added:
-        method = "symbolic+numeric"
-    found = _unique(found, problem)
+    found, method = _locate(
+        problem, U, symbolic, timeout, keep_outside=box is None, key=("equilibria.symbolic",)
+    )
     problem.equation = _set_equation_finder(
         mechanics, U, unknowns, timeout if symbolic else 0.0, parameters, region
     )
@@ -439,6 +446,315 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
         box=region,
         potential=U,
     )
+
+
+def _periodic(mechanics, expression, unknowns, searched, parameters) -> tuple[str, ...]:
+    """The searched coordinates in which the system is 2 pi-periodic."""
+    everything = [*mechanics.q, *mechanics.qdot, *mechanics.p]
+    numeric_expression = with_parameters(expression, mechanics, parameters)
+    angles = periodic_symbols(numeric_expression, unknowns, everything)
+    return tuple(name for name, u in zip(searched, unknowns, strict=True) if u in angles)
+
+
+def _locate(problem: _Problem, W, symbolic: bool, timeout: float, *, keep_outside: bool, key):
+    """The stationary points of ``W`` over ``problem.unknowns``: sympy's (parameters
+    symbolic, remembered per derivation under ``key``) and a numeric scan's, each once.
+
+    Returns ``(found, method)``: a list of (point (m,), closed forms by coordinate name)
+    and ``"symbolic"``, ``"symbolic+numeric"`` or ``"numeric"``.
+    """
+    mechanics, unknowns = problem.mechanics, problem.unknowns
+    found: list[tuple[np.ndarray, dict[str, str]]] = []
+    method = "numeric"
+    if (
+        symbolic
+        and problem.mq <= SYMBOLIC_MAX_COORDINATES
+        and len(unknowns) <= SYMBOLIC_MAX_UNKNOWNS
+    ):
+        # Parameters stay symbolic, so one solve serves every slider position.
+        cache = cache_for(mechanics)
+        key = (*key, tuple(unknowns))
+        if key not in cache:
+            cache[key] = _symbolic_solutions(mechanics, W, unknowns, timeout)
+        exact = cache[key]
+        if exact is not None:
+            method = "symbolic"
+            coordinates = unknowns[: problem.mq]
+            for solution in exact:
+                point = problem.evaluate_exact(solution, keep_outside=keep_outside)
+                if point is not None:
+                    forms = {
+                        n: str(solution[s])
+                        for n, s in zip(problem.searched, coordinates, strict=True)
+                    }
+                    found.append((point, forms))
+    added = False
+    known = [point for point, _ in found]
+    for point in problem.scan():
+        if problem.index(point, known) < 0:
+            found.append((point, {}))
+            added = True
+    if method == "symbolic" and added:
+        method = "symbolic+numeric"
+    return _unique(found, problem), method
+
+
+MAX_CONTACT_SETS = 32
+"""At most this many sets of unilateral constraints in contact are tried (fewest first)."""
+
+
+def _search_constrained(
+    mechanics, rows, U, box, parameters, symbolic, timeout
+) -> EquilibriumSearch:
+    """The equilibria of a scleronomic system with ``[constraints]`` (virtual work with the
+    constraint forces): ``dU/dq + A^T lambda = 0`` with A the acting rows.
+
+    Holonomic rows always act. Each set S of unilateral rows is tried in contact
+    (g = 0, acting like holonomic ones) with the others free: a point is kept when the
+    free ones have g > 0 there and the contacts push (lambda <= 0, the convention of
+    ``systems.constraints``). A contact whose force vanishes (grazing) is stable only if
+    the point is a minimum without it too. Nonholonomic rows reach here only when U is
+    constant (``not_computed``).
+    """
+    from systems.constraints import multiplier_names
+
+    scene, t = mechanics.scene, mechanics.t
+    names = scene.coordinates
+    labels = multiplier_names(scene)
+    texts = [
+        *scene.holonomic_constraints,
+        *scene.nonholonomic_constraints,
+        *scene.unilateral_constraints,
+    ]
+    for kind, value, free_part, text in zip(
+        rows.kinds, rows.values, rows.time_derivative, texts, strict=True
+    ):
+        if value.has(t):
+            return EquilibriumSearch(
+                [],
+                "none",
+                f"the {kind} constraint {text} moves (it depends explicitly on t), so the "
+                "system has no equilibria in these coordinates",
+                potential=U,
+            )
+        if kind == "nonholonomic" and free_part != 0:
+            return EquilibriumSearch(
+                [],
+                "none",
+                f"the nonholonomic constraint {text} = 0 has a part without velocities, "
+                "which rest cannot satisfy: the system has no equilibria",
+                potential=U,
+            )
+    positional = [i for i, kind in enumerate(rows.kinds) if kind != "nonholonomic"]
+    if not U.has(*mechanics.q):
+        admissible = "that satisfies the constraints " if positional else ""
+        return EquilibriumSearch(
+            [],
+            "none",
+            f"U is constant: every configuration {admissible}is a (neutral) equilibrium at "
+            "rest, where the constraints exert no force (\u03bb = 0)",
+            free=tuple(names),
+            potential=U,
+        )
+    notes = []
+    if any(f != 0 for f in mechanics.generalized_forces):
+        notes.append("equilibria of the conservative part (dissipation and forces ignored)")
+    involved = U.free_symbols.union(*(rows.values[i].free_symbols for i in positional))
+    free = tuple(name for name, qi in zip(names, mechanics.q, strict=True) if qi not in involved)
+    searched = tuple(name for name in names if name not in free)
+    if free:
+        notes.append(
+            f"U and the constraints do not depend on {', '.join(free)}: free (any value), "
+            "shown at 0"
+        )
+    symbol_of = dict(zip(names, mechanics.q, strict=True))
+    unknowns = [symbol_of[name] for name in searched]
+    expressions = [mechanics.lagrangian, *(rows.values[i] for i in positional)]
+    periodic = set(searched)
+    for expression in expressions:
+        periodic &= set(_periodic(mechanics, expression, unknowns, searched, parameters))
+    periodic = tuple(name for name in searched if name in periodic)
+    region = _region(searched, periodic, box, scene.view)
+    numeric = [with_parameters(rows.values[i], mechanics, parameters) for i in positional]
+    U_numeric = with_parameters(U, mechanics, parameters)
+    holonomic = [i for i in positional if rows.kinds[i] == "holonomic"]
+    unilateral = [i for i in positional if rows.kinds[i] == "unilateral"]
+    gaps = vectorize([numeric[positional.index(j)] for j in unilateral] or [0], unknowns)
+
+    sets: list[tuple[int, ...]] = []
+    for size in range(min(len(unilateral), len(searched) - len(holonomic)) + 1):
+        sets += itertools.combinations(unilateral, size)
+    if len(sets) > MAX_CONTACT_SETS:
+        sets = sets[:MAX_CONTACT_SETS]
+        notes.append(f"only the first {MAX_CONTACT_SETS} sets of contacts were tried")
+    problems: dict[tuple[int, ...], _Problem] = {}
+    methods, equilibria = [], []
+    for contacts in sets:
+        acting = [*holonomic, *contacts]
+        if acting:
+            problem = _ConstrainedProblem(
+                mechanics,
+                U_numeric,
+                [numeric[positional.index(i)] for i in acting],
+                [labels[i] for i in acting],
+                unknowns,
+                searched,
+                free,
+                periodic,
+                region,
+                parameters,
+            )
+            multipliers = problem.unknowns[problem.mq :]
+            W = U + sum(
+                (lam * rows.values[i] for lam, i in zip(multipliers, acting, strict=True)),
+                sympy.S.Zero,
+            )
+            key = ("equilibria.constrained", tuple(acting))
+        else:
+            problem = _Problem(
+                mechanics, U_numeric, unknowns, searched, free, periodic, region, parameters
+            )
+            W, key = U, ("equilibria.symbolic",)
+        problems[contacts] = problem
+        found, method = _locate(problem, W, symbolic, timeout, keep_outside=box is None, key=key)
+        methods.append(method)
+        for equilibrium in problem.classify(found):
+            kept = _admissible(equilibrium, problem, contacts, unilateral, gaps, searched)
+            if kept is not None:
+                kept = _with_contacts(kept, contacts, labels, problems, searched)
+            if kept is not None:
+                equilibria.append(kept)
+    equilibria.sort(key=lambda e: (round(e.potential, 9), tuple(e.q.values())))
+    if not equilibria:
+        notes.insert(
+            0,
+            "dU/dq is balanced by no admissible constraint force in the search box"
+            if unilateral
+            else "dU/dq is balanced by no constraint force in the search box",
+        )
+    if "numeric" in methods:
+        method = "symbolic+numeric" if any(m.startswith("symbolic") for m in methods) else "numeric"
+    else:
+        method = "symbolic+numeric" if "symbolic+numeric" in methods else "symbolic"
+    return EquilibriumSearch(
+        equilibria,
+        method,
+        "; ".join(notes),
+        searched=searched,
+        free=free,
+        periodic=periodic,
+        box=region,
+        potential=U,
+        multipliers=tuple(labels),
+    )
+
+
+def _gap_tolerance(problem: _Problem) -> float:
+    widths = [hi - lo for lo, hi in problem.region.values()]
+    return 1e-9 * max(1.0, float(np.mean(widths)))
+
+
+def _admissible(equilibrium, problem, contacts, unilateral, gaps, searched):
+    """``equilibrium`` if the unilateral constraints out of contact have g > 0 there, else
+    None; of a set, the points where they do not are dropped (and the point shown is
+    moved into what remains)."""
+    if not unilateral:
+        return equilibrium
+    tol = _gap_tolerance(problem)
+    loose = [unilateral.index(j) for j in unilateral if j not in contacts]
+    if not loose:
+        return equilibrium
+
+    def admissible(points):  # (k, m) searched coordinates
+        values = np.asarray(gaps(*points.T), dtype=float).reshape(len(unilateral), len(points))
+        return np.all(values[loose] > tol, axis=0)
+
+    point = np.array([[equilibrium.q[name] for name in searched]])
+    if equilibrium.continuum is None:
+        return equilibrium if bool(admissible(point)[0]) else None
+    index_r = [problem.names.index(name) for name in searched]
+    every = equilibrium.continuum.points
+    keep = admissible(every[:, index_r])
+    if not np.any(keep):
+        return None
+    continuum = replace(
+        equilibrium.continuum,
+        points=every[keep],
+        momenta=equilibrium.continuum.momenta[keep],
+        closed=bool(equilibrium.continuum.closed and np.all(keep)),
+    )
+    equilibrium = replace(equilibrium, continuum=continuum)
+    if bool(admissible(point)[0]):
+        return equilibrium
+    x = every[keep][0, index_r]  # the point shown was outside: one inside instead
+    if isinstance(problem, _ConstrainedProblem):
+        x = problem.complete(x)
+    moved, _ = problem.equilibrium(x, {})
+    return replace(
+        moved, kind=equilibrium.kind, decided_by=equilibrium.decided_by, continuum=continuum
+    )
+
+
+def _with_contacts(equilibrium, contacts, labels, problems, searched) -> Equilibrium | None:
+    """Every multiplier (0 out of contact), the contacts, and what they decide; None where
+    a contact pulls (lambda > 0: the system would leave it). A contact that pushes with no
+    force (grazing) leaves the stability to the analysis without it."""
+    values = dict.fromkeys(labels, 0.0)
+    values.update(equilibrium.multipliers)
+    names = tuple(labels[i] for i in contacts)
+    equilibrium = replace(equilibrium, multipliers=values, contacts=names)
+    if not contacts:
+        return equilibrium
+    problem = problems[contacts]
+    scale = problem.gradient_scale
+    pushes = [values[name] <= 1e-9 * scale for name in names]
+    if not all(pushes):  # a set is judged by its representative point; it is not split
+        return None
+    grazing = [name for name in names if abs(values[name]) <= 1e-9 * scale]
+    forces = ", ".join(f"{_greek(name)} = {_short(values[name])}" for name in names)
+    if not grazing:
+        text = (
+            f"in contact, the constraint pushing ({forces} \u2264 0): leaving the contact "
+            "raises U at first order"
+        )
+        return replace(equilibrium, decided_by=f"{equilibrium.decided_by}; {text}")
+    rest = tuple(i for i, name in zip(contacts, names, strict=True) if name not in grazing)
+    relaxed = problems.get(rest)
+    stable = False
+    if relaxed is not None:
+        x = np.array([equilibrium.q[name] for name in searched])
+        if isinstance(relaxed, _ConstrainedProblem):
+            x = relaxed.complete(x)
+        free_analysis, _ = relaxed.equilibrium(x, {})
+        stable = free_analysis.verdict in ("stable: minimum", "stable: fixed")
+    which = ", ".join(_greek(name) for name in grazing)
+    if stable:
+        text = (
+            f"the contact force vanishes ({which} = 0, grazing); U has a strict minimum "
+            "without that contact too: stable, but the motion meets the wall, so it is "
+            "not a harmonic oscillation"
+        )
+        return replace(
+            equilibrium, stable=True, frequencies=[], verdict="stable: grazing", decided_by=text
+        )
+    text = (
+        f"the contact force vanishes ({which} = 0, grazing) and U has no strict minimum "
+        "without that contact: not known to be stable"
+    )
+    return replace(
+        equilibrium,
+        stable=False,
+        frequencies=[],
+        kind="degenerate" if equilibrium.kind != "continuum" else "continuum",
+        verdict="undecided",
+        decided_by=text,
+    )
+
+
+def _greek(label: str) -> str:
+    """``lambda_2`` -> ``λ₂``."""
+    number = label.rsplit("_", 1)[-1]
+    return "\u03bb" + number.translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
 
 
 # -- the pieces -------------------------------------------------------------------------------
@@ -504,7 +820,11 @@ def _solve(gradient, unknowns):
 
 
 class _Problem:
-    """dU/dq = 0 over the searched coordinates, with numbers for the parameters."""
+    """dU/dq = 0 over the searched coordinates, with numbers for the parameters.
+
+    ``unknowns`` are the searched coordinates' symbols, then (``_ConstrainedProblem``)
+    the multipliers; ``mq`` counts the coordinates among them.
+    """
 
     def __init__(self, mechanics, U, unknowns, searched, free, periodic, region, parameters):
         self.mechanics = mechanics
@@ -514,7 +834,10 @@ class _Problem:
         self.parameters = parameters
         self.unknowns = unknowns
         m = len(unknowns)
-        self.is_periodic = np.array([name in periodic for name in searched])
+        self.mq = len(searched)
+        self.is_periodic = np.array(
+            [name in periodic for name in searched] + [False] * (m - self.mq), dtype=bool
+        )
         gradient, hessian = _derivatives(mechanics, U, unknowns)
         self.gradient = vectorize(gradient, unknowns)
         self._hessian = vectorize(hessian, unknowns)
@@ -553,7 +876,7 @@ class _Problem:
 
     def starts(self) -> np.ndarray:
         """Starting points, shape (s, m): a grid for m <= 3, a Halton set beyond."""
-        m = self.m
+        m = self.mq
         lows = np.array([self.region[n][0] for n in self.searched])
         highs = np.array([self.region[n][1] for n in self.searched])
         if m <= 3:
@@ -631,7 +954,8 @@ class _Problem:
         if not np.isfinite(residual) or residual > 1e-7 * self.gradient_scale:
             return None
         if inside_only:
-            for value, name, periodic in zip(x, self.searched, self.is_periodic, strict=True):
+            coordinates = zip(x[: self.mq], self.searched, self.is_periodic, strict=False)
+            for value, name, periodic in coordinates:
                 lo, hi = self.region[name]
                 margin = 1e-9 * (hi - lo)
                 if not periodic and not lo - margin <= value <= hi + margin:
@@ -654,8 +978,10 @@ class _Problem:
         return self.accept(np.array(point), inside_only=not keep_outside)
 
     def same(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """The same configuration (the multipliers follow from it)."""
+        a, b, periodic = a[: self.mq], b[: self.mq], self.is_periodic[: self.mq]
         d = np.abs(a - b)
-        d = np.where(self.is_periodic, np.minimum(d, 2 * math.pi - d), d)
+        d = np.where(periodic, np.minimum(d, 2 * math.pi - d), d)
         return bool(np.all(d <= 1e-6 * (1.0 + np.abs(a))))
 
     def index(self, a: np.ndarray, points) -> int:
@@ -663,38 +989,47 @@ class _Problem:
         chain of ten links has hundreds of equilibria, and pairwise calls cost seconds)."""
         if len(points) == 0:
             return -1
-        d = np.abs(np.asarray(points, dtype=float).reshape(len(points), -1) - a)
-        d = np.where(self.is_periodic, np.minimum(d, 2 * math.pi - d), d)
+        a = a[: self.mq]
+        d = np.abs(np.asarray(points, dtype=float).reshape(len(points), -1)[:, : self.mq] - a)
+        d = np.where(self.is_periodic[: self.mq], np.minimum(d, 2 * math.pi - d), d)
         hits = np.flatnonzero(np.all(d <= 1e-6 * (1.0 + np.abs(a)), axis=1))
         return int(hits[0]) if hits.size else -1
 
     def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> tuple[Equilibrium, int]:
-        """The equilibrium at ``x`` (searched coordinates, shape (m,)), and the number of
-        degenerate directions along which U is flat (0 unless it may lie on a set)."""
-        n, m = len(self.names), self.m
+        """The equilibrium at ``x`` (searched coordinates, then any multipliers, shape
+        (m,)), and the number of degenerate directions along which U is flat (0 unless it
+        may lie on a set). With constraints K, M and G are those of the tangent space."""
+        n, mq = len(self.names), self.mq
         full = dict.fromkeys(self.names, 0.0)
-        full.update({name: float(v) for name, v in zip(self.searched, x, strict=True)})
+        full.update({name: float(v) for name, v in zip(self.searched, x[:mq], strict=True)})
         q = np.array([full[name] for name in self.names])
-        K = self.hessian(x)
+        K = self.hessian(x)[:mq, :mq]
         K = (K + K.T) / 2
         M = self.mass(q)
         index_r = [self.names.index(name) for name in self.searched]
         index_f = [self.names.index(name) for name in self.free]
         Mrr = M[np.ix_(index_r, index_r)]
-        back = np.zeros((len(index_f), m))
+        back = np.zeros((len(index_f), mq))
         if index_f:
             Mff = M[np.ix_(index_f, index_f)]
             Mfr = M[np.ix_(index_f, index_r)]
             back = -np.linalg.pinv(Mff) @ Mfr  # pinv: M_ff may vanish (spherical pendulum)
             Mrr = Mrr + Mfr.T @ back
         G, hamiltonian = self.cross.gyroscopic(q, index_r, index_f, back)
-        regular = _regular(Mrr)
+        basis = self.tangent(x)  # the searched coordinates' motions that keep the constraints
+        K, Mrr = basis.T @ K @ basis, basis.T @ Mrr @ basis
+        if G is not None and basis.shape[1] < mq:
+            reduced = basis.T @ G @ basis  # what the constraints let act
+            big = float(np.max(np.abs(G)))
+            G = reduced if float(np.max(np.abs(reduced), initial=0.0)) > 1e-10 * big else None
+        m = len(K)
+        regular = _regular(Mrr) if m else True  # m = 0: the constraints fix every coordinate
         H_qq = K
         if hamiltonian and G is not None and regular:
             # U at rest is H minimized over p: H_qq - H_qp H_pp^-1 H_pq, as for a Lagrangian
             K = H_qq - G @ Mrr @ G.T
         eig_K, vec_K = np.linalg.eigh(K)
-        tol = 1e-8 * max(self.hessian_scale, float(np.max(np.abs(eig_K))), 1e-300)
+        tol = 1e-8 * max(self.hessian_scale, float(np.max(np.abs(eig_K), initial=0.0)), 1e-300)
         null = np.abs(eig_K) <= tol
         if np.any(null):
             kind = "degenerate"
@@ -707,7 +1042,9 @@ class _Problem:
             kind = "maximum"
         else:
             kind = "saddle"
-        if regular:
+        if m == 0:
+            w2, vectors = np.zeros(0), np.zeros((0, 0))
+        elif regular:
             try:
                 w2, vectors = scipy.linalg.eigh(K, Mrr)
             except (np.linalg.LinAlgError, ValueError):
@@ -717,9 +1054,9 @@ class _Problem:
         else:  # no inertia, or infinite: no small oscillations (H = p**4/4 at p = 0, m = 0)
             w2, vectors = np.full(m, np.nan), np.zeros((m, m))
         modes = np.zeros((n, m))
-        modes[index_r] = vectors
+        modes[index_r] = basis @ vectors
         if index_f:
-            modes[index_f] = back @ vectors
+            modes[index_f] = back @ basis @ vectors
         finite = np.abs(w2[np.isfinite(w2)])
         w2_tol = 1e-8 * max(float(finite.max()) if finite.size else 0.0, 1e-300)
         gyroscopic = G is not None and regular
@@ -741,7 +1078,9 @@ class _Problem:
             growing = bool(np.any(eigenvalues.real > 1e-7 * scale))
         else:
             growing = bool(np.any(eig_K < -tol))
-        verdict, order, flat = self._decide(x, kind, eig_K, vec_K, null, growing, G is not None)
+        verdict, order, flat = self._decide(
+            x, kind, eig_K, basis @ vec_K, null, growing, G is not None
+        )
         stable = verdict.startswith("stable")
         frequencies: list[float] = []
         if stable and regular:
@@ -752,9 +1091,9 @@ class _Problem:
                 keep = np.flatnonzero(eigenvalues.imag > 1e-7 * scale)
                 keep = keep[np.argsort(eigenvalues.imag[keep])]
                 modes = np.zeros((n, len(keep)), dtype=complex)
-                modes[index_r] = shapes[:, keep]
+                modes[index_r] = basis @ shapes[:, keep]
                 if index_f:
-                    modes[index_f] = back @ shapes[:, keep]
+                    modes[index_f] = back @ basis @ shapes[:, keep]
             else:
                 frequencies = [float(math.sqrt(v)) for v in w2 if v > w2_tol]
         decided_by = _decided_text(verdict, kind, eig_K, null, order, regular, G is not None)
@@ -781,6 +1120,11 @@ class _Problem:
             ),
             flat,
         )
+
+    def tangent(self, x: np.ndarray) -> np.ndarray:
+        """An orthonormal basis (mq, d) of the searched coordinates' displacements that
+        keep the constraints at ``x``: all of them without constraints."""
+        return np.eye(self.mq)
 
     # -- stability beyond the linearisation ---------------------------------------------
 
@@ -1000,7 +1344,7 @@ class _Problem:
     def _representative(self, curve: np.ndarray) -> np.ndarray:
         """A point of the curve where a coordinate is 0 (the last such coordinate, the
         largest such point), refined onto the set; else the curve's first point."""
-        for j in reversed(range(self.m)):
+        for j in reversed(range(self.mq)):
             column = curve[:, j]
             if self.is_periodic[j]:
                 column = _wrapped(column)
@@ -1047,8 +1391,8 @@ class _Problem:
     def _surface_point(self, points: np.ndarray, dimension: int) -> np.ndarray:
         """A point of a surface of equilibria with its last ``dimension`` coordinates 0 if
         there is one near the points found, else the first point found."""
-        for count in range(dimension, 0, -1):
-            zeros = list(range(self.m - count, self.m))
+        for count in range(min(dimension, self.mq), 0, -1):
+            zeros = list(range(self.mq - count, self.mq))
             # nearest to those coordinates' zeros; among equals, the largest first coordinate
             off = np.round(np.linalg.norm(points[:, zeros], axis=1), 6)
             start = points[int(np.lexsort((-points[:, 0], off))[0])]
@@ -1067,6 +1411,7 @@ class _Problem:
             curve = points = np.array(record["points"])
             x = self._surface_point(points, dimension)
         equilibrium, _ = self.equilibrium(x, {})
+        points, curve = points[:, : self.mq], curve[:, : self.mq]
         equation = self.equation(points) if self.equation is not None else ""
         full_points = np.zeros((len(points), len(self.names)))
         index_r = [self.names.index(name) for name in self.searched]
@@ -1075,7 +1420,13 @@ class _Problem:
         momenta = momenta.reshape(len(points), len(self.names))
         through = ", ".join(_short(equilibrium.q[name]) for name in self.names)
         description = _describe(
-            curve, x, self.searched, self.is_periodic, record["closed"], dimension, equation
+            curve,
+            x[: self.mq],
+            self.searched,
+            self.is_periodic[: self.mq],
+            record["closed"],
+            dimension,
+            equation,
         )
         if not description:
             what = {1: "curve", 2: "surface"}.get(dimension, f"{dimension}-dimensional set")
@@ -1100,6 +1451,149 @@ class _Problem:
         else:
             decided = f"U is constant along {description}: neutral along it, unstable across it"
         return replace(equilibrium, kind="continuum", decided_by=decided, continuum=continuum)
+
+
+TANGENT_SPACE = (
+    "K and M on the constraints' tangent space (basis Z): "
+    "Z\u1d40(U_qq + \u03a3\u03bb\u1d62\u03a6\u1d62,qq)Z and Z\u1d40MZ"
+)
+"""How the stability of a constrained equilibrium was decided, after the verdict."""
+
+
+class _ConstrainedProblem(_Problem):
+    """Equilibria under acting constraints ``c(q) = 0`` (the holonomic ones and the
+    unilateral ones in contact): the stationary points of ``W = U + lambda . c`` over the
+    searched coordinates and the multipliers, ``dU/dq + c_q^T lambda = 0`` and ``c = 0``.
+
+    Stability and small oscillations are those of the tangent space: with Z an
+    orthonormal basis of ker c_q, the stiffness ``Z^T W_qq Z`` (U's Hessian plus the
+    constraints' curvature weighted by their multipliers), the mass ``Z^T M Z`` and the
+    gyroscopic ``Z^T G Z``. Along a degenerate direction U is followed on the constraint
+    manifold (``_slope``). A continuum of equilibria is a curve of stationary points of
+    W, which the continuation follows as without constraints.
+    """
+
+    def __init__(
+        self,
+        mechanics,
+        U,
+        constraints,
+        labels,
+        unknowns,
+        searched,
+        free,
+        periodic,
+        region,
+        parameters,
+    ):
+        k, mq = len(constraints), len(unknowns)
+        self.labels = tuple(labels)
+        multipliers = list(sympy.symbols(f"\u03bb1:{k + 1}"))
+        W = U + sum(
+            (lam * c for lam, c in zip(multipliers, constraints, strict=True)), sympy.S.Zero
+        )
+        self._values = vectorize(list(constraints), unknowns)
+        jacobian = [sympy.diff(c, u) for c in constraints for u in unknowns]
+        self._jacobian = vectorize(jacobian, unknowns)
+        self._force = vectorize([sympy.diff(U, u) for u in unknowns], unknowns)
+        self.k, self._mq = k, mq
+        super().__init__(
+            mechanics, W, [*unknowns, *multipliers], searched, free, periodic, region, parameters
+        )
+        # the starts balance dU/dq as well as the constraints can, which is exactly where
+        # it is normal to them (a ring in a harmonic well): the scale is dU/dq's own
+        grid = _Problem.starts(self)
+        with np.errstate(all="ignore"):
+            force = np.linalg.norm(self._force(*grid.T).reshape(mq, -1), axis=0)
+        self.gradient_scale = _typical(force)
+
+    def starts(self) -> np.ndarray:
+        """The grid of ``_Problem.starts`` moved onto ``c = 0`` (least-norm Newton steps),
+        each with the multipliers that balance dU/dq best there; shape (s, mq + k)."""
+        k, mq = self.k, self._mq
+        Q = super().starts()
+        with np.errstate(all="ignore"):
+            for _ in range(30):
+                c = self._values(*Q.T).T.reshape(len(Q), k)
+                J = self._jacobian(*Q.T).T.reshape(len(Q), k, mq)
+                Q = Q - (np.linalg.pinv(J) @ c[..., None])[..., 0]
+            c = self._values(*Q.T).T.reshape(len(Q), k)
+            J = self._jacobian(*Q.T).T.reshape(len(Q), k, mq)
+            f = self._force(*Q.T).T.reshape(len(Q), mq)
+            lam = -(np.linalg.pinv(np.swapaxes(J, 1, 2)) @ f[..., None])[..., 0]
+        X = np.concatenate([Q, lam], axis=1)
+        on = np.all(np.isfinite(X), axis=1) & (
+            np.linalg.norm(c, axis=1) <= 1e-9 * (1.0 + np.linalg.norm(Q, axis=1))
+        )
+        X = X[on]
+        # the grid's points crowd together on a lower-dimensional constraint set: one
+        # start per cell of a hundredth of the box is enough there
+        cell = 0.01 * np.array([hi - lo for lo, hi in self.region.values()])
+        _, first = np.unique(np.round(X[:, :mq] / cell).astype(np.int64), axis=0, return_index=True)
+        return X[np.sort(first)]
+
+    def tangent(self, x: np.ndarray) -> np.ndarray:
+        J = self.hessian(x)[self.mq :, : self.mq]
+        _, singular, Vt = np.linalg.svd(J)
+        rank = int(np.count_nonzero(singular > 1e-10 * max(float(singular[0]), 1e-300)))
+        return Vt[rank:].T
+
+    def complete(self, q: np.ndarray) -> np.ndarray:
+        """``(q, lambda)``: the multipliers that balance dU/dq at ``q`` (least squares)."""
+        J = self._jacobian(*q).reshape(self.k, self.mq)
+        lam = -np.linalg.lstsq(J.T, self._force(*q), rcond=None)[0]
+        return np.concatenate([q, lam])
+
+    def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> tuple[Equilibrium, int]:
+        equilibrium, flat = super().equilibrium(x, exact)
+        multipliers = {label: _clean(v) for label, v in zip(self.labels, x[self.mq :], strict=True)}
+        if equilibrium.hessian.size == 0:  # nothing left to move
+            decided, verdict = _VERDICTS["stable: fixed"], "stable: fixed"
+        else:
+            decided, verdict = f"{equilibrium.decided_by}; {TANGENT_SPACE}", equilibrium.verdict
+        equilibrium = replace(
+            equilibrium, multipliers=multipliers, decided_by=decided, verdict=verdict
+        )
+        return equilibrium, flat
+
+    def _slope(self, x, v, s, R) -> float:
+        """dU/ds at ``q0 + s v`` moved back onto ``c = 0`` along the normals Y of the
+        constraints at ``q0``, with the tangent directions ``R`` relaxed to stationarity:
+        ``c = 0``, ``R^T g = 0`` and ``Y^T g = 0`` for ``g = dU/dq + c_q^T lambda`` in the
+        unknowns (r, w, lambda). Then g lies along the degenerate directions, and by the
+        envelope theorem dU/ds along the path on the manifold is ``v . g``."""
+        mq, k = self.mq, self.k
+        q0 = x[:mq]
+        J0 = self.hessian(x)[mq:, :mq]
+        Y = np.linalg.svd(J0)[2][:k].T
+        r, w, lam = np.zeros(R.shape[1]), np.zeros(k), x[mq:].copy()
+        g = np.full(mq, np.nan)
+        for _ in range(30):
+            y = q0 + s * v + R @ r + Y @ w
+            z = np.concatenate([y, lam])
+            gradient, hessian = self.gradient(*z), self.hessian(z)
+            g, c = gradient[:mq], gradient[mq:]
+            H, J = hessian[:mq, :mq], hessian[mq:, :mq]
+            F = np.concatenate([c, R.T @ g, Y.T @ g])
+            D = np.block(
+                [
+                    [J @ R, J @ Y, np.zeros((k, k))],
+                    [R.T @ H @ R, R.T @ H @ Y, R.T @ J.T],
+                    [Y.T @ H @ R, Y.T @ H @ Y, Y.T @ J.T],
+                ]
+            )
+            try:
+                step = np.linalg.solve(D, F)
+            except np.linalg.LinAlgError:
+                return math.nan
+            if not np.all(np.isfinite(step)):
+                return math.nan
+            nr = R.shape[1]
+            r, w, lam = r - step[:nr], w - step[nr : nr + k], lam - step[nr + k :]
+            if np.linalg.norm(step) <= 1e-15 * (1.0 + np.linalg.norm(z)):
+                break
+        y = q0 + s * v + R @ r + Y @ w
+        return float(v @ self.gradient(*np.concatenate([y, lam]))[:mq])
 
 
 _VERDICTS = {
@@ -1129,6 +1623,7 @@ _VERDICTS = {
     "gyroscopic terms",
     "unstable: flat": "the linearisation is degenerate ({zeros} of K); U is constant along "
     "the degenerate direction{s} and falls across: unstable",
+    "stable: fixed": "the constraints fix every coordinate that U depends on",
     "undecided": "the linearisation is degenerate ({zeros} of K) and the terms of U beyond "
     "the quadratic ones do not decide{order}: not known to be stable",
 }
@@ -1343,7 +1838,7 @@ def _derivatives(mechanics: Mechanics, U: sympy.Expr, unknowns) -> tuple[list, l
         first = [e.diff(x) for x in xs]
         second = [g.diff(x) for g in first for x in xs]
         return [engine.to_sympy(g) for g in first], [engine.to_sympy(h) for h in second]
-    except Unsupported:
+    except (Unsupported, KeyError):  # KeyError: a multiplier, not a scene symbol
         gradient = [sympy.diff(U, u) for u in unknowns]
         return gradient, [sympy.diff(g, u) for g in gradient for u in unknowns]
 

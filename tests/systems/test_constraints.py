@@ -387,16 +387,21 @@ def test_a_start_where_the_constraints_are_singular_is_refused():
 def test_equilibria_and_cyclic_coordinates_are_not_those_of_the_free_coordinates():
     """The free coordinates' answers would be wrong: dV/dq = (0, m g) vanishes nowhere
     (no equilibria, where the pendulum hangs at rest at the bottom), and L has no x
-    (cyclic, where the string pulls along x). Neither is reported."""
+    (cyclic, where the string pulls along x). The equilibria are those on the circle,
+    with the string's force, and no coordinate is called cyclic."""
     from systems.report import derivation_json, readable
 
     mechanics = derive(load_scene("cartesian_pendulum"))
     assert mechanics.cyclic == () and "p_x" not in mechanics.conserved
     data = derivation_json(mechanics)
-    assert data["equilibria"] is None and data["cyclic"] == []
+    assert data["cyclic"] == []
+    found = sorted(data["equilibria"], key=lambda e: float(e["q"]["y"]))
+    assert len(found) == 2
+    bottom, top = found
+    assert float(bottom["q"]["y"]) == pytest.approx(-1.0) and bottom["stable"] is True
+    assert float(top["q"]["y"]) == pytest.approx(1.0) and top["stable"] is False
     text = readable(mechanics)
-    assert "not computed yet" in text and "cyclic coordinates: none" in text
-    assert "none: " not in text.split("Equilibria")[-1]
+    assert "not computed yet" not in text and "cyclic coordinates: none" in text
 
 
 def test_the_action_tab_refuses_a_constrained_scene_instead_of_a_failing_principle():
@@ -413,10 +418,14 @@ def test_the_action_tab_refuses_a_constrained_scene_instead_of_a_failing_princip
         jobs.two_point(compiled, [0.0, -1.0], [0.5, -0.866], 1.0)
 
 
-def test_normal_modes_of_a_constrained_scene_say_they_are_not_computed():
-    """The free coordinates' analysis would say x "moves freely" (V = m g y has no x)."""
+def test_normal_modes_of_a_constrained_scene_keep_to_the_constraint():
+    """The free coordinates' analysis would say x "moves freely" (V = m g y has no x);
+    on the circle there is one mode, the pendulum's sqrt(g/l), along x at the bottom."""
     from systems.normal_modes import analyse
 
     analysis = analyse(derive(load_scene("cartesian_pendulum")))
-    assert not analysis.applies and "constraints" in analysis.reason
-    assert "moves freely" not in analysis.reason
+    assert analysis.applies, analysis.reason
+    modes = analysis.modes
+    assert modes.n == 1 and modes.omega[0] == pytest.approx(math.sqrt(9.81 / 1.0), rel=1e-9)
+    assert modes.q0 == pytest.approx([0.0, -1.0], abs=1e-12)
+    assert abs(modes.shapes[0, 0]) > 0 and modes.shapes[1, 0] == pytest.approx(0.0, abs=1e-12)
