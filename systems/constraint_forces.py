@@ -3,12 +3,16 @@ and their power.
 
 Two kinds of scene have constraint forces:
 
-- **explicit constraints** (``[constraints] holonomic``): the force of the constraints on
-  the coordinates is ``Q_c = -Phi_q^T lambda`` (``systems.constraints``). It does no
-  virtual work on a displacement ``delta q`` tangent to the constraints (``Phi_q delta q =
-  0``), which holds by construction: Q_c lies in the row space of Phi_q. Its actual power
-  is ``Q_c . qdot = lambda^T Phi_t`` (``Phi_q qdot + Phi_t = 0`` along the motion): zero
-  for constraints without t, not for a moving one.
+- **explicit constraints** (``[constraints]``: holonomic, nonholonomic and unilateral rows,
+  ``constraints.rows``): with A the rows (Phi_q, a, G = g_q) the force of the constraints
+  on the coordinates is ``Q_c = -A^T lambda`` (``systems.constraints``; a unilateral row
+  out of contact has lambda = 0, one in contact pushes with lambda <= 0). It does no
+  virtual work on a displacement ``delta q`` tangent to the acting rows (``A delta q =
+  0``: for a nonholonomic row ``a . delta q = 0``, D'Alembert's principle for
+  nonholonomic constraints), which holds by construction: Q_c lies in the row space of
+  the acting rows. Its actual power is ``Q_c . qdot = lambda^T c`` with c the
+  velocity-free part of each row (Phi_t, b, g_t; ``A qdot + c = 0`` along the motion):
+  zero for constraints without t (and nonholonomic ones without b), not for a moving one.
 - **particles** (``[particles]``) whose transformation r_i(q, t) eliminates constraints
   (d N Cartesian components described by fewer coordinates): the reaction force on each
   particle is what Newton's law needs beyond the applied forces,
@@ -28,6 +32,13 @@ The work of the constraint forces, ``W(t)`` (the power integrated, ``WorkIntegra
 closes the energy balance ``E(t) - E(0) = W(t)`` where nothing else does work: E = T + V
 of the particles with gravity only, or Jacobi's energy function h for explicit
 constraints on a Lagrangian without t and without effects (``balance``).
+
+Impacts on unilateral constraints are not forces lambda: Newton's restitution law makes
+the velocity jump, an impulse with no finite value at any time. W is the work of the
+multipliers only, and the balance does not hold across impacts (each takes a fraction
+1 - e**2 of the kinetic energy of the normal motion off a fixed wall): for a scene with
+unilateral constraints ``balance`` is False, ``impacts`` True, and the energy is still
+formed, so that E - E(0) - W, what the impacts changed, can be reported as such.
 
 Everything is made once per ``Mechanics`` (sympy, then ``sympy.lambdify`` to numpy
 functions of many states at once, the parameters an argument) and evaluated on arrays of
@@ -66,32 +77,39 @@ class Forces:
     ----------
     t : ndarray, shape (N,)
     multipliers : ndarray, shape (N, k), or None
-        lambda of the explicit constraints (None without them).
+        lambda of the explicit constraints, in row order (holonomic, nonholonomic,
+        unilateral; 0 for a unilateral row out of contact); None without them.
+    acting : ndarray of bool, shape (N, k), or None
+        The rows that act at each state: every bilateral one, a unilateral one in contact
+        (``constraints.Numeric.contacts``); None without explicit constraints.
     generalized : ndarray, shape (N, n)
-        The constraint force on the coordinates: ``-Phi_q^T lambda`` for explicit
+        The constraint force on the coordinates: ``-A^T lambda`` for explicit
         constraints alone, ``sum_i R_i . dr_i/dq`` for particles (then it equals
-        ``-Phi_q^T lambda``, or zero without explicit constraints).
+        ``-A^T lambda``, or zero without explicit constraints).
     reactions : ndarray, shape (N, particles, d), or None
         R_i on each particle (None where not computed).
     virtual_work : ndarray, shape (N,)
         The largest relative virtual work over a basis of the displacements tangent to
-        the constraints: ``|G . u| / scale`` with ``scale = |Q_c| |u|`` for explicit
-        constraints and ``sum_i m_i (|r_i''| + |g|) |dr_i/dq . u|`` (the size of the
-        terms that cancel) for particles; round-off where D'Alembert's principle holds.
+        the acting constraints (``A u = 0``): ``|G . u| / scale`` with ``scale = |Q_c|
+        |u|`` for explicit constraints and ``sum_i m_i (|r_i''| + |g|) |dr_i/dq . u|``
+        (the size of the terms that cancel) for particles; round-off where D'Alembert's
+        principle holds.
     power : ndarray, shape (N,)
         The actual power of the constraint forces.
     power_scale : ndarray, shape (N,)
         What a power of round-off size is measured against: ``|Q_c| |qdot|`` or
         ``sum_i m_i (|r_i''| + |g|) |v_i|``.
     energy : ndarray, shape (N,), or None
-        The energy whose change the work accounts for (T + V, or h); None where the
-        balance does not apply.
+        The energy of the balance (T + V, or h): its change is the work where
+        ``balance`` holds, the work plus what the impacts changed where ``impacts``;
+        None where no energy is formed.
     velocities, accelerations : ndarray, shape (N, n)
         qdot and qddot of the motion (the accelerations with the multipliers).
     """
 
     t: np.ndarray
     multipliers: np.ndarray | None
+    acting: np.ndarray | None
     generalized: np.ndarray
     reactions: np.ndarray | None
     virtual_work: np.ndarray
@@ -114,7 +132,12 @@ class ConstraintForces:
     reason : str
         Why it has none (when ``applies`` is False).
     k : int
-        Explicit constraints (multipliers).
+        Explicit constraints (multipliers), every kind: ``constraints.rows``.
+    kinds : tuple of k str
+        ``"holonomic"``, ``"nonholonomic"`` or ``"unilateral"``, in row order.
+    descriptions : tuple of k str
+        What each multiplier belongs to, for labels: ``"holonomic"``,
+        ``"nonholonomic"``, or the unilateral constraint itself (``"y ≥ 0"``).
     particles : tuple of str
         The particles whose reaction force is computed (empty if none is).
     dimension : int
@@ -122,11 +145,17 @@ class ConstraintForces:
     note : str
         What is not computed and why (empty when everything is).
     rheonomic : bool
-        Some constraint moves: an explicit Phi with t, or a transformation with t.
+        The constraint forces can have power: a holonomic or unilateral constraint with
+        t, a nonholonomic one with a velocity-free part b, or a transformation with t.
     balance : bool
         ``E(t) - E(0) = W(t)`` holds: nothing but the constraint forces changes E.
+    impacts : bool
+        Unilateral constraints: the velocity jumps at impacts change E too, and are not
+        forces lambda (``balance`` is False; the energy is formed where it would hold
+        without them).
     energy_name : str
-        ``"T + V"`` or ``"h"`` (Jacobi's energy function); empty without ``balance``.
+        ``"T + V"`` or ``"h"`` (Jacobi's energy function) where the energy is formed
+        (``balance`` or ``impacts``); empty otherwise.
     points : tuple of (str, int, int)
         Drawn points whose x and y are coordinates (index of each): the force on those
         coordinates is the Cartesian force on the point (explicit constraints only).
@@ -135,31 +164,57 @@ class ConstraintForces:
     applies: bool
     reason: str = ""
     k: int = 0
+    kinds: tuple[str, ...] = ()
+    descriptions: tuple[str, ...] = ()
     particles: tuple[str, ...] = ()
     dimension: int = 0
     note: str = ""
     rheonomic: bool = False
     balance: bool = False
+    impacts: bool = False
     energy_name: str = ""
     points: tuple[tuple[str, int, int], ...] = ()
     _functions: dict = field(default_factory=dict, repr=False)
 
     @property
     def multiplier_names(self) -> list[str]:
+        """``lambda_1`` .. ``lambda_k``: the CSV columns (``constraints.multiplier_names``)."""
         return [f"lambda_{i + 1}" for i in range(self.k)]
+
+    @property
+    def multiplier_labels(self) -> list[str]:
+        """Each multiplier's name with what it belongs to: ``lambda_1 (nonholonomic)``,
+        ``lambda_2 (y ≥ 0)``."""
+        return [
+            f"{name} ({what})"
+            for name, what in zip(self.multiplier_names, self.descriptions, strict=True)
+        ]
+
+    @property
+    def unilateral(self) -> np.ndarray:
+        """Which multipliers belong to unilateral constraints: bool, shape (k,)."""
+        return np.array([kind == "unilateral" for kind in self.kinds], dtype=bool)
 
     @property
     def computes(self) -> bool:
         """Something is computed: multipliers or reaction forces."""
         return self.applies and (self.k > 0 or bool(self.particles))
 
-    def evaluate(self, compiled, t: np.ndarray | float, Y: np.ndarray) -> Forces:
+    def evaluate(
+        self, compiled, t: np.ndarray | float, Y: np.ndarray, acting: np.ndarray | None = None
+    ) -> Forces:
         """The constraint forces at states ``Y`` (N, 2n) at times ``t`` (scalar or (N,)).
 
         Parameters
         ----------
         compiled : CompiledSystem
             Of the mechanics this was made for; its parameter values are used.
+        acting : ndarray of bool, shape (N, k), optional
+            The rows that act, where the caller knows them better than the states tell
+            (states between two rows in contact, off the constraint by the
+            interpolation's error, more than a contact's tolerance); by default every
+            bilateral row and the unilateral ones a state is in contact with
+            (``constraints.Numeric``).
 
         Raises
         ------
@@ -183,17 +238,23 @@ class ConstraintForces:
             lam = J = None
             rhs = _stack(f["forcing"], args, N, (n,))
             if self.k:
-                lam = compiled.constraints().multipliers(ts, Y)
                 J = _stack(f["jacobian"], args, N, (self.k, n))
+                # lam is 0 for a unilateral row out of contact
+                lam, acting = compiled.constraints().solve(ts, Y, acting)
                 rhs = rhs - np.einsum("nkj,nk->nj", J, lam)
-            qdd = _solve(_stack(f["mass"], args, N, (n, n)), rhs)
-            if self.particles:
-                result = self._particle_forces(f, args, N, n, Qd, qdd, P, J)
             else:
-                result = self._explicit_forces(n, Qd, lam, J)
-            energy = _stack(f["energy"], args, N, ()) if self.balance else None
+                acting = None
+            qdd = _solve(_stack(f["mass"], args, N, (n, n)), rhs)
+            basis = _tangent_directions(J, acting, N, n)
+            if self.particles:
+                result = self._particle_forces(f, args, N, n, Qd, qdd, P, basis)
+            else:
+                result = self._explicit_forces(Qd, lam, J, basis)
+            energy = _stack(f["energy"], args, N, ()) if "energy" in f else None
         generalized, reactions, virtual_work, power, scale = result
-        return Forces(ts, lam, generalized, reactions, virtual_work, power, scale, energy, Qd, qdd)
+        return Forces(
+            ts, lam, acting, generalized, reactions, virtual_work, power, scale, energy, Qd, qdd
+        )
 
     def interval_work(
         self, compiled, t: np.ndarray, Y: np.ndarray, known: Forces | None = None
@@ -206,7 +267,11 @@ class ConstraintForces:
         (where the orbit moves, not where the power changes) still give W to about
         1e-8 of its size. An interval whose quintic does not follow the motion (its
         acceleration at the middle misses the equations' by more than ``RESOLVED``: rows
-        a period or more apart) gets NaN, like a gap. Where no constraint moves
+        a period or more apart) gets NaN, like a gap. With unilateral constraints the
+        states between two rows act on the contacts both rows act on, and an interval
+        across which a contact begins or ends, or that ends on a constraint it does not
+        act on (the state after an impact: the velocity jumped), gets NaN: the quintic
+        cannot follow a jump. Where no constraint moves
         (``rheonomic`` False) the power is zero identically and the rows' round-off is
         integrated by the trapezoid rule.
 
@@ -217,7 +282,7 @@ class ConstraintForces:
             Rows of one trajectory; a gap row (NaN) has no state.
         known : Forces, optional
             ``evaluate`` of the rows that are not gaps, in order, if the caller has it
-            (only its velocities, accelerations and power are used).
+            (only its velocities, accelerations, power and acting rows are used).
 
         Returns
         -------
@@ -263,7 +328,17 @@ class ConstraintForces:
         P = np.asarray(compiled.parameters, dtype=float)
         with np.errstate(all="ignore"):
             momenta = _stack(self._functions["momenta"], (ts, *qs.T, *vs.T, *P), len(ts), (n,))
-        at_nodes = self.evaluate(compiled, ts, np.concatenate([qs, momenta], axis=1))
+        nodes = np.concatenate([qs, momenta], axis=1)
+        jumps = np.zeros(len(h), dtype=bool)
+        if self.impacts:
+            act = np.asarray(kin.acting, dtype=bool)
+            jumps = (
+                np.any(act[a] != act[b], axis=1)
+                | _touching_free(compiled, t[rows], Y[rows], act)[b]
+            )
+            at_nodes = self.evaluate(compiled, ts, nodes, acting=np.tile(act[a], (3, 1)))
+        else:
+            at_nodes = self.evaluate(compiled, ts, nodes)
         weights = np.array([5.0, 8.0, 5.0]) / 18.0  # Gauss-Legendre on [0, 1]
         work = h * (weights @ at_nodes.power.reshape(3, len(h)))
         # rows too far apart for the quintic to follow the motion (a window's sparse rows
@@ -274,7 +349,7 @@ class ConstraintForces:
         with np.errstate(all="ignore"):
             miss = np.max(np.abs(quintic - middle), axis=1) / np.max(scale, axis=1)
         resolved = (miss <= RESOLVED) | (np.max(np.abs(quintic - middle), axis=1) == 0)
-        out[pair] = np.where(resolved, work, np.nan)
+        out[pair] = np.where(resolved & ~jumps, work, np.nan)
         return out
 
     def work(self, compiled, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
@@ -282,17 +357,16 @@ class ConstraintForces:
         shape (N,) (``interval_work`` summed)."""
         return np.concatenate([[0.0], np.cumsum(self.interval_work(compiled, t, Y))])
 
-    def _explicit_forces(self, n, Qd, lam, J):
+    def _explicit_forces(self, Qd, lam, J, basis):
         generalized = -np.einsum("nkj,nk->nj", J, lam)
-        basis = _tangent_basis(J, n)
         size = np.linalg.norm(generalized, axis=1)
         along = np.abs(np.einsum("nj,njr->nr", generalized, basis))
-        virtual_work = _ratio(along.max(axis=1) if along.shape[1] else np.zeros(len(J)), size)
+        virtual_work = _ratio(along.max(axis=1), size)
         power = np.einsum("nj,nj->n", generalized, Qd)
         scale = size * np.linalg.norm(Qd, axis=1)
         return generalized, None, virtual_work, power, scale
 
-    def _particle_forces(self, f, args, N, n, Qd, qdd, P, J):
+    def _particle_forces(self, f, args, N, n, Qd, qdd, P, basis):
         d, count = self.dimension, len(self.particles)
         D = _stack(f["columns"], args, N, (count, d, n))  # dr_i/dq_j
         rates = _stack(f["rates"], args, N, (count, d))  # explicit dr_i/dt
@@ -302,14 +376,13 @@ class ConstraintForces:
         acceleration = np.einsum("npdj,nj->npd", D, qdd) + bias
         reactions = masses[None, :, None] * (acceleration - g[None, None, :])
         generalized = np.einsum("npd,npdj->nj", reactions, D)
-        basis = _tangent_basis(J, n) if J is not None else np.broadcast_to(np.eye(n), (N, n, n))
         along = np.abs(np.einsum("nj,njr->nr", generalized, basis))
         moved = np.linalg.norm(np.einsum("npdj,njr->npdr", D, basis), axis=2)  # |dr_i/dq . u|
         # the size of what cancels: m r'' and F of each particle, not R (R is small
         # where they nearly cancel, and round-off in them is not)
         sizes = masses[None, :] * (np.linalg.norm(acceleration, axis=2) + np.linalg.norm(g))
         terms = np.einsum("np,npr->nr", sizes, moved)
-        virtual_work = np.max(_ratio(along, terms), axis=1) if along.shape[1] else np.zeros(N)
+        virtual_work = np.max(_ratio(along, terms), axis=1)
         v = np.einsum("npdj,nj->npd", D, Qd) + rates
         power = np.einsum("npd,npd->n", reactions, v)
         scale = np.einsum("np,np->n", sizes, np.linalg.norm(v, axis=2))
@@ -354,22 +427,23 @@ def presence(scene) -> str | None:
     )
 
 
+def restitution(compiled) -> float:
+    """Newton's coefficient of restitution e of ``compiled``'s unilateral constraints: the
+    value of its ``restitution`` parameter, 1 (elastic) without one."""
+    at = constraints.restitution_index(compiled.mechanics.scene)
+    return 1.0 if at is None else float(compiled.parameters[at])
+
+
 def _analyse(mechanics) -> ConstraintForces:
     scene = mechanics.scene
     t = mechanics.t
     reason = presence(scene)
     if reason is not None:
         return ConstraintForces(applies=False, reason=reason)
-    others = [
-        kind for kind in ("nonholonomic", "unilateral") if getattr(scene, f"{kind}_constraints", ())
-    ]
-    if others:
-        return ConstraintForces(
-            applies=True,
-            note=f"the forces of {' and '.join(others)} constraints are not computed yet",
-        )
-    pieces = constraints.holonomic(mechanics)
+    pieces = constraints.rows(mechanics)  # every kind: holonomic, nonholonomic, unilateral
     k = pieces.k if pieces is not None else 0
+    kinds = pieces.kinds if pieces is not None else ()
+    impacts = "unilateral" in kinds
     transformation = scene.transformation if scene.particles else None
     dimension = len(transformation.positions[0]) if transformation is not None else 0
 
@@ -396,7 +470,7 @@ def _analyse(mechanics) -> ConstraintForces:
             notes.append(
                 "the particles' reaction forces R = m r'' - F are not computed: " + "; ".join(why)
             )
-    rheonomic = bool(pieces is not None and depends_on_time([pieces.time_derivative], t))
+    rheonomic = pieces is not None and _moving(pieces, t)
     if reactions_ok:  # the power shown is the particles' reactions'
         rheonomic = rheonomic or transformation.depends_on_time
     functions: dict = {}
@@ -418,10 +492,10 @@ def _analyse(mechanics) -> ConstraintForces:
         functions["velocities"] = sympy.lambdify(
             q_p, [as_expr(e) for e in mechanics.velocities], modules="numpy"
         )
-    balance, energy_name, energy = False, "", None
+    energy_name, energy = "", None
     if reactions_ok:
         _particle_functions(functions, mechanics, transformation, lam, params)
-        balance, energy_name = True, "T + V"
+        energy_name = "T + V"
         energy = mechanics.kinetic + mechanics.potential
     elif k:
         L = mechanics.lagrangian
@@ -433,9 +507,12 @@ def _analyse(mechanics) -> ConstraintForces:
             notes.append("no energy balance: the Lagrangian depends on t, so h changes anyway")
         else:
             energy = mechanics.energy_function()
-            balance, energy_name = energy is not None, "h"
+            energy_name = "h" if energy is not None else ""
     if energy is not None:
         functions["energy"] = lam([energy])
+    # the impacts' velocity jumps change the energy too (no force lambda describes them):
+    # the energy is kept, to say what they changed, but the balance E - E0 = W is not
+    balance = energy is not None and not impacts
     particles = transformation.names if reactions_ok else ()
     if not k and not particles:
         return ConstraintForces(
@@ -449,11 +526,14 @@ def _analyse(mechanics) -> ConstraintForces:
     return ConstraintForces(
         applies=True,
         k=k,
+        kinds=kinds,
+        descriptions=_descriptions(scene, kinds),
         particles=particles,
         dimension=dimension,
         note="; ".join(notes),
         rheonomic=rheonomic,
         balance=balance,
+        impacts=impacts,
         energy_name=energy_name,
         points=points,
         _functions=functions,
@@ -489,6 +569,31 @@ def _particle_functions(functions, mechanics, transformation, lam, params) -> No
         field_ = sympy.S.Zero
     g = gravity_vector(field_, dimension)
     functions["gravity"] = sympy.lambdify(params, [as_expr(c) for c in g], modules="numpy")
+
+
+def _moving(pieces: constraints.Rows, t: sympy.Symbol) -> bool:
+    """True if the constraint forces can have power: a holonomic or unilateral constraint
+    with t, or a nonholonomic one whose velocity-free part b is not zero (its power is
+    lambda^T b; a(q, t) with t alone gives none)."""
+    positions = [
+        v for kind, v in zip(pieces.kinds, pieces.values, strict=True) if kind != "nonholonomic"
+    ]
+    if depends_on_time([positions], t):
+        return True
+    free = [
+        as_expr(b)
+        for kind, b in zip(pieces.kinds, pieces.time_derivative, strict=True)
+        if kind == "nonholonomic"
+    ]
+    return any(b != 0 and sympy.simplify(b) != 0 for b in free)
+
+
+def _descriptions(scene, kinds: Sequence[str]) -> tuple[str, ...]:
+    """What each multiplier belongs to: its kind, or a unilateral constraint itself."""
+    walls = iter(scene.unilateral_constraints)
+    return tuple(
+        f"{' '.join(next(walls).split())} ≥ 0" if kind == "unilateral" else kind for kind in kinds
+    )
 
 
 def _given_potential(scene) -> sympy.Expr | None:
@@ -553,6 +658,49 @@ def _solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def _touching_free(compiled, t: np.ndarray, Y: np.ndarray, acting: np.ndarray) -> np.ndarray:
+    """Rows (N,) on a unilateral constraint they do not act on (g = 0 to a contact's
+    tolerance, ``constraints.CONTACT_GAP``): the state right after an impact, or a
+    contact released."""
+    numeric = compiled.constraints()
+    g = numeric.values(t, Y)
+    scale = np.maximum(1.0, np.max(np.abs(Y[:, : compiled.n]), axis=1))[:, None]
+    unilateral = numeric.unilateral[None, :]
+    return np.any(unilateral & ~acting & (np.abs(g) <= constraints.CONTACT_GAP * scale), axis=1)
+
+
+def _tangent_directions(J: np.ndarray | None, acting: np.ndarray | None, N: int, n: int):
+    """Orthonormal directions spanning the displacements tangent to the acting rows.
+
+    Parameters
+    ----------
+    J : ndarray, shape (N, k, n), or None
+        The rows A (None: no explicit constraint, every direction is tangent).
+    acting : ndarray of bool, shape (N, k), or None
+
+    Returns
+    -------
+    ndarray, shape (N, n, n)
+        Columns: an orthonormal basis of null(A_acting) at each state (the right singular
+        vectors past the rank), the other columns zero (they do no virtual work and move
+        nothing, so they never count); NaN where the rows are not finite. The rank is
+        counted, as a unilateral row in contact may depend on the others.
+    """
+    if J is None:
+        return np.broadcast_to(np.eye(n), (N, n, n))
+    k = J.shape[1]
+    Ja = np.where(acting[:, :, None], J, 0.0)
+    out = np.full((N, n, n), np.nan)
+    good = np.all(np.isfinite(Ja), axis=(1, 2))
+    if good.any():
+        _, s, Vt = np.linalg.svd(Ja[good], full_matrices=True)
+        largest_ = s[:, :1] if k else np.zeros((len(s), 1))
+        rank = np.sum(s > constraints.RANK_TOLERANCE * largest_, axis=1)
+        tangent = np.arange(n)[None, :] >= rank[:, None]
+        out[good] = np.transpose(Vt * tangent[:, :, None], (0, 2, 1))
+    return out
+
+
 def _tangent_basis(J: np.ndarray, n: int) -> np.ndarray:
     """An orthonormal basis of the null space of each Phi_q (N, k, n): shape (N, n, n - k).
 
@@ -600,6 +748,7 @@ def _empty(analysis: ConstraintForces, n: int) -> Forces:
     return Forces(
         t=none,
         multipliers=np.empty((0, analysis.k)) if analysis.k else None,
+        acting=np.empty((0, analysis.k), dtype=bool) if analysis.k else None,
         generalized=np.empty((0, n)),
         reactions=np.empty((0, len(analysis.particles), analysis.dimension))
         if analysis.particles
@@ -607,7 +756,7 @@ def _empty(analysis: ConstraintForces, n: int) -> Forces:
         virtual_work=none,
         power=none,
         power_scale=none,
-        energy=none if analysis.balance else None,
+        energy=none if analysis.energy_name else None,
         velocities=np.empty((0, n)),
         accelerations=np.empty((0, n)),
     )
@@ -623,8 +772,10 @@ class WorkIntegral:
     there) and returns W at each of them, carrying on from the last row seen by
     ``ConstraintForces.interval_work``. Over a gap the motion is not known: where the
     energy balance holds (``analysis.balance``) the work across it is the change of the
-    energy, E(after) - E(before), exact by the balance; otherwise W is unknown (NaN) from
-    the gap on, never a wrong number.
+    energy, E(after) - E(before), exact by the balance; where no constraint moves
+    (``analysis.rheonomic`` False) it is zero, the power vanishing identically (impacts
+    or not: they are not forces lambda); otherwise W is unknown (NaN) from the gap on,
+    never a wrong number.
 
     Parameters
     ----------
@@ -688,8 +839,9 @@ class WorkIntegral:
                 self.gaps += 1
                 if self.bridge and math.isfinite(self._last_energy) and math.isfinite(E[i]):
                     self.work += float(E[i]) - self._last_energy
-                else:
+                elif self.analysis.rheonomic:
                     self.work = math.nan
+                # else: no power anywhere, no work across the gap
             else:
                 self.work += float(increments[i])
             out[i] = self.work
@@ -699,7 +851,10 @@ class WorkIntegral:
         if len(finite):
             row = finite[-1]
             last = _Rows(
-                forces.velocities[-1:].copy(), forces.accelerations[-1:].copy(), forces.power[-1:]
+                forces.velocities[-1:].copy(),
+                forces.accelerations[-1:].copy(),
+                forces.power[-1:],
+                None if forces.acting is None else forces.acting[-1:].copy(),
             )
             self._last = (float(t[row]), Y[row].copy(), last)
         return out
@@ -712,15 +867,20 @@ class _Rows:
     velocities: np.ndarray
     accelerations: np.ndarray
     power: np.ndarray
+    acting: np.ndarray | None = None
 
 
 def _joined(first: _Rows, rest: Forces | None) -> _Rows:
     if rest is None:
         return first
+    acting = None
+    if first.acting is not None and rest.acting is not None:
+        acting = np.concatenate([first.acting, rest.acting])
     return _Rows(
         np.concatenate([first.velocities, rest.velocities]),
         np.concatenate([first.accelerations, rest.accelerations]),
         np.concatenate([first.power, rest.power]),
+        acting,
     )
 
 

@@ -903,14 +903,31 @@ class Numeric:
         every bilateral row, and the unilateral rows a state touches (g and the normal
         velocity at zero, see ``CONTACT_GAP``) where the contact pushes. Returns a
         boolean array (N, k)."""
-        return self._solve(t, Y)[1]
+        return self.solve(t, Y)[1]
 
     def multipliers(self, t, Y: np.ndarray) -> np.ndarray:
         """lambda at states Y (N, 2n) from the saddle-point system; returns (N, k). A
         unilateral row's multiplier is 0 where the state is not in contact with it."""
-        return self._solve(t, Y)[0]
+        return self.solve(t, Y)[0]
 
-    def _solve(self, t, Y):
+    def solve(
+        self, t, Y: np.ndarray, acting: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The multipliers and the acting rows at states Y (N, 2n).
+
+        Parameters
+        ----------
+        t : float or ndarray, shape (N,)
+        Y : ndarray, shape (N, 2n)
+        acting : ndarray of bool, shape (N, k) or (k,), optional
+            The rows that act; by default the kernels' choice (``contacts``).
+
+        Returns
+        -------
+        lam : ndarray, shape (N, k)
+            0 for a row that does not act; nan where the system is singular.
+        acting : ndarray of bool, shape (N, k)
+        """
         ts, Y, N = self._split(t, Y)
         n, k = self.n, self.k
         Q, Qd = Y[:, :n].T, self.qdot(ts, Y)
@@ -918,6 +935,9 @@ class Numeric:
         F = self._stack(self._forcing, (n,), N, ts, Q, Qd.T)
         gamma = self._stack(self._gamma, (k,), N, ts, Q, Qd.T)
         J, c = self._rows(ts, Q, N)
+        if acting is not None:
+            act = np.broadcast_to(np.asarray(acting, dtype=bool), (N, k))
+            return self._saddle(M, F, gamma, J, act), act
         act = np.broadcast_to(~self.unilateral, (N, k)).copy()
         if self.unilateral.any():
             g = self._stack(self._positions, (k,), N, ts, Q)

@@ -3,13 +3,19 @@ work (zero: D'Alembert) and their power and work, with a one-line caption.
 
 What is drawn comes from ``systems.constraint_forces`` on the main orbit's new rows:
 
-- *forces*: each multiplier lambda_k of ``[constraints]``, and the size |R_i| of the
-  reaction force on each particle of ``[particles]`` (where it can be computed);
+- *forces*: each multiplier lambda_k of ``[constraints]``, named by what it belongs to
+  (``λ₁ (holonomic)``, ``λ₁ (nonholonomic)``, ``λ₁ (y ≥ 0)`` for a unilateral
+  constraint: non-zero only in contact), and the size |R_i| of the reaction force on each
+  particle of ``[particles]`` (where it can be computed);
 - *virtual work* (log scale): the largest relative virtual work of the constraint forces
-  over the displacements tangent to the constraints, at round-off where D'Alembert's
-  principle holds;
+  over the displacements tangent to the acting constraints, at round-off where
+  D'Alembert's principle holds;
 - *power and work*: the actual power P of the constraint forces and their work W so far
   (``WorkIntegral``), zero for fixed constraints and not for moving ones.
+
+Impacts on unilateral constraints are velocity jumps, not forces lambda: nothing is drawn
+for them, the caption says which contacts act at the last row and what the impacts
+changed of the energy (E - E0 - W, never presented as a balance that holds).
 
 ``set_system`` rebuilds the view for a new system; the sympy part (the derivatives of
 the positions, lambdified) is made in a background thread the first time a system is
@@ -120,6 +126,7 @@ class ConstraintForcesView(QWidget):
         self.work = math.nan
         self.energy_change = math.nan
         self._energy0 = math.nan
+        self.contacts: list[tuple[int, float]] | None = None
         self.link: ConstraintDockLink | None = None
         self._drawn_at = -math.inf
         self._draw_later = QTimer(self)
@@ -284,6 +291,7 @@ class ConstraintForcesView(QWidget):
         self.work = math.nan
         self.energy_change = math.nan
         self._energy0 = math.nan
+        self.contacts = None
         for keeper in (self.force_range, self.virtual_range, self.power_range):
             keeper.reset()
 
@@ -292,7 +300,10 @@ class ConstraintForcesView(QWidget):
             curve.remove()
         self._force_curves = []
         self.force_legend.clear()
-        names = [f"λ{_subscript(i + 1)}" for i in range(analysis.k)]
+        names = [
+            f"λ{_subscript(i + 1)} ({html.escape(what)})"
+            for i, what in enumerate(analysis.descriptions)
+        ]
         names += [f"|R<sub>{html.escape(p)}</sub>|" for p in analysis.particles]
         # a drawn point [x, y] of two coordinates: Q_c's components are its force
         names += [f"|R<sub>{html.escape(p)}</sub>|" for p, _, _ in analysis.points]
@@ -351,10 +362,16 @@ class ConstraintForcesView(QWidget):
         work = self._integral.add(t, Y, energy if analysis.balance else None, forces)
         self._work_series.extend(t, work)
         self.work = self._integral.work  # NaN once a gap made it unknown
-        if analysis.balance and len(good):
+        if analysis.energy_name and len(good):
             if math.isnan(self._energy0):
                 self._energy0 = float(energy[good[0]])
             self.energy_change = float(energy[good[-1]] - self._energy0)
+        if analysis.impacts and forces is not None and forces.acting is not None:
+            # the unilateral rows in contact at the last row, with their multipliers
+            last = forces.acting[-1] & analysis.unilateral
+            self.contacts = [
+                (int(i), float(forces.multipliers[-1, i])) for i in np.flatnonzero(last)
+            ]
         self._paced_draw()
         self._caption()
 
@@ -410,6 +427,8 @@ class ConstraintForcesView(QWidget):
             self.work,
             self.energy_change,
             self._integral.gaps if self._integral is not None else 0,
+            contacts=self.contacts,
+            restitution=cf.restitution(self.compiled) if analysis.impacts else 1.0,
         )
         if self.caption.text() != text:
             self.caption.setText(text)
@@ -427,6 +446,8 @@ def caption(
     work: float,
     energy_change: float,
     gaps: int = 0,
+    contacts: list[tuple[int, float]] | None = None,
+    restitution: float = 1.0,
 ) -> tuple[str, str]:
     """The caption's text (rich text, one line) and its tooltip.
 
@@ -435,9 +456,14 @@ def caption(
     virtual_work, relative_power : float
         The largest relative virtual work and |P| / scale seen (NaN: nothing yet).
     work, energy_change : float
-        W so far (NaN: unknown) and E - E0 (NaN without a balance).
+        W so far (NaN: unknown) and E - E0 (NaN where no energy is formed).
     gaps : int
         Gaps in the rows that the work was carried across.
+    contacts : list of (int, float), optional
+        With unilateral constraints (``analysis.impacts``): the index and multiplier of
+        each one in contact at the last row (empty: free); None before the first row.
+    restitution : float
+        Newton's coefficient e of the impacts (``constraint_forces.restitution``).
     """
     if math.isnan(virtual_work):
         return "Waiting for the first states…", ""
@@ -455,21 +481,31 @@ def caption(
             parts.append(f"power: {relative_power:.3g} of |F||v| although scleronomic")
     else:
         line = "power ≠ 0: the constraint moves (rheonomic); work so far W = "
-        line += _number(work) if math.isfinite(work) else "unknown (rows left out at full speed)"
+        if math.isfinite(work):
+            line += _number(work)
+        elif analysis.impacts:  # the quintic between two rows cannot follow a jump
+            line += "unknown (from an impact on, or rows left out at full speed)"
+        else:
+            line += "unknown (rows left out at full speed)"
         if analysis.balance and math.isfinite(energy_change):
             name = "E" if analysis.energy_name == "T + V" else "h"
             line += f", {name} − {name}₀ = {_number(energy_change)}"
         parts.append(line)
+    if analysis.impacts:
+        parts += _impact_parts(analysis, work, energy_change, contacts)
     text = " · ".join(html.escape(p, quote=False) for p in parts)
     tips = [
         "Virtual work: the largest |Σ F·δr| over the displacements δq tangent to the "
-        "constraints, relative to the size of the forces; round-off where D'Alembert's "
-        "principle holds.",
-        "Power: the actual power of the constraint forces, P = Σ F·v; it vanishes for "
-        "constraints fixed in time and not for moving ones. W is P integrated along the "
-        "motion (between the rows the window keeps, over the quintic through their q, q̇ "
-        "and q̈).",
+        "acting constraints (A δq = 0: a·δq = 0 for a nonholonomic one, a unilateral one "
+        "only in contact), relative to the size of the forces; round-off where "
+        "D'Alembert's principle holds.",
+        "Power: the actual power of the constraint forces, P = Σ F·v (= λᵀ c, c the "
+        "velocity-free part of each row: Φ_t, b or g_t); it vanishes for constraints fixed "
+        "in time and not for moving ones. W is P integrated along the motion (between the "
+        "rows the window keeps, over the quintic through their q, q̇ and q̈).",
     ]
+    if analysis.impacts:
+        tips.append(_impact_tip(analysis, restitution))
     if analysis.balance:
         if analysis.energy_name == "T + V":
             energy, balance = "the energy E = T + V", "E(t) − E(0)"
@@ -490,6 +526,60 @@ def caption(
         text += " · <i>some forces not computed (see tooltip)</i>"
         tips.append(f"Not computed: {analysis.note}.")
     return text, "\n".join(tips)
+
+
+def _impact_parts(
+    analysis: cf.ConstraintForces,
+    work: float,
+    energy_change: float,
+    contacts: list[tuple[int, float]] | None,
+) -> list[str]:
+    """The caption's parts on unilateral constraints: the contacts at the last row and
+    what the impacts changed of the energy."""
+    parts = []
+    if contacts is not None:
+        if contacts:
+            parts.append(
+                "in contact: "
+                + ", ".join(
+                    f"{analysis.descriptions[i]} (λ{_digits(i + 1)} = {_number(lam)})"
+                    for i, lam in contacts
+                )
+            )
+        else:
+            parts.append("no contact (free)")
+    line = "impacts: velocity jumps, not forces λ"
+    if analysis.energy_name and math.isfinite(energy_change) and math.isfinite(work):
+        name = "E" if analysis.energy_name == "T + V" else "h"
+        line += f"; {name} − {name}₀ − W = {_number(energy_change - work)}"
+    parts.append(line)
+    return parts
+
+
+def _impact_tip(analysis: cf.ConstraintForces, e: float) -> str:
+    """The tooltip's paragraph on impacts (e: the coefficient of restitution)."""
+    name = "E − E₀" if analysis.energy_name == "T + V" else "h − h₀"
+    tip = (
+        f"Impacts on the unilateral constraints are velocity jumps (Newton's law, e = {e:g}),"
+        " not forces: an impulse has no finite value at any time, so none is drawn. λ of a "
+        "unilateral constraint is the force of a resting contact (λ ≤ 0 pushes: the force "
+        "on the coordinates is −Gᵀλ), 0 while free. W is the work of the forces λ only, and "
+        f"the balance {name} = W does not hold across impacts: off a fixed wall each one "
+        "takes a fraction 1 − e² of the kinetic energy of the normal motion (all of it when "
+        "a rebound too slow to leave becomes a resting contact)."
+    )
+    if analysis.energy_name:
+        tip += (
+            f" {name} − W is what the impacts changed (with the run's own error): reported, "
+            "not a check."
+        )
+        if e == 1 and not analysis.rheonomic:
+            tip += " With e = 1 and walls fixed in time they keep the energy: it stays near 0."
+    return tip
+
+
+def _digits(k: int) -> str:
+    return str(k).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
 
 
 def _subscript(k: int) -> str:

@@ -4,14 +4,18 @@ started afresh on reset and on a change of scene."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
 import numpy as np
 import pytest
 
-from explorer.panels.constraint_forces_view import _number
+from explorer.panels.constraint_forces_view import ConstraintForcesView, _number, caption
 from systems import constraint_forces as cf
+from systems.compiled import compile_system
+from systems.mechanics import derive
+from systems.scene import load_scene
 from tests.explorer.conftest import wait_for_points
 
 
@@ -70,7 +74,7 @@ def test_the_cartesian_pendulum_fills_the_panel_with_the_tension(qtbot, window):
     assert view.analysis.k == 1 and view.stack.currentWidget() is view.layout_widget
     _shown(qtbot, window)
     # lambda, and the force on the bob, whose x and y are the coordinates
-    assert view.force_legend.entries() == ["λ<sub>1</sub>", "|R<sub>bob</sub>|"]
+    assert view.force_legend.entries() == ["λ<sub>1</sub> (holonomic)", "|R<sub>bob</sub>|"]
     text = view.caption.text()
     assert "(zero: D'Alembert)" in text and "power: zero, scleronomic" in text, text
     assert view.largest_virtual_work <= 1e-15
@@ -121,7 +125,7 @@ def test_reset_and_another_scene_start_the_panel_afresh(qtbot, window):
     _opened(qtbot, window, "atwood_rope")
     _shown(qtbot, window, 4)  # a uniform acceleration: DOP853 takes few, long steps
     assert view.force_legend.entries() == [
-        "λ<sub>1</sub>",
+        "λ<sub>1</sub> (holonomic)",
         "|R<sub>mass1</sub>|",
         "|R<sub>mass2</sub>|",
     ]
@@ -148,16 +152,127 @@ def test_reset_and_another_scene_start_the_panel_afresh(qtbot, window):
     assert view._force_curves == [] and view._power.rows.data.shape[0] == 0
     _opened(qtbot, window, "cartesian_pendulum")
     _shown(qtbot, window, 10)
-    assert view.force_legend.entries() == ["λ<sub>1</sub>", "|R<sub>bob</sub>|"]
+    assert view.force_legend.entries() == ["λ<sub>1</sub> (holonomic)", "|R<sub>bob</sub>|"]
     assert len(view._force_series) == 2
     assert window.error_details == ""
 
 
 def test_the_caption_says_what_is_not_known():
     analysis = cf.ConstraintForces(applies=True, k=1, rheonomic=True, balance=False)
-    from explorer.panels.constraint_forces_view import caption
-
     text, _ = caption(analysis, 3e-16, 0.5, math.nan, math.nan, gaps=1)
     assert "W = unknown" in text and "3e-16 (zero: D'Alembert)" in text
     text, _ = caption(analysis, 0.2, 0.5, 1.0, math.nan)
     assert "NOT zero" in text
+
+
+# -- nonholonomic and unilateral constraints: the view alone, on numpy -----------------------------
+
+
+def _standalone(qtbot, name: str):
+    """The view of a catalogue scene compiled without kernels (nothing for numba to
+    compile: the forces come from numpy), with its analysis made here so that
+    ``set_system`` shows it at once."""
+    mechanics = derive(load_scene(name))
+    compiled = compile_system(mechanics, ())
+    cf.analyse(mechanics)
+    view = ConstraintForcesView()
+    qtbot.addWidget(view)
+    view.set_system(compiled)
+    return view, compiled
+
+
+def _settled(qtbot, view) -> None:
+    view.shutdown()  # no timer left behind
+    qtbot.waitUntil(lambda: not view.layout_widget._later.isActive(), timeout=5000)
+
+
+def test_the_rolling_disk_s_multipliers_are_drawn_by_kind(qtbot):
+    view, compiled = _standalone(qtbot, "rolling_disk")
+    assert view.stack.currentWidget() is view.layout_widget  # not "not computed"
+    assert view.force_legend.entries() == [
+        "λ<sub>1</sub> (nonholonomic)",
+        "λ<sub>2</sub> (nonholonomic)",
+        "|R<sub>contact</sub>|",
+    ]
+    # the scene's motion: a circle of radius 2 at speed 1, phi_dot = 0.5, psi_dot = 2
+    m, R = compiled.parameters
+    t = np.linspace(0.0, 4.0, 81)
+    phi = 0.5 * t
+    Y = np.stack(
+        [
+            2 * np.sin(phi),
+            -2 * np.cos(phi),
+            phi,
+            2 * t,
+            m * np.cos(phi),
+            m * np.sin(phi),
+            m * R**2 / 4 * 0.5 + 0 * t,
+            m * R**2 / 2 * 2 + 0 * t,
+        ],
+        axis=1,
+    )
+    view.update(t, Y)
+    # lambda = m R phi_dot psi_dot (sin phi, -cos phi); the ground's sideways force on the
+    # contact point is the centripetal m v^2/r = 0.5
+    lam = [view._force_series[i].columns()[1] for i in range(2)]
+    np.testing.assert_allclose(lam[0], 0.5 * np.sin(phi), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(lam[1], -0.5 * np.cos(phi), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(view._force_series[2].columns()[1], 0.5, rtol=1e-14)
+    assert view._force_curves[0].point_count() > 0 and view.power_curve.point_count() > 0
+    text = view.caption.text()
+    assert "(zero: D'Alembert)" in text and "power: zero, scleronomic" in text, text
+    assert "not computed" not in text and "impacts" not in text
+    assert view.largest_virtual_work <= 1e-15 and view.largest_relative_power <= 1e-15
+    assert "a·δq = 0" in view.caption.toolTip()
+    _settled(qtbot, view)
+
+
+def test_the_bouncing_ball_s_floor_pushes_only_in_contact_and_impacts_are_not_forces(qtbot):
+    view, compiled = _standalone(qtbot, "bouncing_ball")
+    assert view.stack.currentWidget() is view.layout_widget
+    assert view.force_legend.entries() == ["λ<sub>1</sub> (y ≥ 0)", "|R<sub>ball</sub>|"]
+    m, g, e = compiled.parameters
+    # falling from y = 1, moving along x at 0.8 ...
+    t = np.linspace(0.0, 0.4, 9)
+    falling = np.stack([0.8 * t - 2, 1 - g * t**2 / 2, 0.8 * m + 0 * t, -m * g * t], axis=1)
+    view.update(t, falling)
+    assert "no contact (free)" in view.caption.text(), view.caption.text()
+    # ... then sliding on the floor (a rebound too slow to leave: all the normal motion
+    # gone at the impact, none of it by a force lambda)
+    later = np.linspace(0.5, 1.0, 6)
+    resting = np.stack([0.8 * later - 2, 0 * later, 0.8 * m + 0 * later, 0 * later], axis=1)
+    view.update(later, resting)
+    drawn_t, lam = view._force_series[0].columns()
+    np.testing.assert_array_equal(drawn_t, np.concatenate([t, later]))
+    assert np.all(lam[: len(t)] == 0.0)  # free flight
+    np.testing.assert_allclose(lam[len(t) :], -m * g, rtol=1e-15)  # the floor's -m g
+    np.testing.assert_allclose(view._force_series[1].columns()[1][len(t) :], m * g, rtol=1e-15)
+    assert view.contacts == [(0, pytest.approx(-m * g, rel=1e-15))]
+    text, tip = view.caption.text(), view.caption.toolTip()
+    assert "in contact: y ≥ 0 (λ₁ = -9.81)" in text, text
+    assert "impacts: velocity jumps, not forces λ" in text
+    # the floor did no work; the energy lost, m g y0 = 9.81, is the impact's, said as such
+    assert view.work == 0.0
+    assert view.energy_change == pytest.approx(-m * g * 1.0, rel=1e-13)
+    assert "h − h₀ − W = -9.81" in text, text
+    assert "h − h₀ = W does not hold across impacts" in tip and "1 − e²" in tip, tip
+    assert "e = 0.8" in tip
+    assert "(rheonomic)" not in text and "E − E₀ =" not in text  # no balance shown as held
+    _settled(qtbot, view)
+
+
+def test_the_caption_of_elastic_walls_says_the_impacts_keep_the_energy():
+    analysis = cf.ConstraintForces(
+        applies=True, k=1, kinds=("unilateral",), descriptions=("x ≥ 0",), impacts=True,
+        energy_name="h",
+    )  # fmt: skip
+    text, tip = caption(analysis, 0.0, 0.0, 0.0, 2e-15, contacts=[], restitution=1.0)
+    assert "no contact (free)" in text and "h − h₀ − W = 2e-15" in text, text
+    assert "With e = 1 and walls fixed in time they keep the energy" in tip
+    text, tip = caption(analysis, 0.0, 0.0, math.nan, -1.0, contacts=None, restitution=0.5)
+    assert "contact" not in text and "h − h₀ − W" not in text  # W unknown: no number
+    assert "keep the energy" not in tip
+    moving = dataclasses.replace(analysis, rheonomic=True)
+    text, tip = caption(moving, 0.0, 0.3, math.nan, -1.0, contacts=[(0, -2.0)], restitution=1.0)
+    assert "W = unknown (from an impact on" in text and "x ≥ 0 (λ₁ = -2)" in text, text
+    assert "keep the energy" not in tip  # a moving wall changes it at impacts

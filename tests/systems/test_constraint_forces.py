@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from systems import constraint_forces as cf
+from systems import constraints
 from systems.compiled import compile_system
 from systems.mechanics import derive
 from systems.scene import load_scene, parse_scene
@@ -281,3 +282,280 @@ def test_a_moving_explicit_constraint_works_and_the_balance_closes():
     assert np.max(np.abs(forces.power)) > 1.0
     W = analysis.work(compiled, t, y)
     assert np.max(np.abs(forces.energy - forces.energy[0] - W)) <= 1e-10
+
+
+# -- nonholonomic and unilateral constraints, without numba ----------------------------------------
+#
+# These scenes are evaluated with numpy only (the lambdified functions and
+# ``constraints.Numeric``): compiled without kernels, or run with the plain-Python twins of
+# ``interpreted_start``, so no scene here costs numba's compilation.
+
+
+def _numpy_only(scene, **values):
+    """A scene compiled without any kernel (nothing for numba to compile): the forces come
+    from the lambdified functions and ``constraints.Numeric`` alone."""
+    mechanics = derive(parse_scene(scene) if "\n" in scene else load_scene(scene))
+    compiled = compile_system(mechanics, ())
+    return compiled.with_parameters(values) if values else compiled
+
+
+def _interpreted_run(name: str, t_end: float):
+    """A short ``constrained_dop853`` run on the plain-Python kernels (never handed over)."""
+    mechanics = derive(load_scene(name))
+    compiled = compile_system(
+        mechanics, WANTS | required_wants("constrained_dop853"), interpreted_start=True
+    )
+    t, y = _run(compiled, t_end, method="constrained_dop853")
+    assert not compiled.handed_over  # still the interpreted twins: numba did nothing
+    return compiled, t, y
+
+
+def _disk_states(compiled, count: int = 50, seed: int = 7):
+    """Random states of the rolling disk on its constraints: x_dot = R cos(phi) psi_dot,
+    y_dot = R sin(phi) psi_dot; returns (Y (N, 8), phi_dot, psi_dot)."""
+    m, R = compiled.parameters
+    rng = np.random.default_rng(seed)
+    x, y, phi, psi = rng.uniform(-3, 3, (4, count))
+    phi_dot, psi_dot = rng.uniform(-2, 2, (2, count))
+    x_dot, y_dot = R * np.cos(phi) * psi_dot, R * np.sin(phi) * psi_dot
+    p = np.stack([m * x_dot, m * y_dot, m * R**2 / 4 * phi_dot, m * R**2 / 2 * psi_dot], axis=1)
+    return np.concatenate([np.stack([x, y, phi, psi], axis=1), p], axis=1), phi_dot, psi_dot
+
+
+def test_the_rolling_disk_s_ground_pushes_it_round_its_circle():
+    """The disk turns at a constant phi_dot and rolls at a constant psi_dot (psi'' = 0
+    from (I + m R^2) psi'' = 0), so its contact point moves on a circle of radius
+    R psi_dot/phi_dot at the speed v = R psi_dot. Newton's law for x and y, m x'' =
+    -lambda_1 and m y'' = -lambda_2 with x'' = -R sin(phi) phi_dot psi_dot, gives
+    lambda = m R phi_dot psi_dot (sin phi, -cos phi): the ground's sideways force, of
+    size m v^2 / radius, towards the circle's centre, and none on phi and psi."""
+    compiled = _numpy_only("rolling_disk")
+    analysis = cf.analyse(compiled.mechanics)
+    assert analysis.computes and analysis.k == 2 and not analysis.note
+    assert analysis.kinds == ("nonholonomic", "nonholonomic")
+    assert analysis.multiplier_labels == ["lambda_1 (nonholonomic)", "lambda_2 (nonholonomic)"]
+    assert not analysis.rheonomic and not analysis.impacts  # no t and b = 0
+    assert analysis.balance and analysis.energy_name == "h"
+    Y, phi_dot, psi_dot = _disk_states(compiled)
+    t = np.linspace(0.0, 3.0, len(Y))
+    forces = analysis.evaluate(compiled, t, Y)
+    m, R = compiled.parameters
+    phi = Y[:, 2]
+    size = m * R * phi_dot * psi_dot
+    expected = size[:, None] * np.stack([np.sin(phi), -np.cos(phi)], axis=1)
+    np.testing.assert_allclose(forces.multipliers, expected, rtol=0, atol=1e-14)
+    assert forces.acting.all()
+    speed, radius = R * np.abs(psi_dot), R * np.abs(psi_dot / phi_dot)
+    np.testing.assert_allclose(
+        np.hypot(*forces.generalized[:, :2].T), m * speed**2 / radius, rtol=1e-13
+    )
+    np.testing.assert_allclose(forces.generalized[:, 2:], 0.0, rtol=0, atol=1e-15)
+    # the force points to the centre: perpendicular to the velocity, to its left when
+    # the disk turns left (phi_dot > 0)
+    heading = np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    left = np.stack([-np.sin(phi), np.cos(phi)], axis=1)
+    along = np.einsum("nj,nj->n", forces.generalized[:, :2], heading)
+    across = np.einsum("nj,nj->n", forces.generalized[:, :2], left)
+    np.testing.assert_allclose(along, 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(across, size, rtol=1e-13)
+
+
+def test_the_rolling_constraint_does_no_virtual_work_and_no_work():
+    compiled = _numpy_only("rolling_disk")
+    analysis = cf.analyse(compiled.mechanics)
+    Y, _, _ = _disk_states(compiled, seed=11)
+    forces = analysis.evaluate(compiled, 0.0, Y)
+    # D'Alembert for nonholonomic constraints: no work on the displacements the rows
+    # allow, a . delta q = 0: rolling (R cos phi, R sin phi, 0, 1) and turning (0, 0, 1, 0)
+    assert np.max(forces.virtual_work) <= 1e-15
+    m, R = compiled.parameters
+    phi = Y[:, 2]
+    rolling = np.stack([R * np.cos(phi), R * np.sin(phi), 0 * phi, 1 + 0 * phi], axis=1)
+    Q = forces.generalized
+    scale = np.linalg.norm(Q, axis=1)
+    assert np.max(np.abs(np.einsum("nj,nj->n", Q, rolling)) / scale) <= 1e-15
+    assert np.max(np.abs(Q[:, 2]) / scale) <= 1e-15
+    # a sideways slip is not allowed, and the ground's force does work on it: the
+    # check can tell
+    slip = np.stack([-np.sin(phi), np.cos(phi), 0 * phi, 0 * phi], axis=1)
+    assert np.min(np.abs(np.einsum("nj,nj->n", Q, slip)) / scale) > 0.99
+    # no t and b = 0: no power, Q_c . qdot = lambda^T b = 0 to round-off
+    assert np.max(np.abs(forces.power) / forces.power_scale) <= 1e-15
+
+
+def test_a_run_of_the_rolling_disk_keeps_its_multipliers_and_its_energy():
+    compiled, t, y = _interpreted_run("rolling_disk", 2.0)
+    analysis = cf.analyse(compiled.mechanics)
+    forces = analysis.evaluate(compiled, t, y)
+    m, R = compiled.parameters
+    phi, phi_dot, psi_dot = y[:, 2], y[:, 6] / (m * R**2 / 4), y[:, 7] / (m * R**2 / 2)
+    expected = (m * R * phi_dot * psi_dot)[:, None] * np.stack([np.sin(phi), -np.cos(phi)], 1)
+    np.testing.assert_allclose(forces.multipliers, expected, rtol=0, atol=1e-12)
+    # the scene's start: |lambda| = m v^2/r with v = 1 on a circle of radius 2
+    np.testing.assert_allclose(np.hypot(*forces.multipliers.T), 0.5, rtol=1e-9)
+    W = analysis.work(compiled, t, y)
+    assert np.max(np.abs(W)) <= 1e-14
+    assert np.max(np.abs(forces.energy - forces.energy[0] - W)) <= 1e-12
+
+
+CONVEYOR = """
+title = "A block carried at the belt's speed u and pushed back by a force k"
+[system]
+coordinates = ["x", "y"]
+parameters = { m = 1.5, k = 2.0, u = 0.7 }
+kinetic = "m*(x_dot**2 + y_dot**2)/2"
+potential = "k*x"
+[constraints]
+nonholonomic = ["x_dot - u"]
+[initial]
+x_dot = 0.7
+y_dot = 0.3
+"""
+
+
+def test_a_nonholonomic_constraint_with_b_works_lambda_b():
+    """x_dot = u holds the block against k: m x'' = -k - lambda with x'' = 0, lambda = -k,
+    and the power is Q_c . qdot = k u = lambda^T b (b = -u), all of it the change of h."""
+    compiled = _numpy_only(CONVEYOR)
+    analysis = cf.analyse(compiled.mechanics)
+    assert analysis.rheonomic and analysis.balance and analysis.energy_name == "h"
+    m, k, u = compiled.parameters
+    t = np.linspace(0.0, 2.0, 41)
+    Y = np.stack([u * t, 0.3 * t, m * u + 0 * t, m * 0.3 + 0 * t], axis=1)
+    forces = analysis.evaluate(compiled, t, Y)
+    np.testing.assert_allclose(forces.multipliers[:, 0], -k, rtol=1e-14)
+    np.testing.assert_allclose(forces.power, forces.multipliers[:, 0] * -u, rtol=1e-14)
+    np.testing.assert_allclose(forces.power, k * u, rtol=1e-14)
+    assert np.max(forces.virtual_work) <= 1e-15
+    W = analysis.work(compiled, t, Y)
+    np.testing.assert_allclose(W, k * u * t, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(forces.energy - forces.energy[0], W, rtol=0, atol=1e-13)
+
+
+# -- unilateral: the bouncing ball -----------------------------------------------------------------
+
+
+def test_the_floor_pushes_a_resting_ball_with_its_weight_and_a_flying_one_not_at_all():
+    compiled = _numpy_only("bouncing_ball", m=2.5, g=3.7)
+    scene = compiled.mechanics.scene
+    analysis = cf.analyse(compiled.mechanics)
+    assert analysis.computes and analysis.kinds == ("unilateral",)
+    assert analysis.multiplier_labels == ["lambda_1 (y ≥ 0)"]
+    # the same columns as the CSV export's
+    assert analysis.multiplier_names == constraints.multiplier_names(scene)
+    # the impacts change the energy too: no balance, but the energy is formed
+    assert analysis.impacts and not analysis.balance and analysis.energy_name == "h"
+    assert not analysis.rheonomic and cf.restitution(compiled) == 0.8
+    m, g = 2.5, 3.7
+    Y = np.array(
+        [
+            [-1.0, 0.0, 0.8 * m, 0.0],  # resting (sliding) on the floor
+            [0.4, 0.0, 0.0, 0.0],  # resting
+            [0.2, 0.7, 0.8 * m, -1.0 * m],  # in flight
+            [0.2, 0.0, 0.8 * m, 2.0 * m],  # just bounced: at the floor, leaving it
+            [0.2, 1e-3, 0.0, 0.0],  # at the top of a tiny hop
+        ]
+    )
+    forces = analysis.evaluate(compiled, 0.0, Y)
+    lam = forces.multipliers[:, 0]
+    # -G^T lambda with G = (0, 1): the floor pushes up with m g where lambda = -m g
+    np.testing.assert_allclose(lam[:2], -m * g, rtol=1e-15)
+    np.testing.assert_allclose(forces.generalized[:2], [[0.0, m * g]] * 2, rtol=1e-15, atol=0)
+    assert np.all(lam[2:] == 0.0) and np.all(forces.generalized[2:] == 0.0)
+    assert forces.acting[:, 0].tolist() == [True, True, False, False, False]
+    # resting: m y'' = -m g - lambda = 0; flying: y'' = -g
+    np.testing.assert_allclose(forces.accelerations[:, 1], [0, 0, -g, -g, -g], atol=1e-15)
+    assert np.all(forces.virtual_work == 0.0)  # along the floor, and nothing to do in flight
+    assert np.all(forces.power == 0.0)
+
+
+def test_the_floor_s_work_is_zero_and_the_impacts_take_one_minus_e_squared():
+    """Dropped from y0 = 1 at rest, the ball reaches the floor with v1 = sqrt(2 g y0) and
+    leaves it with e v1: each impact keeps e^2 of the energy above the floor, so after
+    j impacts E - E0 = -(1 - e^(2j)) m g y0, and none of it is the floor's work W."""
+    compiled, t, y = _interpreted_run("bouncing_ball", 2.0)  # impacts at 0.45, 1.17, 1.75
+    analysis = cf.analyse(compiled.mechanics)
+    forces = analysis.evaluate(compiled, t, y)
+    m, g, e = compiled.parameters
+    W = analysis.work(compiled, t, y)
+    assert np.all(np.abs(W) <= 1e-15)
+    v1 = math.sqrt(2 * g * 1.0)
+    impacts = v1 / g + np.cumsum([0.0, *(2 * e**j * v1 / g for j in (1, 2))])
+    # the impacts at or before each row (a step ends at the impact, a few units of
+    # round-off short of it, with the state after it)
+    done = np.searchsorted(impacts - 1e-9, t, side="right")
+    assert set(done) == {0, 1, 2, 3}
+    jump = forces.energy - forces.energy[0] - W
+    np.testing.assert_allclose(jump, -(1 - e ** (2 * done)) * m * g * 1.0, rtol=0, atol=1e-9)
+    # rows left out: W is carried across as zero (no power anywhere), never unknown
+    gapped = y.copy()
+    gapped[3:5] = np.nan
+    integral = cf.WorkIntegral(analysis, compiled)
+    pieced = integral.add(t, gapped)
+    assert integral.gaps == 1 and np.all(pieced[5:] == pieced[2]) and abs(pieced[2]) <= 1e-15
+
+
+def test_elastic_walls_keep_the_gas_molecule_s_energy():
+    compiled, t, y = _interpreted_run("gas_in_box", 4.0)
+    analysis = cf.analyse(compiled.mechanics)
+    assert analysis.multiplier_labels == [
+        "lambda_1 (x ≥ 0)",
+        "lambda_2 (a - x ≥ 0)",
+        "lambda_3 (y ≥ 0)",
+        "lambda_4 (b - y ≥ 0)",
+    ]
+    assert analysis.impacts and cf.restitution(compiled) == 1.0
+    forces = analysis.evaluate(compiled, t, y)
+    assert np.all(forces.multipliers == 0.0)  # nothing pushes without a force to resist
+    vx, vy = forces.velocities.T
+    assert np.any(np.diff(np.sign(vx)) != 0) and np.any(np.diff(np.sign(vy)) != 0)  # impacts
+    W = analysis.work(compiled, t, y)
+    assert np.max(np.abs(forces.energy - forces.energy[0] - W)) <= 1e-12
+
+
+SHAKEN = """
+title = "A ball on a plate shaken up and down"
+[system]
+coordinates = ["x", "y"]
+parameters = { m = 1.3, g = 9.81, a = 0.05, w = 3.0, restitution = 0.5 }
+kinetic = "m*(x_dot**2 + y_dot**2)/2"
+potential = "m*g*y"
+[constraints]
+unilateral = ["y - a*sin(w*t)"]
+[initial]
+y = 0.3
+"""
+
+
+def test_a_moving_floor_works_on_a_resting_ball_and_its_impacts_leave_w_unknown():
+    """Resting on the plate, y = a sin(w t): the plate pushes with -lambda = m (g + y''),
+    its power is -lambda y', and its work is the change of h = T + V, m g dy + m d(y'^2)/2
+    (a moving constraint: no balance to lean on, W is integrated). A state leaving the
+    plate faster than it moves has just bounced: the velocity jumped, and W across that
+    interval is unknown, not a number the quintic would make up."""
+    compiled = _numpy_only(SHAKEN)
+    analysis = cf.analyse(compiled.mechanics)
+    assert analysis.rheonomic and analysis.impacts and not analysis.balance
+    m, g, a, w, _ = compiled.parameters
+    # rows 0.1 apart: the states between them are off the plate by more than a contact's
+    # tolerance, and still in contact (the contacts both rows act on)
+    t = np.linspace(0.0, 3.0, 31)
+    y, vy = a * np.sin(w * t), a * w * np.cos(w * t)
+    Y = np.stack([0 * t, y, 0 * t, m * vy], axis=1)
+    forces = analysis.evaluate(compiled, t, Y)
+    assert forces.acting.all()
+    np.testing.assert_allclose(forces.multipliers[:, 0], -m * (g - a * w**2 * np.sin(w * t)))
+    W = analysis.work(compiled, t, Y)
+    exact = m * g * (y - y[0]) + m * (vy**2 - vy[0] ** 2) / 2
+    assert np.ptp(W) > 0.5
+    np.testing.assert_allclose(W, exact, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(forces.energy - forces.energy[0], W, rtol=0, atol=1e-9)
+    # the same rows with a bounce at row 15: there the ball leaves the plate at 1 m/s
+    bounced = Y.copy()
+    bounced[15, 3] = m * 1.0
+    steps = analysis.interval_work(compiled, t, bounced)
+    assert np.isnan(steps[14]) and np.all(np.isfinite(steps[:14]))
+    integral = cf.WorkIntegral(analysis, compiled)
+    carried = integral.add(t, bounced)
+    np.testing.assert_allclose(carried[:15], W[:15], rtol=0, atol=1e-12)
+    assert np.all(np.isnan(carried[15:]))
