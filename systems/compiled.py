@@ -472,7 +472,9 @@ class _KernelWriter:
         from ``M(q, t) qdot = p - a(q, t)`` first (``systems.matrix_solve``).
 
         One common-subexpression pass covers M, a and ``exprs``; the temporaries free of
-        velocities go before the solve, the others after it.
+        velocities go before the solve, the others after it. The solve's array is
+        ``W_v``, a name no other function's argument takes (the constrained ``c_saddle``
+        fills its own ``W`` after these lines).
         """
         form = self.mech.matrix_form
         qd = set(self.mech.qdot)
@@ -490,18 +492,18 @@ class _KernelWriter:
                 after.append(f"{name} = {text}")
             else:
                 before.append(f"{name} = {text}")
-        lines = [*before, f"W = np.empty(({n}, {n + 2}))"]
+        lines = [*before, f"W_v = np.empty(({n}, {n + 2}))"]
         for (i, j), value in zip(upper, printed, strict=False):
-            lines.append(f"W[{i}, {j}] = {value}")
+            lines.append(f"W_v[{i}, {j}] = {value}")
             lines.append(
-                f"W[{j}, {i}] = W[{i}, {j}]" if i != j else f"W[{i}, {n + 1}] = W[{i}, {i}]"
+                f"W_v[{j}, {i}] = W_v[{i}, {j}]" if i != j else f"W_v[{i}, {n + 1}] = W_v[{i}, {i}]"
             )
         for i, (name, value) in enumerate(
             zip(self.scene.momentum_names, printed[len(upper) :], strict=False)
         ):
-            lines.append(f"W[{i}, {n}] = v_{name} - ({value})")
-        lines.append(f"solve_augmented(W, {n})")
-        lines += [f"v_{name} = W[{i}, {n}]" for i, name in enumerate(self.scene.velocity_names)]
+            lines.append(f"W_v[{i}, {n}] = v_{name} - ({value})")
+        lines.append(f"solve_augmented(W_v, {n})")
+        lines += [f"v_{name} = W_v[{i}, {n}]" for i, name in enumerate(self.scene.velocity_names)]
         return lines + after, printed[len(entries) :]
 
     def _body_for(self, signature: str, exprs) -> tuple[list[str], list[str]]:

@@ -289,8 +289,8 @@ def check(mechanics) -> None:
     DerivationError
         For dependent bilateral (holonomic and nonholonomic) constraints or as many
         independent ones as coordinates, a system without a Lagrangian mass matrix, a
-        mass matrix that depends on the velocities (L not quadratic in them), a large
-        system in matrix form, or a ``restitution`` outside [0, 1].
+        mass matrix that depends on the velocities (L not quadratic in them), or a
+        ``restitution`` outside [0, 1].
     """
     scene = mechanics.scene
     k = counts(scene)
@@ -327,11 +327,6 @@ def check(mechanics) -> None:
         raise fail(
             "constraints need the mass matrix d2L/dqdot2, and this Hamiltonian's Legendre "
             "transform does not invert; give the system by T and V or by a Lagrangian"
-        )
-    if mechanics.matrix_form is not None:
-        raise fail(
-            "constraints on a system whose mass matrix is solved numerically (more than "
-            "four coupled coordinates) are not supported yet"
         )
     if any(as_expr(e).free_symbols & set(mechanics.qdot) for e in mechanics.mass_matrix):
         raise fail(
@@ -430,10 +425,15 @@ def kernel_source(writer, mechanics) -> str:
 
 
 def _velocity_lines(writer, mechanics) -> list[str]:
-    """Lines that set ``v_<q>_dot`` from the state (q, p), for functions of (q, qdot)."""
-    temps, values = writer.body(mechanics.velocities)
+    """Lines that set ``v_<q>_dot`` from the state (q, p), for functions of (q, qdot);
+    for a system in matrix form they solve M(q, t) qdot = p - a(q, t)."""
+    temps, values = writer.solved_body(mechanics.velocities)
     names = mechanics.scene.velocity_names
-    return temps + [f"v_{name} = {value}" for name, value in zip(names, values, strict=True)]
+    return temps + [
+        f"v_{name} = {value}"
+        for name, value in zip(names, values, strict=True)
+        if value != f"v_{name}"
+    ]
 
 
 def _function(writer, signature: str, unpack: list[str], exprs: Sequence) -> str:
@@ -445,9 +445,12 @@ def _assign(
     writer, signature: str, unpack: list[str], pairs: list[tuple[str, object]], before=()
 ) -> str:
     """A function that assigns each expression of ``pairs`` to its target, after the
-    lines ``before`` (which may use the parameters)."""
+    lines ``before`` (which may use the parameters). Without ``before``, a function of the
+    state y = (q, p) of a system in matrix form solves for the velocities its expressions
+    use (``_body_for``); ``before`` sets them itself."""
     lines = writer.header(signature, unpack) + list(before)
-    temps, values = writer.body([expr for _, expr in pairs])
+    exprs = [expr for _, expr in pairs]
+    temps, values = writer.body(exprs) if before else writer._body_for(signature, exprs)
     lines += temps
     lines += [f"{target} = {value}" for (target, _), value in zip(pairs, values, strict=True)]
     return lines[0] + "\n" + "\n".join("    " + line for line in lines[1:]) + "\n"
@@ -843,7 +846,12 @@ class Numeric:
         self._mass = lam((t, q, qd), list(mech.mass_matrix))
         self._forcing = lam((t, q, qd), list(mech.forcing))
         self._gamma = lam((t, q, qd), self.pieces.gamma)
-        self._velocities = lam((t, q, mech.p), mech.velocities)
+        form = mech.matrix_form
+        if form is None:
+            self._velocities = lam((t, q, mech.p), mech.velocities)
+        else:  # qdot solves M(q, t) qdot = p - a(q, t)
+            self._shift = lam((t, q), list(form.shift))
+            self._velocities = None
         self._momenta = lam((t, q, qd), mech.momenta)
 
     def bound_to(self, compiled) -> Numeric:
@@ -894,9 +902,15 @@ class Numeric:
         return float(np.max(np.abs(values)))
 
     def qdot(self, t, Y: np.ndarray) -> np.ndarray:
+        """The velocities (N, n) at states Y (N, 2n)."""
         ts, Y, N = self._split(t, Y)
         n = self.n
-        return self._stack(self._velocities, (n,), N, ts, Y[:, :n].T, Y[:, n:].T)
+        if self._velocities is not None:
+            return self._stack(self._velocities, (n,), N, ts, Y[:, :n].T, Y[:, n:].T)
+        Q = Y[:, :n].T
+        M = self._stack(self._mass, (n, n), N, ts, Q, np.zeros((n, N)))
+        a = self._stack(self._shift, (n,), N, ts, Q)
+        return np.linalg.solve(M, (Y[:, n:] - a)[..., None])[..., 0]
 
     def contacts(self, t, Y: np.ndarray) -> np.ndarray:
         """Which rows act at states Y (N, 2n), as the kernels' ``c_contacts`` decides:
