@@ -69,7 +69,11 @@ class KernelRunner:
         self.clock[Clock.T_PAUSE] = math.inf
         family = stepper.family
         self.coef = family.coefficients(stepper, compiled, t0, self.y, compensated)
-        self.work = getattr(compiled.kernels, f"{family.kernel}_work")(self.coef, self.m)
+        allocate = getattr(compiled.kernels, f"{family.kernel}_work")
+        # numba would spend about a second compiling a function that only allocates
+        # arrays; the ensembles' drivers call their own compiled copy
+        allocate = getattr(allocate, "py_func", allocate)
+        self.work = allocate(self.coef, self.m)
 
     @property
     def t(self) -> float:
