@@ -122,7 +122,14 @@ def test_hidden_panel_gets_no_diagnostics(qtbot, window):
 def test_pause_step_and_reset(qtbot, window):
     wait_for_points(qtbot, window, 5)
     window.controls.play_button.setChecked(False)
-    qtbot.wait(150)
+    worker = window.worker
+    # the frame being computed when Pause came may still arrive: wait until the worker
+    # has gone round its loop twice since (it now idles) and the GUI took every frame
+    turns = worker.iterations
+    qtbot.waitUntil(
+        lambda: worker.iterations >= turns + 2 and worker._receipt.taken == worker.frames,
+        timeout=10000,
+    )
     frozen = len(window.store.main.t)
     qtbot.wait(200)
     assert len(window.store.main.t) == frozen
