@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy
 
+from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
 from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
 from systems.expressions import as_expr
@@ -499,6 +500,12 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
     if search.method == "not computed":  # saying "none" would be a wrong answer
         return [search.reason[0].upper() + search.reason[1:]], ""
     shown = display_names(mechanics.scene)
+    unilateral = set()
+    if search.multipliers:
+        kinds = constraints.rows(mechanics).kinds
+        unilateral = {
+            n for n, k in zip(search.multipliers, kinds, strict=True) if k == "unilateral"
+        }
     lines = []
     for eq in search.equilibria:
         where = ", ".join(f"{shown.get(k, k)} = {v:.{digits}g}" for k, v in eq.q.items())
@@ -523,6 +530,8 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
                 verdict = "stability undecided"
             frequencies = f", \u03c9 = {omegas}" if eq.stable and omegas else ""
             lines.append(f"{where}: {verdict}{frequencies}; {eq.decided_by}")
+        elif eq.stable and not eq.frequencies and eq.multipliers and eq.decided_by:
+            lines.append(f"{where}: stable, without oscillation: {eq.decided_by}")
         elif eq.stable and not eq.frequencies:
             lines.append(
                 f"{where}: stable, with no small-oscillation frequency (the inertia there is "
@@ -540,7 +549,25 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
             lines.append(f"{where}: unstable ({eq.kind}), growth rate {rates}")
         else:
             lines.append(f"{where}: unstable ({eq.kind})")
+        if eq.multipliers and "\u03bb" not in lines[-1]:  # (unless said already)
+            lines[-1] += "; constraint force " + _constraint_force(eq, unilateral, digits)
     return lines, search.reason or ""
+
+
+def _constraint_force(eq, unilateral: set[str], digits: int) -> str:
+    """``"λ₁ = 4.905"``, ``"λ₁ = -9.81 (in contact)"``: the multipliers of an equilibrium
+    on constraints; those of the unilateral constraints out of contact are left out."""
+    subscripts = str.maketrans(
+        "0123456789", "\u2080\u2081\u2082\u2083\u2084\u2085\u2086\u2087\u2088\u2089"
+    )
+    parts = []
+    for name, value in eq.multipliers.items():
+        if name in unilateral and name not in eq.contacts:
+            continue
+        label = "\u03bb" + name.rsplit("_", 1)[-1].translate(subscripts)
+        contact = " (in contact)" if name in eq.contacts else ""
+        parts.append(f"{label} = {value:.{digits}g}{contact}")
+    return ", ".join(parts) if parts else "no constraint force (every contact free)"
 
 
 def derivation_json(mechanics: Mechanics) -> dict:

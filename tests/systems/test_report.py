@@ -60,3 +60,19 @@ def test_a_large_expression_is_shown_on_one_line():
     assert line.startswith("S = ") and "cos(199·θ)/199" in line
     art = report._rows([("s", small)], mechanics.scene)
     assert len(art) > 1 and any(row.startswith("s = ───") for row in art)  # two-dimensional
+
+
+def test_equilibria_sentences_on_constraints_give_the_constraint_force():
+    """The Cartesian pendulum hangs on its string (lambda = m g / (2 l), the tension
+    2 lambda l = m g) and balances on it upside down (a strut, lambda < 0); the resting
+    ball is held by the floor, and nothing calls it a zero or infinite inertia."""
+    from systems.scene import load_scene
+
+    lines, _ = equilibria_sentences(derive(load_scene("cartesian_pendulum")), digits=4)
+    assert lines == [
+        "x = 0, y = -1: stable, \u03c9 = 3.132; constraint force \u03bb\u2081 = 4.905",
+        "x = 0, y = 1: unstable (maximum); constraint force \u03bb\u2081 = -4.905",
+    ]
+    (line,), _ = equilibria_sentences(derive(load_scene("bouncing_ball")), digits=4)
+    assert line.startswith("x = 0, y = 0: stable, without oscillation")
+    assert "\u03bb\u2081 = -9.81" in line and "inertia" not in line
