@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -425,11 +425,15 @@ class Sampler:
     events_t : list of float
     events_y : list of ndarray, shape (2n,)
         Section crossings found on the way (with a ``section``).
+
+    ``after_block(t)``, if given, is called after each block with the run's time (the
+    ``run`` command hands over to numba's kernels there).
     """
 
-    def __init__(self, run: Run, times):
+    def __init__(self, run: Run, times, after_block: Callable[[float], None] | None = None):
         self.run = run
         self.times = times
+        self.after_block = after_block
         self.last: Block | None = None
         self.worst = 0.0
         self.interrupted = False
@@ -462,6 +466,8 @@ class Sampler:
                     if self.constraints is not None and len(block.t):
                         worst = self.constraints.violation(block.t, block.y)
                         self.violation = max(self.violation, worst)
+                    if self.after_block is not None:
+                        self.after_block(run.t)
                 last = self.last
                 if last is not None and len(last.t) and last.t[-1] > t_last:
                     t_last = float(last.t[-1])

@@ -12,6 +12,7 @@ declared by its family in ``systems.integrators.registry``.
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 
@@ -21,6 +22,23 @@ MAX_EVENTS = 4096
 SUNDMAN_POWER = 0.75
 """g = (|f0| / |f|)^power in the Sundman transformation: g ~ r^1.5 near a 1/r singularity."""
 ENDLESS = 1e300
+
+
+def _as_python(function):
+    """A generated work allocator run as plain Python, the generated functions it calls too.
+
+    numba would spend about a second compiling each function that only allocates arrays
+    (the ensembles' drivers call their own compiled copies). The allocators call at most
+    one other (``gauss_work`` calls ``_collocation_work``), which calls none.
+    """
+    python = getattr(function, "py_func", None)
+    if python is None:  # already plain Python (the interpreted twins)
+        return function
+    env = dict(python.__globals__)
+    for name in python.__code__.co_names:
+        value = env.get(name)
+        env[name] = getattr(value, "py_func", value)
+    return types.FunctionType(python.__code__, env, python.__name__)
 
 
 class Outcome:
@@ -69,10 +87,7 @@ class KernelRunner:
         self.clock[Clock.T_PAUSE] = math.inf
         family = stepper.family
         self.coef = family.coefficients(stepper, compiled, t0, self.y, compensated)
-        allocate = getattr(compiled.kernels, f"{family.kernel}_work")
-        # numba would spend about a second compiling a function that only allocates
-        # arrays; the ensembles' drivers call their own compiled copy
-        allocate = getattr(allocate, "py_func", allocate)
+        allocate = _as_python(getattr(compiled.kernels, f"{family.kernel}_work"))
         self.work = allocate(self.coef, self.m)
 
     @property

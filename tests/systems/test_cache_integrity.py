@@ -26,7 +26,13 @@ RUN = ["run", "harmonic_oscillator", "--t-end", "5", "--method", "yoshida8"]  # 
 
 
 def _isolate(monkeypatch, root: Path) -> None:
+    from explorer.commands import kernels
+
     monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(root))
+    # a five-second oscillator would stay on the plain-Python kernels: here ``run`` has
+    # numba compile after its first block, however short the rest
+    monkeypatch.setattr(kernels, "GRACE", 0.0)
+    monkeypatch.setattr(kernels, "COMPILE_SECONDS", 0.0)
     monkeypatch.setattr(codegen, "_loaded", {})
     monkeypatch.setattr(cache_integrity, "_fallbacks", {})
     monkeypatch.setattr(cache_integrity, "_temporary", [])
@@ -118,7 +124,7 @@ def stored_text(cache: Path, containing: bytes) -> Path:
         ("compose_run", ".nbi", truncate),
         ("compose_run", ".1.nbc", randomise),
         ("rhs", ".1.nbc", flip_a_byte),
-        ("compose_work", ".nbi", empty),
+        ("compose_step", ".nbi", empty),
     ],
 )
 def test_damaged_numba_files_are_rebuilt(cache, capsys, function, suffix, damage):
