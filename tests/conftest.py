@@ -40,6 +40,31 @@ if _WORKER:
         os.environ[_name] = os.path.join(os.environ[_name], _WORKER)
 
 
+SLOW_FIRST = (
+    "tests/explorer/test_sessions.py",
+    "tests/explorer/test_catalogue_window.py",
+    "tests/explorer/test_window_model.py",
+    "tests/systems/test_default_accuracy.py",
+    "tests/explorer/test_window_faults.py",
+    "tests/systems/test_simulation.py",
+    "tests/systems/integrators/test_method_matrix.py",
+    "tests/explorer/test_views_fit.py",
+)
+"""The files that take longest (a minute or more each), run first: ``make test``'s workers
+take whole files (``--dist loadfile``) in collection order, and one of these collected
+last kept one worker busy for minutes after the other had finished."""
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+
+    def key(item) -> int:
+        path = item.nodeid.split("::", 1)[0]
+        return rank.get(path, len(SLOW_FIRST))
+
+    items.sort(key=key)  # stable: every file keeps its own order
+
+
 def pytest_sessionfinish(session, exitstatus):
     if _OWN_CACHE is not None:
         shutil.rmtree(_OWN_CACHE, ignore_errors=True)

@@ -34,9 +34,11 @@ WANTS = {"rhs", "hamiltonian", "velocities"}
 
 
 def _compiled(scene, method: str | None = None):
+    """The scene on the plain-Python kernels: these runs are short, and numba's
+    compilation of a constrained scene's kernels takes 10 to 15 s."""
     mechanics = derive(parse_scene(scene) if "\n" in scene else load_scene(scene))
     wants = WANTS | (required_wants(method) if method else set())
-    return compile_system(mechanics, wants)
+    return compile_system(mechanics, wants, interpreted_start=True)
 
 
 def _run(compiled, t_end: float, **options):
