@@ -98,7 +98,9 @@ class RunSettings:
     """How to integrate: method, step or tolerance, speed and what to compute alongside.
 
     ``max_points`` is the states a run's block keeps (every step up to that many);
-    ``rows_per_second`` bounds the rows handed to the store per wall second.
+    ``rows_per_second`` bounds the rows handed to the store per wall second;
+    ``max_step`` bounds an adaptive method's steps (``systems.simulation.Run``): by
+    default so that what is drawn follows the motion between the steps' ends.
     """
 
     method: str | None = None
@@ -112,6 +114,7 @@ class RunSettings:
     section: tuple[int, float, int] | None = None
     energy_tolerance: float | None = 1e-2
     rows_per_second: float = ROWS_PER_SECOND
+    max_step: float | str = "drawing"
 
     def with_(self, **changes) -> RunSettings:
         return replace(self, **changes)
@@ -127,6 +130,7 @@ class RunSettings:
             max_points=self.max_points,
             section=self.section,
             energy_tolerance=self.energy_tolerance,
+            max_step=self.max_step,
         )
 
 

@@ -26,6 +26,7 @@ from systems.integrators import STEPPERS, choose_method, get_stepper
 from systems.integrators.codes import CLOCK_SIZE, Clock, Status
 from systems.integrators.events import locate_crossings, periodic_brackets
 from systems.integrators.registry import Stepper, make_runner
+from systems.integrators.stepsize import drawing_step
 from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
 PROBLEMS = ("non_finite", "singular", "energy_error", "stalled", "budget")
@@ -162,6 +163,12 @@ class Run:
         Where the default step's probe runs from, if not ``(t0, y0)``: a run restarted
         part way along an orbit (another method) passes where the orbit began, so the
         probe run there is remembered, not run again (``stepsize.default_step``).
+    max_step : float or "drawing"
+        The longest step an adaptive method may take (inf: as long as its error control
+        allows). A drawing needs a bound: DOP853 crosses motion it integrates exactly,
+        such as a free flight, in one step, and the states kept are only its ends.
+        ``"drawing"``: ``stepsize.drawing_step`` from where the orbit began
+        (``probe_start`` or the start). Fixed-step methods ignore it.
     """
 
     def __init__(
@@ -181,6 +188,7 @@ class Run:
         compensated: bool = True,
         max_steps: int | None = None,
         probe_start: tuple[float, np.ndarray] | None = None,
+        max_step: float | str = math.inf,
     ):
         if method is None:
             method, _ = choose_method(compiled.mechanics)
@@ -196,6 +204,8 @@ class Run:
             )
         if not t_end > t0:
             raise ValueError("t_end must be after t0")
+        if max_step != "drawing" and not (isinstance(max_step, int | float) and max_step > 0):
+            raise ValueError(f"max_step must be a positive number or 'drawing', not {max_step!r}")
         problem = stepper.setting_error(dt, tol)
         if problem:
             raise ValueError(problem)
@@ -229,9 +239,14 @@ class Run:
         self.section_period = _section_period(compiled, section)
         if self.section_period is not None:
             sec = None  # the compiled loop knows one level only: crossings found in advance
+        if max_step == "drawing":
+            start = (t0, self.y0) if probe_start is None else probe_start
+            max_step = drawing_step(compiled, float(start[0]), np.asarray(start[1], float), t_end)
+        self.max_step = float(max_step)
         self.runner = make_runner(
-            compiled, stepper, self.y0, t0, t_end, self.setting_value, sec, compensated
-        )
+            compiled, stepper, self.y0, t0, t_end, self.setting_value, sec, compensated,
+            max_step=self.max_step,
+        )  # fmt: skip
         c = compiled.mechanics.classification
         self.watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
         self.H0 = float(compiled.hamiltonian(t0, self.y0[None, :])[0]) if self.watch_energy else 0.0

@@ -510,8 +510,10 @@ def dop853_step(y, comp, clock, P, coef, work):
     ``A`` (12, 12), ``B`` (12,), ``C`` (12,), ``E3``/``E5`` (13,) are the coefficients of
     ``scipy.integrate._ivp.dop853_coefficients``. Returns ``STATUS_REJECTED`` with a
     smaller ``clock[CLOCK_H]`` when the error is too large; never steps past the end time.
+    The next step is at most ``hmax``: motion DOP853 integrates exactly (a free flight)
+    would otherwise be crossed in one step, and a drawing of the states would skip it.
     """
-    A, B, C, E3, E5, rtol, atol = coef
+    A, B, C, E3, E5, rtol, atol, hmax = coef
     K, ynew, ys, flags = work
     t = clock[CLOCK_T]
     evals = 0
@@ -549,7 +551,7 @@ def dop853_step(y, comp, clock, P, coef, work):
         y[k] = ynew[k]
         K[0, k] = K[S, k]
     clock[CLOCK_T] = t_end if last else t + h
-    clock[CLOCK_H] = h * factor
+    clock[CLOCK_H] = min(h * factor, hmax)
     flags[1] = 0.0
     return STATUS_RUNNING, evals
 
@@ -607,7 +609,7 @@ def cdop853_work(coef, m):
 def _c_trial(t, y, P, act, h, coef, work):
     """ynew = the DOP853 step of size h from y (K[0] = f(t, y) already), not projected;
     returns the error norm."""
-    A, B, C, E3, E5, rtol, atol = coef
+    A, B, C, E3, E5, rtol, atol, _ = coef
     K, ynew, ys = work[0], work[1], work[2]
     S = B.shape[0]
     _c_stages(t, y, P, act, h, (A, C), (K, ys), (1, S))
@@ -692,8 +694,9 @@ def cdop853_step(y, comp, clock, P, coef, work):
     With unilateral constraints, a step that ends beyond a wall (g < 0 on a free row) or
     with a contact that pulls (lambda > 0 on an acting one) is shortened to the event,
     where ``c_switch`` applies the impact or the release; the next step starts there.
+    Steps are at most ``hmax``, as in ``dop853_step``.
     """
-    A, B, C, E3, E5, rtol, atol = coef
+    A, B, C, E3, E5, rtol, atol, hmax = coef
     K, ynew, ys, ya, act, act0, mask, values, flags = work
     t = clock[CLOCK_T]
     evals = 0
@@ -735,7 +738,7 @@ def cdop853_step(y, comp, clock, P, coef, work):
         factor = min(1.0, factor)
     if not c_project(t + h, ynew, P, act):
         return STATUS_NOT_CONVERGED, evals
-    following = h * factor
+    following = min(h * factor, hmax)
     if N_BILATERAL < N_CONSTRAINTS:
         c_event_values(t + h, ynew, P, act, values)
         event = False

@@ -570,14 +570,19 @@ def applicable(mechanics) -> dict[str, str | None]:
     return {name: stepper.applies_to(mechanics) for name, stepper in STEPPERS.items()}
 
 
-def make_runner(compiled, stepper: Stepper, y0, t0, t_end, value, section, compensated=True):
+def make_runner(
+    compiled, stepper: Stepper, y0, t0, t_end, value, section, compensated=True, *,
+    max_step: float = math.inf,
+):  # fmt: skip
     """The runner of ``stepper``'s family for one trajectory.
 
-    ``value`` is the step or tolerance (None: the family's default rule).
+    ``value`` is the step or tolerance (None: the family's default rule); ``max_step``
+    bounds the steps of an adaptive family (fixed steps are chosen whole).
     """
     if value is None:
         value = stepper.default_setting(compiled, t0, y0, t_end)
     finisher = STEPPERS[stepper.finisher] if stepper.finisher else None
+    extra = {"max_step": max_step} if stepper.family.adaptive else {}
     return stepper.family.runner(
-        compiled, stepper, y0, t0, t_end, value, section, compensated, finisher
+        compiled, stepper, y0, t0, t_end, value, section, compensated, finisher, **extra
     )

@@ -196,13 +196,20 @@ class TimeTransformedRunner(KernelRunner):
 
 
 class AdaptiveRunner(KernelRunner):
-    """Compiled adaptive DOP853: ``value`` is the relative tolerance (absolute: 1% of it)."""
+    """Compiled adaptive DOP853: ``value`` is the relative tolerance (absolute: 1% of it).
 
-    def __init__(self, compiled, stepper, y0, t0, t_end, value, section, *args, **kwargs):
-        super().__init__(compiled, stepper, y0, t0, t_end, value, section, *args, **kwargs)
+    ``max_step`` bounds every step (inf: the error control alone decides).
+    """
+
+    def __init__(
+        self, compiled, stepper, y0, t0, t_end, value, section, *args, max_step=math.inf, **kw
+    ):
+        super().__init__(compiled, stepper, y0, t0, t_end, value, section, *args, **kw)
         self.rtol, self.atol = self.value, self.value * 1e-2
-        self.coef = (*self.coef, self.rtol, self.atol)
-        self.clock[Clock.H] = _initial_step(compiled, t0, self.y, self.rtol, self.atol, t_end)
+        self.max_step = float(max_step)
+        self.coef = (*self.coef, self.rtol, self.atol, self.max_step)
+        h = _initial_step(compiled, t0, self.y, self.rtol, self.atol, t_end)
+        self.clock[Clock.H] = min(h, self.max_step)
 
 
 def _initial_step(compiled, t0, y, rtol, atol, t_end) -> float:
@@ -217,11 +224,13 @@ def _initial_step(compiled, t0, y, rtol, atol, t_end) -> float:
 
 
 class ScipyRunner:
-    """scipy's Radau, BDF or LSODA stepping on the compiled rhs (for stiff systems)."""
+    """scipy's Radau, BDF or LSODA stepping on the compiled rhs (for stiff systems);
+    ``max_step`` bounds every step."""
 
     def __init__(
-        self, compiled, stepper, y0, t0, t_end, value, section, compensated=True, finisher=None
-    ):
+        self, compiled, stepper, y0, t0, t_end, value, section, compensated=True,
+        finisher=None, *, max_step=math.inf,
+    ):  # fmt: skip
         from scipy.integrate import BDF, LSODA, Radau
 
         cls = {"radau": Radau, "bdf": BDF, "lsoda": LSODA}[stepper.name]
@@ -239,7 +248,10 @@ class ScipyRunner:
 
         bound = t_end if math.isfinite(t_end) else ENDLESS
         tol = max(self.value, 1e-12)
-        self.solver = cls(fun, t0, np.array(y0, dtype=float), bound, rtol=tol, atol=tol * 1e-2)
+        self.solver = cls(
+            fun, t0, np.array(y0, dtype=float), bound, rtol=tol, atol=tol * 1e-2,
+            max_step=float(max_step),
+        )  # fmt: skip
         self.section = section
         self.t_end = t_end
 

@@ -122,6 +122,40 @@ def default_step(
     return min(dt, 2.0 * math.pi / rate / per_period)
 
 
+DRAWN_PER_PERIOD = 64
+"""Steps per period of the fastest linear motion at the start, at least, in a drawing."""
+DRAWN_PER_RUN = 256
+"""Steps over a finite run, at least, in a drawing."""
+DRAWN_PER_TRAVERSE = 16
+"""Without a linear rate: steps while the state moves by its own size, at least."""
+
+
+def drawing_step(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
+    """The longest step an adaptive method may take in a run that is drawn.
+
+    ``DRAWN_PER_PERIOD`` steps per fastest period at ``y0`` (``fastest_rate``); where the
+    linearisation has no rate (a free flight, a ball between bounces), ``y0``'s size over
+    its rate of change, divided by ``DRAWN_PER_TRAVERSE``; never more than
+    ``1 / DRAWN_PER_RUN`` of a finite run. inf when none of these gives a scale.
+    """
+    rate = fastest_rate(compiled, t0, y0)
+    h = math.inf
+    if rate > 0.0:
+        h = 2.0 * math.pi / rate / DRAWN_PER_PERIOD
+    else:
+        try:
+            with np.errstate(all="ignore"):
+                speed = float(np.linalg.norm(np.asarray(compiled.rhs(t0, y0), dtype=float)))
+        except (ArithmeticError, ValueError, TypeError):
+            speed = math.nan
+        size = float(np.linalg.norm(y0))
+        if math.isfinite(speed) and speed > 0.0 and size > 0.0:
+            h = size / speed / DRAWN_PER_TRAVERSE
+    if math.isfinite(t_end) and t_end > t0:
+        h = min(h, (t_end - t0) / DRAWN_PER_RUN)
+    return h
+
+
 _probed: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _probed_lock = threading.Lock()  # runs are made in the worker, the GUI and job threads
 

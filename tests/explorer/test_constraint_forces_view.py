@@ -276,3 +276,26 @@ def test_the_caption_of_elastic_walls_says_the_impacts_keep_the_energy():
     text, tip = caption(moving, 0.0, 0.3, math.nan, -1.0, contacts=[(0, -2.0)], restitution=1.0)
     assert "W = unknown (from an impact on" in text and "x ≥ 0 (λ₁ = -2)" in text, text
     assert "keep the energy" not in tip  # a moving wall changes it at impacts
+
+
+def test_the_window_draws_every_bounce_of_the_ball(qtbot, window):
+    """The trajectory the window stores (and draws in the path, the phase plane and the
+    animation) rises to each flight's apex: DOP853 would otherwise cross every flight
+    after the second in one exact step, and the stored states would be the impacts only,
+    the ball lying on the floor from t = 1.2 s while it bounces until 4.06 s."""
+    from explorer.controls import SPEEDS
+
+    _opened(qtbot, window, "bouncing_ball")
+    window.controls.speed_combo.setCurrentIndex([s for _, s in SPEEDS].index(100.0))
+    qtbot.waitUntil(lambda: window.store.main.last_t >= 3.0, timeout=60000)
+    t, y = _main_rows(window)
+    g, e = 9.81, 0.8
+    t1, v0 = math.sqrt(2 / g), math.sqrt(2 * g)  # dropped from 1 m
+    start = t1
+    for k in range(1, 8):  # the flights after the k-th impact
+        flight = 2 * e**k * v0 / g
+        inside = (t > start) & (t < start + flight)
+        assert inside.any(), k
+        apex = (e**k * v0) ** 2 / (2 * g)
+        assert y[inside, 1].max() == pytest.approx(apex, abs=0.01), k
+        start += flight

@@ -46,11 +46,18 @@ T_END = 10.0
 STEPS = {1: (0.01, 0.005), 2: (0.05, 0.025), 4: (0.1, 0.05), 6: (0.2, 0.1), 8: (0.4, 0.2)}
 
 
-def final_error(compiled, method, exact, **setting) -> float:
-    blocks = list(stream(compiled, method=method, t_end=T_END, energy_tolerance=None, **setting))
+def final_error(compiled, method, exact, max_step=None, **setting) -> float:
+    options = {} if max_step is None else {"max_step": max_step, "max_points": 10**6}
+    blocks = list(
+        stream(compiled, method=method, t_end=T_END, energy_tolerance=None, **options, **setting)
+    )
     last = blocks[-1]
     assert last.status == "ok", (method, last.message)
     assert last.t[-1] == T_END
+    if max_step is not None:  # every step kept: none longer than the bound
+        t = [0.0] + [float(time) for block in blocks for time in block.t]
+        longest = max(b - a for a, b in zip(t, t[1:], strict=False))
+        assert longest <= max_step * (1 + 1e-12), (method, longest)
     return abs(last.y[-1, 0] - exact(T_END))
 
 
@@ -71,6 +78,9 @@ def test_method_on_system_is_refused_or_right(method, kind):
     if stepper.setting == "tol":
         error = final_error(compiled, method, exact, tol=1e-8)
         assert error < 1e-5, (method, kind, error)
+        # a bound on the steps (a drawn run's) keeps them short and the answer right
+        bounded = final_error(compiled, method, exact, max_step=0.05, tol=1e-8)
+        assert bounded < 1e-5, (method, kind, bounded)
         return
     coarse, fine = STEPS[min(stepper.order, 8)]
     e1 = final_error(compiled, method, exact, dt=coarse)
