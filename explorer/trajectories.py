@@ -281,7 +281,8 @@ class Trajectory:
         return sum(8 * b.capacity * int(np.prod(b.row_shape, dtype=int)) for b in buffers)
 
     def append(self, block) -> None:
-        """Append a ``systems.simulation.Block`` (its first row may repeat our last one).
+        """Append a ``systems.simulation.Block`` (its first row may repeat our last one,
+        or be older: either is left out).
 
         ``block.steps`` and ``block.rhs_evaluations`` are those of this block (the
         worker's frames carry them so). Thins the old rows first when the block would
@@ -289,7 +290,13 @@ class Trajectory:
         """
         t = np.asarray(block.t, dtype=float)
         y = np.asarray(block.y, dtype=float).reshape(len(t), -1)
-        start = 1 if len(t) and len(self.t) and t[0] <= self.last_t else 0
+        start = 0
+        if len(t) and len(self.t):
+            # an impact keeps two rows at one time (arriving, leaving): only a row equal
+            # to our last one is a repeat
+            last = self.y.data[-1]
+            repeat = t[0] == self.last_t and np.array_equal(y[0], last, equal_nan=True)
+            start = 1 if t[0] < self.last_t or repeat else 0
         t, y = t[start:], y[start:]
         self.status = block.status
         self.message = block.message

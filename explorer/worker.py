@@ -229,15 +229,19 @@ def default_runs() -> Callable:
 
 
 def arc_keep(
-    t: np.ndarray, y: np.ndarray, before: np.ndarray | None, resolution: float
+    t: np.ndarray,
+    y: np.ndarray,
+    before: np.ndarray | None,
+    resolution: float,
+    before_t: float | None = None,
 ) -> np.ndarray:
     """Which states to keep so that kept neighbours stay close along the curve.
 
     Each coordinate is measured in units of its range over the block about its linear
     trend (an angle that keeps turning is measured by its wobble, not by how far it
     went); a state is kept when the path since the last kept one has grown past a
-    multiple of ``1 / resolution``, and the last state always. A block too short to have
-    a size is kept whole.
+    multiple of ``1 / resolution``, and the last state always, and both states of a jump
+    (two at one time: an impact). A block too short to have a size is kept whole.
 
     Parameters
     ----------
@@ -246,6 +250,9 @@ def arc_keep(
     before : ndarray, shape (m,), or None
         The state before the block (the last one kept).
     resolution : float
+    before_t : float, optional
+        The time of ``before``: a first row at that time with another state is the other
+        side of a jump, and kept.
 
     Returns
     -------
@@ -255,6 +262,9 @@ def arc_keep(
     keep = np.ones(k, dtype=bool)
     if k < 3 or not np.isfinite(y).all():
         return keep
+    # both rows of an impact (arriving, leaving, at one time): the jump, not a chord
+    jump = np.flatnonzero(t[1:] == t[:-1])
+    leaving = before is not None and t[0] == before_t and not np.array_equal(y[0], before)
     # the size of each coordinate about its trend, from at most ~1000 of the states
     sample = slice(None, None, max(1, k // 1024))
     ts, ys = t[sample], y[sample]
@@ -281,6 +291,8 @@ def arc_keep(
     keep[0] = mark[0] >= 1
     keep[1:] = mark[1:] > mark[:-1]
     keep[-1] = True
+    keep[jump] = keep[jump + 1] = True
+    keep[0] |= leaving
     return keep
 
 
@@ -549,7 +561,7 @@ class SimulationWorker(QObject):
         return chunks
 
     def _chunk(self, track: _Track, settings: RunSettings, seconds: float, until: float):
-        """One ``advance`` of the track's run: (block, state before, steps, evaluations),
+        """One ``advance`` of the track's run: (block, (t, state) before, steps, evaluations),
         None if there is nothing to do (or its run is to be made next turn)."""
         if track.run is None:
             if track.t >= settings.t_end:
@@ -587,7 +599,7 @@ class SimulationWorker(QObject):
                     steps = max(1, min(planned, int(points * track.stride)))
                     track.run.nsteps = steps
                 track.run.max_points = int(min(points, steps / track.stride + 2))
-        before = track.y
+        before = (track.t, track.y)
         started = time.perf_counter()
         block = track.run.advance(seconds, until)
         elapsed = time.perf_counter() - started
@@ -650,7 +662,7 @@ class SimulationWorker(QObject):
             block, before, _, _ = chunks[index]
             t = np.asarray(block.t, dtype=float)
             y = np.asarray(block.y, dtype=float).reshape(len(t), -1)
-            keep = arc_keep(t, y, before, ARC_RESOLUTION)
+            keep = arc_keep(t, y, before[1], ARC_RESOLUTION, before_t=before[0])
             self._adapt_stride(track, keep)
             parts.append((t[keep], y[keep]))
             rows += int(keep.sum())

@@ -87,7 +87,8 @@ def periodic_brackets(
     Parameters
     ----------
     t : ndarray, shape (k,)
-        Times of consecutive accepted steps (every step, not a thinned output).
+        Times of consecutive accepted steps (every step, not a thinned output); two rows
+        at one time (an impact, before and after) bracket nothing.
     y : ndarray, shape (k, m)
     index : int
     value : float
@@ -114,7 +115,8 @@ def periodic_brackets(
         c = np.ceil(u)
     rows: list[int] = []
     levels: list[float] = []
-    finite = np.isfinite(u[:-1]) & np.isfinite(u[1:])
+    # an impact's two rows share a time: a jump of the velocities, not the flow crossing
+    finite = np.isfinite(u[:-1]) & np.isfinite(u[1:]) & (t[1:] > t[:-1])
     if direction >= 0:
         for i in np.flatnonzero(finite & (k[1:] > k[:-1])):
             for j in np.arange(k[i] + 1, k[i + 1] + 1):

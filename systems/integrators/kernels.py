@@ -592,7 +592,7 @@ def cdop853_work(coef, m):
     # K, ynew, ys, y at the left end of an event's bracket, act, act0, mask (the rows
     # watched for an event: value >= 0 at the start of the step), event values, flags
     # [step kept (the driver zeroes it when it undoes one), last rejected, K[0] valid,
-    # contacts known]
+    # contacts known, 1 + the row of an event to apply next]
     return (
         np.empty((S + 1, m)),
         np.empty(m),
@@ -602,7 +602,7 @@ def cdop853_work(coef, m):
         np.empty(k),
         np.empty(k),
         np.empty(k),
-        np.zeros(4),
+        np.zeros(5),
     )
 
 
@@ -692,9 +692,11 @@ def cdop853_step(y, comp, clock, P, coef, work):
     constraints (positions, then velocities), so they hold to round-off after every step.
 
     With unilateral constraints, a step that ends beyond a wall (g < 0 on a free row) or
-    with a contact that pulls (lambda > 0 on an acting one) is shortened to the event,
-    where ``c_switch`` applies the impact or the release; the next step starts there.
-    Steps are at most ``hmax``, as in ``dop853_step``.
+    with a contact that pulls (lambda > 0 on an acting one) is shortened to the event and
+    ends there, before it; the next call applies the impact or the release
+    (``c_switch``) without moving in time, so the state arriving at a wall and the state
+    leaving it are both kept (a drawing shows the jump of the velocities at the wall, not
+    a chord across it). Steps are at most ``hmax``, as in ``dop853_step``.
     """
     A, B, C, E3, E5, rtol, atol, hmax = coef
     K, ynew, ys, ya, act, act0, mask, values, flags = work
@@ -709,8 +711,17 @@ def cdop853_step(y, comp, clock, P, coef, work):
                 act[i] = act0[i]
         flags[2] = 0.0
         flags[0] = 1.0
+        flags[4] = 0.0  # an event found by an undone step is found again
     for i in range(act.shape[0]):
         act0[i] = act[i]
+    if flags[4] != 0.0:  # the event the last step ended at: applied here, at the same t
+        which = int(flags[4]) - 1
+        flags[4] = 0.0
+        c_switch(t, y, P, act, which)
+        for k in range(y.shape[0]):
+            comp[k] = 0.0
+        flags[2] = 0.0
+        return STATUS_RUNNING, evals
     if flags[2] == 0.0:  # K[0] is f at the start of the step
         c_rhs(t, y, P, act, K[0])
         evals += 1
@@ -755,8 +766,10 @@ def cdop853_step(y, comp, clock, P, coef, work):
                 h, which, used = _c_locate(t, y, P, h, coef, work)
                 evals += used
                 last = False
-                if not c_switch(t + h, ynew, P, act, which) and h == 0.0:
-                    return STATUS_NOT_CONVERGED, evals  # an event that changes nothing
+                if h > 0.0:
+                    flags[4] = which + 1.0  # the next call applies it
+                elif not c_switch(t, ynew, P, act, which):
+                    return STATUS_NOT_CONVERGED, evals  # an event at once that changes nothing
     for k in range(y.shape[0]):
         y[k] = ynew[k]
         comp[k] = 0.0
@@ -791,7 +804,9 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
     ``state = (y, comp, clock)``.
 
     ``out = (out_t (k,), out_y (k, m), ev_t (e, 2), ev_y (e, 2, m))`` receives every
-    ``stride``-th state and the states on both sides of each crossing of
+    ``stride``-th state, both states of a jump (a step that applies an event without
+    moving in time) where ``out_t`` has room beyond the strided states, and the states
+    on both sides of each crossing of
     ``y[index] = value`` for ``section = (index, value, direction)`` (None: numba compiles
     the loop without event code). Returns through ``info`` (``INFO_*`` slots). A step that
     fails or leaves a non-finite state is undone, so ``y``, ``comp`` and ``clock`` always
@@ -821,6 +836,7 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
     outputs = 0
     events = 0
     count = 0
+    wrote = True  # the state before the first step: the caller has it
     while steps < nsteps:
         for k in range(m):
             yprev[k] = y[k]
@@ -850,6 +866,7 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
             if (
                 ev_index >= 0
                 and events < ev_t.shape[0]
+                and t > kprev[CLOCK_T]  # not an impact's jump: the flow crosses sections
                 and _crossed(yprev[ev_index] - ev_value, y[ev_index] - ev_value, ev_dir)
             ):
                 ev_t[events, 0] = kprev[CLOCK_T]
@@ -859,13 +876,24 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
                     ev_y[events, 1, k] = y[k]
                 events += 1
         count += 1
-        if count == stride:
+        # a step that does not move in time applied an event (an impact): the states on
+        # both sides of the jump are kept whatever the stride, while the rows left for
+        # the strided output still fit
+        jump = t == kprev[CLOCK_T] and outputs + (nsteps - steps) // stride + 3 <= out_t.shape[0]
+        if jump and not wrote:
+            out_t[outputs] = kprev[CLOCK_T]
+            for k in range(m):
+                out_y[outputs, k] = yprev[k]
+            outputs += 1
+        wrote = False
+        if count == stride or jump:
             count = 0
             if outputs < out_t.shape[0]:
                 out_t[outputs] = t
                 for k in range(m):
                     out_y[outputs, k] = y[k]
                 outputs += 1
+                wrote = True
         if t >= t_end - slack:
             status = STATUS_END
             break

@@ -19,6 +19,9 @@ import numpy as np
 from systems.integrators.codes import CLOCK_SIZE, INFO_SIZE, Clock, Info, Status
 
 MAX_EVENTS = 4096
+JUMP_ROWS = 256
+"""Rows a driver call has beyond its strided output for the states on both sides of an
+event's jump (an impact), at most."""
 SUNDMAN_POWER = 0.75
 """g = (|f0| / |f|)^power in the Sundman transformation: g ~ r^1.5 near a 1/r singularity."""
 ENDLESS = 1e300
@@ -96,7 +99,7 @@ class KernelRunner:
 
     def _call(self, nsteps: int, stride: int, until: float):
         m = self.m
-        cap = nsteps // stride + 1
+        cap = nsteps // stride + 1 + JUMP_ROWS
         out = (np.empty(cap), np.empty((cap, m)), np.empty((MAX_EVENTS, 2)))
         out += (np.empty((MAX_EVENTS, 2, m)),)
         info = np.zeros(INFO_SIZE, dtype=np.int64)
@@ -306,9 +309,11 @@ def _with_last(t: np.ndarray, y: np.ndarray, t_last: float, y_last: np.ndarray):
     """Make sure the latest state ends the block (a stride may have skipped it).
 
     The driver's last output time and the runner's may differ in the last bits (a landing
-    on t_end): the same instant, which must not appear twice.
+    on t_end): the same instant, which must not appear twice. A last row at exactly
+    ``t_last`` with another state is the state before an event's jump: both stay.
     """
-    if len(t) and math.isclose(t[-1], t_last, rel_tol=1e-12, abs_tol=1e-300):
+    jump = len(t) and t[-1] == t_last and not np.array_equal(y[-1], y_last)
+    if len(t) and not jump and math.isclose(t[-1], t_last, rel_tol=1e-12, abs_tol=1e-300):
         t, y = t.copy(), y.copy()
         t[-1], y[-1] = t_last, y_last
         return t, y

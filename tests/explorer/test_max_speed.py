@@ -168,6 +168,28 @@ def test_arc_keep_keeps_neighbours_close_and_drops_the_rest():
     assert arc_keep(t[:50], np.ones((50, 2)), None, 200.0).all()
 
 
+def test_arc_keep_keeps_both_sides_of_an_impact():
+    """A ball's flight sampled finely, with an impact: the velocity jumps at one time.
+    Thinning keeps the state arriving and the state leaving, so the phase plane shows the
+    jump at the floor, not a chord from a state before it; also when the jump falls
+    between two blocks (the arriving state ended the last one)."""
+    t = np.linspace(0.0, 1.0, 2001)
+    y = np.column_stack([4.9 * t * (1.0 - t), 4.9 * (1.0 - 2.0 * t)])  # height, velocity
+    t = np.concatenate([t, t[-1:], t[-1] + t[1:]])
+    y = np.concatenate([y, [[0.0, 4.9]], y[1:]])
+    arriving = np.flatnonzero(t[1:] == t[:-1])
+    assert len(arriving) == 1
+    keep = arc_keep(t, y, None, 50.0)
+    assert keep.sum() < len(t) / 10
+    assert keep[arriving[0]] and keep[arriving[0] + 1]
+    # the next block begins with the state leaving; the one before ended arriving
+    cut = arriving[0] + 1
+    later = arc_keep(t[cut:], y[cut:], y[cut - 1], 50.0, before_t=t[cut - 1])
+    assert later[0]
+    # a block that merely goes on from the last state does not keep its first row
+    assert not arc_keep(t[cut + 1 :], y[cut + 1 :], y[cut], 50.0, before_t=t[cut])[0]
+
+
 # -- bounded memory --------------------------------------------------------------------------
 
 

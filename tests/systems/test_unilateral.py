@@ -68,6 +68,14 @@ def _trajectory(compiled, **options):
     return np.concatenate([b.t for b in blocks]), np.concatenate([b.y for b in blocks])
 
 
+def _arriving(t):
+    """The rows that arrive at an event (an impact, a contact): the run keeps the state
+    before the event and the state after it, at the same time."""
+    arriving = np.zeros(len(t), dtype=bool)
+    arriving[:-1] = t[1:] == t[:-1]
+    return arriving
+
+
 def _impacts(t, y, floor=1e-12):
     """The states right after each impact on the floor (y = 0, moving up): (t_k, v_k)."""
     after = np.flatnonzero((np.abs(y[:, 1]) <= floor) & (y[:, 3] > 0.0))
@@ -127,6 +135,24 @@ def test_a_drawn_run_shows_every_flight(ball):
     assert not ((t > tk[3]) & (t < tk[4])).any()
 
 
+def test_both_sides_of_each_impact_are_kept_whatever_the_stride(ball):
+    """Each impact leaves two rows at its time: the ball arriving (y = 0, moving down)
+    and leaving (e times as fast, up). A run that keeps only some of its steps (a
+    stride, as the window asks for while a block keeps few states) still keeps both,
+    so no drawing joins the arrival to a state after the bounce."""
+    for max_points in (1_000_000, 6):
+        blocks = list(stream(ball, method="constrained_dop853", t_end=3.0, max_points=max_points))
+        t = np.concatenate([b.t for b in blocks])
+        y = np.concatenate([b.y for b in blocks])
+        arrive = np.flatnonzero(t[1:] == t[:-1])
+        assert len(arrive) == 6, max_points  # impacts at 0.45, 1.17, 1.75, 2.21, 2.58, 2.88
+        leave = arrive + 1
+        assert np.all(np.abs(y[arrive, 1]) <= 1e-12) and np.all(y[leave, 1] == y[arrive, 1])
+        assert np.allclose(y[leave, 3], -0.8 * y[arrive, 3], rtol=1e-12)
+        if max_points == 6:
+            assert len(t) < 60  # the stride left most steps out, not the impacts
+
+
 def test_energy_is_kept_between_bounces_and_lost_at_each(ball):
     t, y = _trajectory(ball, t_end=3.0)
     H = ball.hamiltonian(t, y)
@@ -168,7 +194,7 @@ def test_the_ball_comes_to_rest_and_the_floor_pushes_with_m_g(ball):
     # the last impact comes 5e-5 before the Zeno limit (where a rebound would rise less
     # than the contact gap, 1e-10: the contact becomes a resting one); none after it
     assert tk[-1] < zeno and zeno - tk[-1] <= 1e-4
-    resting = t > tk[-1]
+    resting = (t > tk[-1]) & ~_arriving(t)
     assert resting.sum() >= 3
     assert np.max(np.abs(y[resting, 1])) <= 1e-12 and np.max(np.abs(y[resting, 3])) <= 1e-12
     numeric = ball.constraints()
@@ -190,8 +216,11 @@ def test_a_plastic_impact_stops_the_ball_at_once(ball):
     plastic = ball.with_parameters({"restitution": 0.0})
     t, y = _trajectory(plastic, t_end=2.0)
     assert len(_impacts(t, y)[0]) == 0
-    after = t >= T1 - 1e-12
-    assert np.any(np.abs(t - T1) <= 1e-12)  # the step that ends on the impact
+    arriving = _arriving(t)
+    after = (t >= T1 - 1e-12) & ~arriving
+    # the step that ends on the impact, and the impact: the ball arrives at v_0, stops
+    (at,) = np.flatnonzero(arriving)
+    assert abs(t[at] - T1) <= 1e-12 and y[at, 3] == pytest.approx(-M * V0, rel=1e-10)
     assert np.max(np.abs(y[after, 1])) <= 1e-12 and np.max(np.abs(y[after, 3])) <= 1e-12
     assert np.max(np.abs(plastic.constraints().multipliers(t[after], y[after]) + M * G)) <= 1e-12
 
@@ -419,7 +448,12 @@ def test_a_pendulum_bounces_off_a_wall_keeping_its_string():
     numeric = compiled.constraints()
     assert y[:, 0].min() >= -0.5 - 1e-10
     at_wall = np.flatnonzero(np.abs(y[:, 0] + 0.5) <= 1e-12)
-    assert len(at_wall) == 1 and abs(t[at_wall[0]] - t_wall) <= 1e-9
+    # the bob arriving and leaving, at the same time and place, its velocity reversed
+    assert len(at_wall) == 2 and abs(t[at_wall[0]] - t_wall) <= 1e-9
+    assert t[at_wall[1]] == t[at_wall[0]]
+    arrive, leave = y[at_wall[0]], y[at_wall[1]]
+    assert np.array_equal(arrive[:2], leave[:2])
+    assert np.allclose(leave[2:], -arrive[2:], rtol=1e-12, atol=1e-12)
     # the string holds, before, at and after the impact; the energy is kept
     assert np.max(np.abs(numeric.values(t, y)[:, 0])) <= 1e-12
     assert np.max(np.abs(y[:, 0] * y[:, 2] + y[:, 1] * y[:, 3])) <= 1e-10
