@@ -15,8 +15,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import contourpy
 import numpy as np
-import pyqtgraph as pg
 from scipy.optimize import root
 
 
@@ -154,20 +154,30 @@ def spread_levels(grid: EnergyGrid, count: int = 12) -> np.ndarray:
 
 
 def contour(grid: EnergyGrid, level: float) -> tuple[np.ndarray, np.ndarray]:
-    """The level set ``H = level`` as (q, p) arrays with NaN between separate pieces."""
-    values = np.where(np.isfinite(grid.values), grid.values, np.nanmax(grid.values) + 1.0)
-    lines = pg.functions.isocurve(values, level, connected=True)
+    """The level set ``H = level`` as (q, p) arrays with NaN between separate pieces.
+
+    Marching squares by contourpy (matplotlib's contour engine, about 10 times faster
+    than pyqtgraph's ``isocurve``, which held the GUI thread 0.2 to 0.7 s on each scene's
+    twelve levels); cells with a non-finite corner are left out, not closed off.
+
+    Returns
+    -------
+    q, p : ndarray, shape (k,)
+    """
+    finite = np.isfinite(grid.values)
+    if not finite.any():
+        return np.array([]), np.array([])
+    z = np.ma.masked_array(np.where(finite, grid.values, 0.0), mask=~finite).T
+    generator = contourpy.contour_generator(
+        grid.qs, grid.ps, z, line_type=contourpy.LineType.Separate
+    )
     xs: list[np.ndarray] = []
     ys: list[np.ndarray] = []
-    dq = grid.qs[1] - grid.qs[0]
-    dp = grid.ps[1] - grid.ps[0]
-    for line in lines:
-        points = np.asarray(line, dtype=float)
+    for points in generator.lines(float(level)):
         if len(points) < 2:
             continue
-        # isocurve places grid index i at i + 0.5
-        xs += [grid.qs[0] + (points[:, 0] - 0.5) * dq, [np.nan]]
-        ys += [grid.ps[0] + (points[:, 1] - 0.5) * dp, [np.nan]]
+        xs += [points[:, 0], [np.nan]]
+        ys += [points[:, 1], [np.nan]]
     if not xs:
         return np.array([]), np.array([])
     return np.concatenate(xs), np.concatenate(ys)
