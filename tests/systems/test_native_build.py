@@ -6,6 +6,7 @@ import time
 import uuid
 
 import numpy as np
+import pytest
 
 from systems import native_build
 from systems.compiled import compile_system
@@ -110,3 +111,21 @@ def test_the_cache_probe_names_real_loops():
         if family.kernel is not None:
             assert callable(getattr(compiled.kernels, family.run_kernel)), family.name
             assert callable(getattr(compiled.kernels, f"{family.kernel}_work")), family.name
+
+
+def test_loads_shorten_the_gil_hand_offs_and_restore_them_after():
+    """numba's loads beside the interpreted stream wait for the GIL thousands of times:
+    while any load runs the interval is ``LOAD_SWITCH_INTERVAL``, and the one before comes
+    back when the last load ends (also when a load fails)."""
+
+    before = sys.getswitchinterval()
+    try:
+        sys.setswitchinterval(0.005)
+        with native_build._quick_gil_hand_offs():
+            assert sys.getswitchinterval() == pytest.approx(native_build.LOAD_SWITCH_INTERVAL)
+            with pytest.raises(RuntimeError), native_build._quick_gil_hand_offs():
+                raise RuntimeError("a load that fails")
+            assert sys.getswitchinterval() == pytest.approx(native_build.LOAD_SWITCH_INTERVAL)
+        assert sys.getswitchinterval() == pytest.approx(0.005)
+    finally:
+        sys.setswitchinterval(before)
