@@ -66,6 +66,11 @@ class ConfigurationView(QWidget):
         self.mechanism.setLabel("bottom", "x")
         self.mechanism.setLabel("left", "y")
         self.path_plot: pg.PlotItem | None = None
+        # the path plot is made once and kept (out of the layout while a scene has one
+        # coordinate): a PlotItem removed from the layout and deleted crashed Qt's next
+        # paint of the view, within a few dozen scene switches
+        self._path_plot: pg.PlotItem | None = None
+        self._path_keeper: RangeKeeper | None = None
         self._rods = pg.PlotDataItem(pen=ROD_PEN, connect="pairs")
         self._bobs = pg.ScatterPlotItem(size=16, pen=pg.mkPen("#222"), brush=pg.mkBrush("#1f77b4"))
         self._fixed = pg.ScatterPlotItem(size=6, pen=None, brush=pg.mkBrush("#555"))
@@ -108,8 +113,10 @@ class ConfigurationView(QWidget):
                 self.mechanism.addItem(item)
                 self._traces.append(item)
         if self.path_plot is not None:
-            self.layout_widget.removeItem(self.path_plot)
-            self.path_plot = None
+            self.path_plot.clear()  # the last scene's path and head
+            if compiled.n < 2:
+                self.layout_widget.removeItem(self.path_plot)  # kept in _path_plot
+                self.path_plot = None
         self._path = None
         self._head = None
         self._path_series = None
@@ -121,12 +128,18 @@ class ConfigurationView(QWidget):
     def _add_path_plot(self, compiled) -> None:
         scene = compiled.mechanics.scene
         q1, q2 = scene.coordinates[:2]
-        self.path_plot = self.layout_widget.addPlot(row=1, col=0)
+        if self._path_plot is None:
+            self._path_plot = self.layout_widget.addPlot(row=1, col=0)
+            style_plot(self._path_plot)
+            self._path_keeper = RangeKeeper(self._path_plot)
+        elif self.path_plot is None:
+            self.layout_widget.addItem(self._path_plot, row=1, col=0)
+        self.path_plot = self._path_plot
         set_title(self.path_plot, f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
         self.path_plot.setLabel("bottom", coordinate_label(q1))
         self.path_plot.setLabel("left", coordinate_label(q2))
-        style_plot(self.path_plot)
-        keeper = RangeKeeper(self.path_plot)
+        keeper = self._path_keeper
+        keeper.reset()
         self._path_angles = angle_flags(compiled.mechanics)[:2]
         if self._path_angles.any():
             self._path_series = WrappedSeries(self._path_angles)

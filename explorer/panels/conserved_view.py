@@ -23,6 +23,7 @@ import html
 
 import numpy as np
 import pyqtgraph as pg
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
@@ -114,6 +115,7 @@ class ConservedView(QWidget):
         self._charge_key = None
         self.energy_range = RangeKeeper(self.energy_plot, time_axis=True)
         self.momentum_range: RangeKeeper | None = None
+        self._kept_momentum: tuple[pg.PlotItem, OutsideLegend, RangeKeeper] | None = None
         self._store = None
         self._generation = -1
         self.conserved_momenta: list[int] = []
@@ -154,27 +156,38 @@ class ConservedView(QWidget):
             curve.remove()
         self._momentum_curves.clear()
         self._charge_curves.clear()
+        # the plot and its legend leave the layout but are kept for the next scene that
+        # has conserved momenta: a PlotItem removed and deleted crashed Qt's next paint
         if self.momentum_plot is not None:
-            self.momentum_plot.setXLink(None)
+            self.momentum_plot.clear()
             self.layout_widget.removeItem(self.momentum_plot)
             self.momentum_plot = None
         if self.momentum_legend is not None:
+            self.momentum_legend.clear()
             self.layout_widget.removeItem(self.momentum_legend)
             self.momentum_legend = None
         self.momentum_range = None
 
     def _add_momentum_plot(self, scene) -> None:
-        self.momentum_plot = self.layout_widget.addPlot(row=0, col=2)
-        self.momentum_plot.setXLink(self.energy_plot)
-        style_plot(self.momentum_plot)
-        self.momentum_plot.setLabel("bottom", "t")
+        if self._kept_momentum is None:
+            plot = self.layout_widget.addPlot(row=0, col=2)
+            plot.setXLink(self.energy_plot)
+            style_plot(plot)
+            plot.setLabel("bottom", "t")
+            legend = add_outside_legend(
+                self.layout_widget.ci, row=0, col=3, columns=1, side="right"
+            )
+            self._kept_momentum = (plot, legend, RangeKeeper(plot, time_axis=True))
+        else:
+            plot, legend, _ = self._kept_momentum
+            self.layout_widget.addItem(plot, row=0, col=2)
+            self.layout_widget.addItem(legend, row=0, col=3)
+            self.layout_widget.ci.layout.setAlignment(legend, Qt.AlignmentFlag.AlignTop)
+        self.momentum_plot, self.momentum_legend, self.momentum_range = self._kept_momentum
+        self.momentum_range.reset()
         labels = [momentum_label(scene.coordinates[i]) for i in self.conserved_momenta]
         labels += [charge_label(name) for name in self.conserved_charges]
         set_title(self.momentum_plot, f"Conserved momenta: {', '.join(labels)}")
-        self.momentum_legend = add_outside_legend(
-            self.layout_widget.ci, row=0, col=3, columns=1, side="right"
-        )
-        self.momentum_range = RangeKeeper(self.momentum_plot, time_axis=True)
         for k, i in enumerate(self.conserved_momenta):
             pen = pg.mkPen(MOMENTUM_COLOURS[k % len(MOMENTUM_COLOURS)], width=1.5)
             curve = EnvelopeCurve(self.momentum_plot, pen, ranges=self.momentum_range)
