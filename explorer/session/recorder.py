@@ -149,8 +149,8 @@ class Recorder(QObject):
     def _on_scene_edited(self, data: dict) -> None:
         after = self._editor_form(data, self._form)
         before, self._form = self._form, after
-        if before is None:
-            return
+        if before is None or getattr(self.window, "_fresh_next", False):
+            return  # a scene opened or a new one fills the editor: its line says so
         for key, text in edit_lines(before, after):
             self.record(text, key)
 
@@ -167,7 +167,10 @@ class Recorder(QObject):
         verb = text.split(" ", 1)[0]
         self.record(text)
         if verb in ("open", "new"):
-            # the window says so before it fills the editor: compare with what it shows then
+            # the window says so before it fills the editor, or (File > Open) after, while
+            # ``_fresh_next`` marks the filling: what the editor shows then is no edit of
+            # the user's, only what later edits are compared with
+            self._form = None
             QTimer.singleShot(0, self, self._reset_form)
 
     def _on_system_started(self, built) -> None:
