@@ -108,6 +108,21 @@ def window(qtbot):
     qtbot.wait(10)
 
 
+@pytest.fixture
+def blank_window(qtbot):
+    """A main window with no scene opened yet (as ``open --session`` starts one)."""
+    from explorer.app import application
+    from explorer.main_window import MainWindow
+
+    application()
+    win = MainWindow()
+    win.show()
+    yield win
+    win.close()
+    win.deleteLater()
+    qtbot.wait(10)
+
+
 def wait_for_points(qtbot, win, count: int = 20, timeout: int = 60000, key: int = 0) -> None:
     """Wait until trajectory ``key`` of the window has ``count`` points."""
 
@@ -116,3 +131,29 @@ def wait_for_points(qtbot, win, count: int = 20, timeout: int = 60000, key: int 
         return trajectory is not None and len(trajectory.t) >= count
 
     qtbot.waitUntil(enough, timeout=timeout)
+
+
+def assert_data_in_every_panel(window) -> None:
+    """The main orbit runs (or ended well) with finite states, and the phase, conserved
+    and configuration panels (mechanism and path) have its data."""
+    import numpy as np
+
+    main = window.store.main
+    assert main.status in ("running", "ok"), main.message
+    assert np.isfinite(main.y.data).all()
+    window.store.mark_dirty()
+    window._on_redraw_timer_timeout()
+    assert window.phase_view._curves[0].point_count() >= 8
+    conserved = window.conserved_view
+    assert conserved._energy_curves[0].point_count() >= 8
+    for i in conserved.conserved_momenta:
+        assert conserved._momentum_curves[i].point_count() >= 8
+    configuration = window.configuration_view
+    if window.compiled.mechanics.scene.drawing is not None:
+        x, y = configuration._bobs.getData()
+        fixed_x, _ = configuration._fixed.getData()
+        assert len(x) >= 1 and np.isfinite(x).all() and np.isfinite(y).all()
+        assert len(x) + len(fixed_x) == len(window.compiled.point_names)
+    if window.compiled.n >= 2:
+        assert configuration._path.point_count() >= 8
+    assert window.editor.title_edit.text() == window.compiled.mechanics.scene.title

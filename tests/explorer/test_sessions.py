@@ -243,21 +243,6 @@ def test_editor_edits_become_edit_initial_and_effect_lines():
 # -- replaying in a window ------------------------------------------------------------------------
 
 
-@pytest.fixture
-def blank_window(qtbot):
-    """A main window with no scene opened yet (as ``open --session`` starts one)."""
-    from explorer.app import application
-    from explorer.main_window import MainWindow
-
-    application()
-    win = MainWindow()
-    win.show()
-    yield win
-    win.close()
-    win.deleteLater()
-    qtbot.wait(10)
-
-
 def replay(qtbot, window, text: str, folder=None, recorder=None, expect=0):
     """Replay ``text`` in ``window`` until it ends; check its status; return the player."""
     from explorer.session import Player
