@@ -1,8 +1,8 @@
 """The chapter's classification (``systems.classification``) against its definitions.
 
 Three tables: every catalogue scene, the cases of the issue that found the old answers
-wrong, and the users' scenes in ``../shared/user-systems`` (whose README says what the
-textbook says about each). Every row carries the reason for its answers.
+wrong, and the users' scenes (``tests/user_systems``, copies of ``../shared/user-systems``,
+whose README says what the textbook says about each). Every row carries the reason for its answers.
 
 The columns, in the chapter's order: rheonomic, holonomic, bilateral, conservative, simple
 (scleronomic, holonomic and conservative), then time_dependent (t explicit in the
@@ -486,7 +486,8 @@ def test_the_energy_tab_blames_a_constraint_only_where_one_moves(derived):
 
 # -- the users' scenes ---------------------------------------------------------------------
 
-USERS = Path(__file__).resolve().parents[3] / "shared" / "user-systems"
+# the copies of ../shared/user-systems kept with the tests, so that CI checks them too
+USERS = Path(__file__).resolve().parents[1] / "user_systems"
 
 # fmt: off
 # file: (rheonomic, holonomic, bilateral, conservative, simple,
@@ -522,6 +523,16 @@ def _user_files() -> list[Path]:
     if not USERS.is_dir():
         pytest.skip(f"no users' scenes at {USERS}")
     return sorted(USERS.glob("*.toml"))
+
+
+def test_the_copies_match_the_users_scenes():
+    """tests/user_systems is a byte-for-byte copy of ../shared/user-systems, where that is."""
+    originals = Path(__file__).resolve().parents[3] / "shared" / "user-systems"
+    if not originals.is_dir():
+        pytest.skip(f"no users' scenes at {originals} to compare with")
+    ours = {p.name: p.read_bytes() for p in USERS.iterdir() if p.is_file()}
+    theirs = {p.name: p.read_bytes() for p in originals.iterdir() if p.is_file()}
+    assert ours == theirs
 
 
 def test_the_users_table_covers_every_users_scene():
