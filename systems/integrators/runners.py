@@ -20,8 +20,8 @@ from systems.integrators.codes import CLOCK_SIZE, INFO_SIZE, Clock, Info, Status
 
 MAX_EVENTS = 4096
 JUMP_ROWS = 256
-"""Rows a driver call has beyond its strided output for the states on both sides of an
-event's jump (an impact), at most."""
+"""Rows a constrained family's driver call has beyond its strided output for the states on
+both sides of an event's jump (an impact), at most."""
 SUNDMAN_POWER = 0.75
 """g = (|f0| / |f|)^power in the Sundman transformation: g ~ r^1.5 near a 1/r singularity."""
 ENDLESS = 1e300
@@ -99,7 +99,8 @@ class KernelRunner:
 
     def _call(self, nsteps: int, stride: int, until: float):
         m = self.m
-        cap = nsteps // stride + 1 + JUMP_ROWS
+        # only a constrained family's events jump: the others' calls allocate no more
+        cap = nsteps // stride + 1 + (JUMP_ROWS if self.s.family.constrained else 0)
         out = (np.empty(cap), np.empty((cap, m)), np.empty((MAX_EVENTS, 2)))
         out += (np.empty((MAX_EVENTS, 2, m)),)
         info = np.zeros(INFO_SIZE, dtype=np.int64)
