@@ -6,12 +6,13 @@ The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``; a w
 are numbered: a request overtaken by a newer one is skipped, and only the newest result
 is delivered, so typing fast never shows a stale system.
 
-``BuildService.stop`` does not wait for a build: it raises ``systems.deadline.Abandoned``
-in the builder thread (sympy is pure Python, so a derivation ends at its next bytecode),
-kills the forked children in which the equilibrium search runs ``sympy.solve`` (the
-thread waits for them in ``select``, where no exception can reach it), ends numba's
-compile in ``systems.native_build`` (its thread and its child process), and returns
-within ``STOP_SECONDS``.
+``BuildService.stop`` does not wait for a build: it abandons the builder thread
+(``systems.deadline.abandon``: sympy is pure Python, so a derivation ends within a few
+bytecodes, wherever that is safe), asks the layout thread to stop at its next checkpoint
+(``systems.deadline.cancel``: between two lines of the derivation's layout, or while it
+waits for the forked child in which the equilibrium search runs ``sympy.solve``), kills
+those children, ends numba's compile in ``systems.native_build`` (its thread and its
+child process), and returns within ``STOP_SECONDS``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from explorer.worker import keep_until_finished
-from systems.deadline import Abandoned, abandon
+from systems.deadline import Abandoned, abandon, cancel, cancellable, release_import_lock
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -118,12 +119,12 @@ def _remaining(deadline: float) -> float:
 def stop_native_build(deadline: float) -> bool:
     """End the numba compile of ``systems.native_build``: its thread and its child process.
 
-    While the thread waits for its child it is abandoned (so that when the killed child's
-    pipes close it stops, instead of compiling in this process) and the child is killed
-    and reaped. Numba's own work in this process (loading the compiled code, tens of ms)
-    is waited for, never interrupted: an import or an initialisation of numba cut short
-    breaks numba for the rest of the process. Returns True if neither thread nor child is
-    left by ``deadline`` (a ``time.monotonic()`` value).
+    The jobs are cancelled (the running one's child is killed, and nothing is compiled
+    in this process instead), the child is reaped, and the thread is waited for until
+    ``deadline`` (a ``time.monotonic()`` value). Numba's own work in this process
+    (loading the compiled code, tens of ms) is waited for, never interrupted: an import
+    or an initialisation of numba cut short breaks numba for the rest of the process.
+    Returns True if neither thread nor child is left by then.
     """
     from systems import native_build
 
@@ -131,18 +132,14 @@ def stop_native_build(deadline: float) -> bool:
     builder = native_build._builder
     thread: threading.Thread | None = builder._thread
     child = builder._child
-    while thread is not None and thread.is_alive():
-        child = builder._child or child
-        if child is not None:
-            abandon(thread)
-            builder.stop_child()
-            _reap(child, deadline)
-            thread.join(_remaining(deadline))
-            break
-        if _remaining(deadline) <= 0:
-            break
-        thread.join(min(0.02, _remaining(deadline)))  # it may be about to start a child
+    builder.cancel()
     if child is not None:
+        _reap(child, deadline)
+    if thread is not None:
+        thread.join(_remaining(deadline))
+    child = builder._child or child  # one started just before the cancel
+    if child is not None:
+        builder.stop_child()
         _reap(child, deadline)
     thread_over = thread is None or not thread.is_alive()
     return thread_over and (child is None or child.poll() is not None)
@@ -240,8 +237,7 @@ class _BuildWorker(QObject):
         self.latest = 0
         self._lock = threading.Lock()
         self._ident: int | None = None  # the builder thread's, while a build runs
-        self._layout: threading.Thread | None = None
-        self._layout_ident: int | None = None  # the layout thread's, while it lays out
+        self._layouts: list[threading.Thread] = []  # started, maybe still running
         self.first_frame = threading.Event()
 
     @Slot(object)
@@ -251,36 +247,41 @@ class _BuildWorker(QObject):
             return  # overtaken by a newer request while waiting
         self.abandon_layout()
         try:
-            with self._lock:
-                self._ident = threading.get_ident()
-            try:
-                self._build(request, source)
-            finally:
+            with cancellable():
                 with self._lock:
-                    self._ident = None
+                    self._ident = threading.get_ident()
+                try:
+                    self._build(request, source)
+                finally:
+                    with self._lock:
+                        self._ident = None
         except Abandoned:
-            pass  # the window closed: nobody waits for this build any more
+            release_import_lock()  # in case it landed in an import despite all care
 
     def abandon(self) -> int | None:
-        """End the build in progress at its next bytecode; returns the thread's ident if
-        one was running. The layout thread is abandoned too.
+        """End the build in progress within a few bytecodes; returns the thread's ident
+        if one was running. The layout thread is abandoned too.
 
-        Under the lock, so ``Abandoned`` can only land inside ``build``'s try block.
+        ``systems.deadline.abandon`` raises ``Abandoned`` only inside ``build``'s
+        ``cancellable`` block, and only where the thread is interruptible.
         """
-        self.abandon_layout()
+        self.abandon_layout(at_once=True)
         with self._lock:
             ident, self._ident = self._ident, None
             if ident is not None:
                 abandon(ident)
             return ident
 
-    def abandon_layout(self) -> threading.Thread | None:
-        """End the layout of an older build (if one is running); returns its thread."""
+    def abandon_layout(self, *, at_once: bool = False) -> list[threading.Thread]:
+        """Ask the layouts of older builds still running to stop at their next checkpoint
+        (usually a fraction of a second away, up to seconds for a large system's
+        accelerations); ``at_once`` (the window closing) abandons them as well, so that
+        they end within a few bytecodes. Returns their threads."""
         with self._lock:
-            ident, self._layout_ident = self._layout_ident, None
-            if ident is not None:
-                abandon(ident)
-            return self._layout
+            self._layouts = [thread for thread in self._layouts if thread.is_alive()]
+            for thread in self._layouts:
+                (abandon if at_once else cancel)(thread)
+            return list(self._layouts)
 
     def _build(self, request: int, source) -> None:
         from systems.expressions import ExpressionError
@@ -300,21 +301,16 @@ class _BuildWorker(QObject):
         layout = threading.Thread(
             target=self._lay_out, args=(request, result), name="scene-layout", daemon=True
         )
-        self._layout = layout
+        with self._lock:
+            self._layouts.append(layout)
         layout.start()
 
     def _lay_out(self, request: int, result: Built) -> None:
-        with self._lock:
-            if request < self.latest:
-                return
-            self._layout_ident = threading.get_ident()
         try:
-            try:
+            with cancellable():
+                if request < self.latest:  # overtaken before it could be asked to stop
+                    return
                 self._describe(request, result)
-            finally:
-                with self._lock:
-                    if self._layout_ident == threading.get_ident():
-                        self._layout_ident = None
         except Abandoned:
             pass  # a newer request or the window closing: nobody waits for this layout
 
@@ -448,8 +444,7 @@ class BuildService(QObject):
                 stopped = False
         if abandoned is not None and not self._thread.isRunning():
             end_left_limits(abandoned)
-        layout = self._worker.abandon_layout()
-        if layout is not None:
+        for layout in self._worker.abandon_layout(at_once=True):
             layout.join(_remaining(deadline))
             stopped = stopped and not layout.is_alive()
         stopped = stop_native_build(deadline) and stopped

@@ -54,7 +54,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
-from systems.deadline import Abandoned, abandon
+from systems.deadline import Abandoned, abandon, cancellable, release_import_lock
 
 FRAME_SECONDS = 0.03
 CHUNK_SECONDS = 0.012
@@ -436,8 +436,9 @@ class SimulationWorker(QObject):
         self._wake.set()
 
     def abandon(self) -> bool:
-        """Raise ``Abandoned`` in the loop at its next bytecode (a block that will not end:
-        a long interpreted step); True if the loop was running."""
+        """Raise ``Abandoned`` in the loop within a few bytecodes, where that is safe
+        (``systems.deadline.abandon``: never inside numba or an import), for a block that
+        will not end (a long interpreted step); True if the loop was running."""
         with self._ident_lock:
             if self._ident is None:
                 return False
@@ -458,12 +459,13 @@ class SimulationWorker(QObject):
                 self.blocks_ready.connect(self._receipt.take)
                 self._connected = True
             try:
-                self._loop()
+                with cancellable():
+                    self._loop()
             finally:
                 with self._ident_lock:
                     self._ident = None
-        except Abandoned:
-            pass  # stopped from outside: nobody wants these blocks any more
+        except Abandoned:  # stopped from outside: nobody wants these blocks any more
+            release_import_lock()  # in case it landed in an import despite all care
         except Exception as exc:  # noqa: BLE001 - reported to the GUI, never lost
             self.failed.emit(f"{type(exc).__name__}: {exc}")
         finally:

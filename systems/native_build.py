@@ -45,6 +45,7 @@ class _Job:
     diagnostics: tuple[str, ...]
     y0: np.ndarray | None
     done: threading.Event = dataclasses.field(default_factory=threading.Event)
+    cancelled: bool = False  # nobody waits for it: no child, nothing loaded here
 
 
 class _NativeBuilder:
@@ -53,6 +54,7 @@ class _NativeBuilder:
         self._pending: list[_Job] = []
         self._thread: threading.Thread | None = None
         self._child: subprocess.Popen | None = None
+        self._current: _Job | None = None
 
     def submit(self, job: _Job) -> None:
         with self._lock:
@@ -70,8 +72,9 @@ class _NativeBuilder:
             with self._lock:
                 if not self._pending:
                     self._thread = None
+                    self._current = None
                     return
-                job = self._pending.pop(0)
+                job = self._current = self._pending.pop(0)
             try:
                 self._build(job)
             except Exception as exc:  # noqa: BLE001 - the interpreted kernels keep working
@@ -81,8 +84,10 @@ class _NativeBuilder:
 
     def _build(self, job: _Job) -> None:
         compiled = job.compiled
-        if not cached(compiled, job.method):
+        if not job.cancelled and not cached(compiled, job.method):
             self._run_child(job)  # if it fails, numba compiles here below instead
+        if job.cancelled:  # its child was killed: nothing is compiled in this process
+            return
         _load(compiled, job.method, job.diagnostics, job.y0)
 
     def _run_child(self, job: _Job) -> None:
@@ -113,6 +118,8 @@ class _NativeBuilder:
         except OSError:
             return  # no child: numba compiles in this process instead
         self._child = child
+        if job.cancelled:  # cancelled while it was starting
+            child.kill()
         try:
             _, stderr = child.communicate(payload, timeout=CHILD_TIMEOUT)
         except subprocess.TimeoutExpired:
@@ -128,6 +135,19 @@ class _NativeBuilder:
         child = self._child
         if child is not None and child.poll() is None:
             child.kill()
+
+    def cancel(self) -> None:
+        """Drop the pending jobs and end the current one: its child is killed and nothing
+        is compiled in this process instead. A load of numba's code already under way in
+        this process (tens of ms) goes on: numba cut short stays broken."""
+        with self._lock:
+            for job in self._pending:
+                job.cancelled = True
+                job.done.set()
+            self._pending = []
+            if self._current is not None:
+                self._current.cancelled = True
+        self.stop_child()
 
 
 _switch_lock = threading.Lock()

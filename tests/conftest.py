@@ -43,6 +43,7 @@ if _WORKER:
 SLOW_FIRST = (
     "tests/explorer/test_sessions.py",
     "tests/explorer/test_catalogue_window.py",
+    "tests/explorer/test_user_scenes.py",
     "tests/explorer/test_window_model.py",
     "tests/systems/test_default_accuracy.py",
     "tests/explorer/test_window_faults.py",

@@ -9,17 +9,22 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import time
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import sympy
 
+from systems.deadline import checkpoint
 from systems.expressions import as_expr
 from systems.matrix_solve import lambdify_cse
 from systems.mechanics import Mechanics
 
 TWO_PI = 2.0 * math.pi
+POLL_SECONDS = 0.05
+"""How often ``run_bounded`` looks, while it waits for its child, whether the thread was
+asked to stop (``systems.deadline.checkpoint``)."""
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -233,8 +238,10 @@ def run_bounded(function: Callable, args: tuple, timeout: float):
 
     sympy's solvers may run for a very long time on some inputs; a child process can be
     stopped, a thread cannot. Where ``fork`` is unavailable, returns None (the caller
-    falls back to a numeric method).
+    falls back to a numeric method). A thread asked to stop (``systems.deadline.cancel``)
+    raises ``Abandoned`` within ``POLL_SECONDS``, its child killed.
     """
+    checkpoint()
     try:
         context = multiprocessing.get_context("fork")
     except ValueError:
@@ -247,8 +254,13 @@ def run_bounded(function: Callable, args: tuple, timeout: float):
         return None
     sender.close()
     result = None
+    end = time.monotonic() + timeout
     try:
-        if receiver.poll(timeout):
+        while not receiver.poll(min(POLL_SECONDS, max(0.0, end - time.monotonic()))):
+            checkpoint()  # nobody waits for the answer any more: the child is killed below
+            if time.monotonic() >= end:
+                break
+        else:
             status, value = receiver.recv()
             result = value if status == "ok" else None
     except (EOFError, OSError):

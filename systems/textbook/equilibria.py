@@ -44,7 +44,7 @@ import scipy.optimize
 import sympy
 
 from systems.calculus import Calculus, Unsupported
-from systems.deadline import TimeLimitExceeded, time_limit
+from systems.deadline import TimeLimitExceeded, checkpoint, time_limit
 from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
 from systems.textbook._numeric import (
     cache_for,
@@ -898,6 +898,7 @@ class _Problem:
             return self.gradient(*x)
 
         for x0 in self.starts():
+            checkpoint()
             with np.errstate(all="ignore"):
                 try:
                     sol = scipy.optimize.root(
@@ -1224,6 +1225,7 @@ class _Problem:
         equilibria: list[Equilibrium] = []
         sets: list[dict] = []
         for point, exact in found:
+            checkpoint()
             member = self._member(point, sets)
             if member is not None:
                 member["found"] += 1

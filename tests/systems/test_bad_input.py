@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from systems.deadline import Abandoned, TimeLimitExceeded, abandon, time_limit
+from systems.deadline import Abandoned, TimeLimitExceeded, abandon, cancellable, time_limit
 from systems.mechanics import DerivationError, derive
 from systems.scene import SceneError, load_scene, parse_scene
 
@@ -199,7 +199,8 @@ def test_abandon_ends_a_thread_at_once():
 
     def work():
         try:
-            spin(30.0)
+            with cancellable():
+                spin(30.0)
         except Abandoned:
             state.append("abandoned")
 
