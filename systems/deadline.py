@@ -232,12 +232,15 @@ _cancelled: set[int] = set()
 """Idents of the threads asked to stop (``cancel``, ``abandon``) while ``cancellable``."""
 _cancellable: dict[int, int] = {}
 """Idents of the threads inside ``cancellable``, with its nesting depth."""
+_stop_events: dict[int, threading.Event] = {}
+"""Per thread inside ``cancellable(stop=...)``: an event whose setting also stops it."""
 _marks = threading.Lock()
 
 
 @contextmanager
-def cancellable() -> Iterator[None]:
-    """Mark the block's thread as one that ``cancel`` and ``abandon`` may stop.
+def cancellable(stop: threading.Event | None = None) -> Iterator[None]:
+    """Mark the block's thread as one that ``cancel`` and ``abandon`` may stop; setting
+    ``stop`` (the owner's own flag) stops it at a ``checkpoint()`` too.
 
     A request to stop it outlives neither the block nor the thread (idents are reused);
     an asynchronous ``Abandoned`` that lands while the block is being left is dropped
@@ -246,6 +249,9 @@ def cancellable() -> Iterator[None]:
     ident = threading.get_ident()
     with _marks:
         _cancellable[ident] = _cancellable.get(ident, 0) + 1
+        outer = _stop_events.get(ident)
+        if stop is not None:
+            _stop_events[ident] = stop
     try:
         yield
     finally:
@@ -257,19 +263,27 @@ def cancellable() -> Iterator[None]:
                         _cancellable[ident] = depth
                     else:
                         _cancelled.discard(ident)
+                    if outer is None:
+                        _stop_events.pop(ident, None)
+                    else:
+                        _stop_events[ident] = outer
                 break
             except Abandoned:
                 continue
 
 
 def cancelled() -> bool:
-    """Whether this thread was asked to stop."""
-    return threading.get_ident() in _cancelled
+    """Whether this thread was asked to stop (``cancel``, ``abandon``, its ``stop``)."""
+    ident = threading.get_ident()
+    if ident in _cancelled:
+        return True
+    stop = _stop_events.get(ident)
+    return stop is not None and stop.is_set()
 
 
 def checkpoint() -> None:
-    """Raise ``Abandoned`` if this thread was asked to stop (``cancel``, ``abandon``)."""
-    if threading.get_ident() in _cancelled:
+    """Raise ``Abandoned`` if this thread was asked to stop (``cancelled()``)."""
+    if cancelled():
         raise Abandoned
 
 

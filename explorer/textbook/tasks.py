@@ -3,7 +3,9 @@
 ``TaskRunner.submit(key, function, *args, on_done=..., on_failed=...)`` runs
 ``function(*args, cancel=Cancel)`` in a private ``QThreadPool`` (two threads). A newer job
 with the same key supersedes an older one: the older one's ``Cancel`` is set (loops and
-right-hand sides check it) and its result, if it still arrives, is dropped. Results are
+right-hand sides check it, and so do ``systems.deadline``'s checkpoints: the equilibrium
+search's scan and its wait for a forked ``sympy.solve``) and its result, if it still
+arrives, is dropped. Results are
 delivered on the GUI thread through a queued signal. ``shutdown`` cancels everything and
 waits for the threads.
 """
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
+from systems.deadline import Abandoned, cancellable
 from systems.textbook.jobs import Cancel, Cancelled
 
 THREADS = 2
@@ -42,12 +45,11 @@ class _Runnable(QRunnable):
 
     def run(self) -> None:
         job = self._job
-        if job.cancel.is_set:
-            self._runner._finished.emit((job.token, "cancelled", None))
-            return
         try:
-            result = self._function(*self._args, cancel=job.cancel)
-        except Cancelled:
+            with cancellable(stop=job.cancel.event):
+                job.cancel.check()
+                result = self._function(*self._args, cancel=job.cancel)
+        except (Cancelled, Abandoned):
             outcome = (job.token, "cancelled", None)
         except Exception as exc:  # noqa: BLE001 - shown in the tab, never lost
             detail = "".join(traceback.format_exception_only(type(exc), exc)).strip()

@@ -237,3 +237,19 @@ def test_run_bounded_stops_waiting_when_cancelled():
     import multiprocessing
 
     assert multiprocessing.active_children() == []  # killed and reaped
+
+
+def test_a_stop_event_stops_the_block_at_a_checkpoint_and_ends_with_it():
+    stop, inner = threading.Event(), threading.Event()
+    with cancellable(stop=stop):
+        checkpoint()
+        with cancellable(stop=inner):
+            stop.set()  # the outer one's: the inner block has its own
+            checkpoint()
+            inner.set()
+            with pytest.raises(Abandoned):
+                checkpoint()
+        with pytest.raises(Abandoned):  # the outer event again
+            checkpoint()
+    checkpoint()  # outside every block: nothing to stop
+    assert threading.get_ident() not in deadline._stop_events

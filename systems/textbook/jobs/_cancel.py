@@ -21,6 +21,11 @@ class Cancel:
         self._event.set()
 
     @property
+    def event(self) -> threading.Event:
+        """The flag itself, for ``systems.deadline.cancellable(stop=...)``."""
+        return self._event
+
+    @property
     def is_set(self) -> bool:
         """Whether ``set`` was called."""
         return self._event.is_set()
