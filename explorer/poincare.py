@@ -59,10 +59,10 @@ def _quadratic_in_pj(compiled, section: Section, q_i, p_i):
     states[:, :, section.coordinate] = section.value
     for row, pj in enumerate((-1.0, 0.0, 1.0)):
         states[row, :, n + section.coordinate] = pj
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):  # H not finite (r = 0): the callers leave such points out
         H = compiled.hamiltonian(0.0, states.reshape(-1, 2 * n)).reshape(3, -1)
-    a = 0.5 * (H[0] + H[2]) - H[1]
-    b = 0.5 * (H[2] - H[0])
+        a = 0.5 * (H[0] + H[2]) - H[1]
+        b = 0.5 * (H[2] - H[0])
     return a, b, H[1]
 
 
