@@ -298,6 +298,9 @@ class _BuildWorker(QObject):
             return
         self.first_frame.clear()
         self.built.emit(result)
+        # an older layout that has not reached a checkpoint while this build ran (a large
+        # system's accelerations) would hold the GIL beside the new one: it ends now
+        self.abandon_layout(at_once=True)
         layout = threading.Thread(
             target=self._lay_out, args=(request, result), name="scene-layout", daemon=True
         )
