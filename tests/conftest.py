@@ -53,7 +53,9 @@ SLOW_FIRST = (
 )
 """The files that take longest (a minute or more each), run first: ``make test``'s workers
 take whole files (``--dist loadfile``) in collection order, and one of these collected
-last kept one worker busy for minutes after the other had finished."""
+last kept one worker busy for minutes after the other had finished. xdist would reorder
+the files by their number of tests (a one-test file of 90 s last): ``make test`` passes
+``--no-loadscope-reorder``."""
 
 
 def pytest_collection_modifyitems(session, config, items):
