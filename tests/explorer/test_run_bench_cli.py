@@ -5,6 +5,7 @@ import json
 import math
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,8 @@ import pytest
 
 from explorer.cli import main
 from tests.systems.scenes import DRIVEN_DAMPED, PLANETARY
+
+SCENES = Path(__file__).resolve().parents[2] / "resources" / "scenes"
 
 ROOT = Path(__file__).resolve().parents[2]
 JSON_KEYS = {
@@ -38,9 +41,22 @@ def run_json(capsys, *args):
     return code, json.loads(capsys.readouterr().out)
 
 
-def test_run_json_report_and_csv(tmp_path, capsys):
+@pytest.fixture
+def fresh_oscillator(tmp_path) -> str:
+    """The catalogue's harmonic oscillator with a negligible x**4 term of its own: kernels
+    no earlier test of this process compiled (numba's cache decides what a run uses)."""
+    text = (SCENES / "harmonic_oscillator.toml").read_text(encoding="utf-8")
+    unique = f"{time.time_ns() % 10**9 + 1}e-24"
+    path = tmp_path / "oscillator.toml"
+    path.write_text(
+        text.replace('potential = "k*x**2/2"', f'potential = "k*x**2/2 + {unique}*x**4"')
+    )
+    return str(path)
+
+
+def test_run_json_report_and_csv(tmp_path, capsys, fresh_oscillator):
     out = tmp_path / "osc.csv"
-    code, report = run_json(capsys, "harmonic_oscillator", "--t-end", "3.0", "--out", str(out))
+    code, report = run_json(capsys, fresh_oscillator, "--t-end", "3.0", "--out", str(out))
     assert code == 0
     assert set(report) == JSON_KEYS
     assert report["status"] == "ok" and report["message"] == ""
@@ -262,14 +278,16 @@ def test_ctrl_c_stops_a_run_and_writes_the_rows_so_far(tmp_path):
     assert "interrupted" in stdout
 
 
-def test_a_run_that_would_be_long_on_plain_python_compiles_its_kernels(capsys, monkeypatch):
+def test_a_run_that_would_be_long_on_plain_python_compiles_its_kernels(
+    capsys, monkeypatch, fresh_oscillator
+):
     """The run estimates its rest after ``GRACE`` seconds on the plain-Python kernels and
     compiles numba's when the rest would take longer than ``COMPILE_SECONDS`` (0 here:
     any rest is longer); the compiled run gives the same states to round-off. A second
     run loads the kernels from numba's cache before it starts."""
     from explorer.commands import kernels
 
-    args = ("harmonic_oscillator", "--t-end", "3.0", "--method", "leapfrog", "--dt", "1e-4")
+    args = (fresh_oscillator, "--t-end", "3.0", "--method", "leapfrog", "--dt", "1e-4")
     _, plain = run_json(capsys, *args)
     assert plain["kernels"].startswith("plain Python (a short run")
     monkeypatch.setattr(kernels, "GRACE", 0.0)
