@@ -53,9 +53,11 @@ SLOW_FIRST = (
 )
 """The files that take longest (a minute or more each), run first: ``make test``'s workers
 take whole files (``--dist loadfile``) in collection order, and one of these collected
-last kept one worker busy for minutes after the other had finished. xdist would reorder
-the files by their number of tests (a one-test file of 90 s last): ``make test`` passes
-``--no-loadscope-reorder``."""
+last kept one worker busy for minutes after the other had finished. (xdist 3.6+ then
+sorts the files by their number of tests, so this order counts only among files of equal
+size, unless ``--no-loadscope-reorder`` is given; with it, a work-precision test that
+compiles numba in a thread from a cold cache hung CI for 10 minutes: see the session 11
+note before turning it on.)"""
 
 
 def pytest_collection_modifyitems(session, config, items):
