@@ -21,6 +21,7 @@ SCRIPTS = (
     "gui_latency",
     "max_speed",
     "large_systems",
+    "scene_switches",
 )
 
 
