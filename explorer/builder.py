@@ -8,11 +8,12 @@ is delivered, so typing fast never shows a stale system.
 
 ``BuildService.stop`` does not wait for a build: it abandons the builder thread
 (``systems.deadline.abandon``: sympy is pure Python, so a derivation ends within a few
-bytecodes, wherever that is safe), asks the layout thread to stop at its next checkpoint
-(``systems.deadline.cancel``: between two lines of the derivation's layout, or while it
-waits for the forked child in which the equilibrium search runs ``sympy.solve``), kills
-those children, ends numba's compile in ``systems.native_build`` (its thread and its
-child process), and returns within ``STOP_SECONDS``.
+bytecodes, wherever that is safe) and the layout threads likewise (a newer request only
+cancels a layout: ``systems.deadline.cancel``, it stops at its next checkpoint, between
+two lines of the derivation's layout or while it waits for the forked child in which the
+equilibrium search runs ``sympy.solve``), kills those children, ends numba's compile in
+``systems.native_build`` (its thread and its child process), and returns within
+``STOP_SECONDS``.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from explorer.worker import keep_until_finished
-from systems.deadline import Abandoned, abandon, cancel, cancellable, release_import_lock
+from systems.deadline import Abandoned, abandon, cancel, cancellable
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -256,7 +257,7 @@ class _BuildWorker(QObject):
                     with self._lock:
                         self._ident = None
         except Abandoned:
-            release_import_lock()  # in case it landed in an import despite all care
+            pass  # the window closed: nobody waits for this build any more
 
     def abandon(self) -> int | None:
         """End the build in progress within a few bytecodes; returns the thread's ident

@@ -54,7 +54,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
-from systems.deadline import Abandoned, abandon, cancellable, release_import_lock
+from systems.deadline import Abandoned, abandon, cancellable
 
 FRAME_SECONDS = 0.03
 CHUNK_SECONDS = 0.012
@@ -464,8 +464,8 @@ class SimulationWorker(QObject):
             finally:
                 with self._ident_lock:
                     self._ident = None
-        except Abandoned:  # stopped from outside: nobody wants these blocks any more
-            release_import_lock()  # in case it landed in an import despite all care
+        except Abandoned:
+            pass  # stopped from outside: nobody wants these blocks any more
         except Exception as exc:  # noqa: BLE001 - reported to the GUI, never lost
             self.failed.emit(f"{type(exc).__name__}: {exc}")
         finally:

@@ -244,7 +244,8 @@ def cancellable(stop: threading.Event | None = None) -> Iterator[None]:
 
     A request to stop it outlives neither the block nor the thread (idents are reused);
     an asynchronous ``Abandoned`` that lands while the block is being left is dropped
-    (the block is ending anyway).
+    (the block is ending anyway). An ``Abandoned`` leaving the block first frees any
+    level of the import lock the thread still holds (``release_import_lock``).
     """
     ident = threading.get_ident()
     with _marks:
@@ -254,6 +255,9 @@ def cancellable(stop: threading.Event | None = None) -> Iterator[None]:
             _stop_events[ident] = stop
     try:
         yield
+    except Abandoned:
+        release_import_lock()  # in case one landed in an import despite ``interruptible``
+        raise
     finally:
         while True:
             try:

@@ -253,3 +253,12 @@ def test_a_stop_event_stops_the_block_at_a_checkpoint_and_ends_with_it():
             checkpoint()
     checkpoint()  # outside every block: nothing to stop
     assert threading.get_ident() not in deadline._stop_events
+
+
+def test_abandoned_leaving_its_block_frees_the_import_lock():
+    """What an exception that landed in importlib despite ``interruptible`` would leave."""
+    with pytest.raises(Abandoned):
+        with cancellable():
+            _imp.acquire_lock()  # as importlib holds it for a moment
+            raise Abandoned
+    assert not _imp.lock_held()
