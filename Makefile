@@ -19,7 +19,13 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/activate
 	$(BIN)/pip install -e ".[test]"
 	touch $@ $(VENV)/.installed
 
-run: $(VENV)/.installed
+# the integrators' stepping loops, compiled once into numba's cache (python main.py warm);
+# again only when their source changes
+$(VENV)/.warm: $(VENV)/.installed systems/integrators/kernels.py systems/integrators/codes.py systems/codegen.py
+	$(BIN)/python main.py warm
+	touch $@
+
+run: $(VENV)/.installed $(VENV)/.warm
 	$(BIN)/python main.py
 
 test: $(VENV)/.installed-test

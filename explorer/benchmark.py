@@ -31,7 +31,6 @@ def measure(scene: str = "double_pendulum", points: int = 1_000_000, seconds: fl
             app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 20)
 
     spin_until(lambda: window.worker is not None and window.store.main is not None, 120)
-    spin_until(lambda: window.compiled.handed_over, 300)  # numba's kernels, not the twin
     window.controls.speed_combo.setCurrentIndex(window.controls.speed_combo.count() - 1)
     assert math.isinf(window.settings.speed)
     start = time.perf_counter()

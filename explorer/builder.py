@@ -11,8 +11,7 @@ is delivered, so typing fast never shows a stale system.
 bytecodes, wherever that is safe) and the layout threads likewise (a newer request only
 cancels a layout: ``systems.deadline.cancel``, it stops at its next checkpoint, between
 two lines of the derivation's layout or while it waits for the forked child in which the
-equilibrium search runs ``sympy.solve``), kills those children, ends numba's compile in
-``systems.native_build`` (its thread and its child process), and returns within
+equilibrium search runs ``sympy.solve``), kills those children, and returns within
 ``STOP_SECONDS``.
 """
 
@@ -65,7 +64,7 @@ def wants_for(mechanics) -> tuple[str, ...]:
     return tuple(wants)
 
 
-def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built:
+def build(source, request: int = 0) -> Built:
     """Read (TOML text or the tables of one), derive and compile; raises the core's errors.
 
     A ``Scene`` is built as it is and TOML text is read strictly (``parse_scene``). A dict
@@ -73,16 +72,15 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     ``[view]`` setting that does not fit the system is left out and listed in
     ``built.scene.warnings`` instead of failing the build.
 
-    With ``interpreted_start`` (the window), the kernels run as plain Python at once and
-    numba compiles them in a child process (``systems.native_build``); otherwise (exports,
-    sweeps, tests) numba compiles or loads every kernel the GUI calls before returning.
+    The system's functions are compiled (or loaded from numba's cache) here, a fraction
+    of a second, and so is the chosen method's driver (compiled once per installation,
+    ``python main.py warm``), so the first block comes in machine code.
     """
     from systems.compiled import compile_system
     from systems.integrators import choose_method
     from systems.mechanics import derive
-    from systems.native_build import compile_in_background
     from systems.scene import Scene, parse_scene, scene_from_dict
-    from systems.simulation import DIAGNOSTICS, compile_natively
+    from systems.simulation import DIAGNOSTICS, precompile
     from systems.start_check import check_start
 
     start = time.perf_counter()
@@ -95,55 +93,22 @@ def build(source, request: int = 0, *, interpreted_start: bool = False) -> Built
     mechanics = derive(scene)
     method, reason = choose_method(mechanics)
     wants = wants_for(mechanics)
-    compiled = compile_system(mechanics, wants, interpreted_start=interpreted_start)
+    compiled = compile_system(mechanics, wants)
     check_start(compiled)
     diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
-    if interpreted_start:
-        compile_in_background(compiled, method, diagnostics)
-    else:
-        compile_natively(compiled, method, diagnostics)
+    precompile(compiled, method, diagnostics=diagnostics)
     return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
 
 
 FIRST_FRAME_WAIT = 10.0
 """Seconds the builder waits at most for the window's first frame of a new system before
 laying out its derivation (the window says at once when none is coming: paused, or the
-run failed). A ten-link chain's first block takes a second or more while its kernels
-are interpreted; laying out its derivation meanwhile (sympy, holding the GIL) made it
-three times later."""
+run failed): laying out the derivation (sympy, holding the GIL) before the first block
+of a large system made that block three times later."""
 
 
 def _remaining(deadline: float) -> float:
     return max(0.0, deadline - time.monotonic())
-
-
-def stop_native_build(deadline: float) -> bool:
-    """End the numba compile of ``systems.native_build``: its thread and its child process.
-
-    The jobs are cancelled (the running one's child is killed, and nothing is compiled
-    in this process instead), the child is reaped, and the thread is waited for until
-    ``deadline`` (a ``time.monotonic()`` value). Numba's own work in this process
-    (loading the compiled code, tens of ms) is waited for, never interrupted: an import
-    or an initialisation of numba cut short breaks numba for the rest of the process.
-    Returns True if neither thread nor child is left by then.
-    """
-    from systems import native_build
-
-    # native_build has no public stop: its thread and child are read where it keeps them
-    builder = native_build._builder
-    thread: threading.Thread | None = builder._thread
-    child = builder._child
-    builder.cancel()
-    if child is not None:
-        _reap(child, deadline)
-    if thread is not None:
-        thread.join(_remaining(deadline))
-    child = builder._child or child  # one started just before the cancel
-    if child is not None:
-        builder.stop_child()
-        _reap(child, deadline)
-    thread_over = thread is None or not thread.is_alive()
-    return thread_over and (child is None or child.poll() is not None)
 
 
 def end_forked_children(deadline: float) -> bool:
@@ -290,7 +255,7 @@ class _BuildWorker(QObject):
         from systems.scene import SceneError
 
         try:
-            result = build(source, request, interpreted_start=True)
+            result = build(source, request)
         except (SceneError, ExpressionError, DerivationError, ValueError) as exc:
             self.build_failed.emit(failure_from(exc, request))
             return
@@ -427,7 +392,7 @@ class BuildService(QObject):
             self.equilibria_found.emit(request, lines)
 
     def stop(self, timeout: float = STOP_SECONDS) -> bool:
-        """End the builder thread and numba's background compile; no results after this.
+        """End the builder thread and its layout threads; no results after this.
 
         The build in progress is abandoned, not waited for. Returns True if every thread
         and child process of the builder has ended within ``timeout`` seconds; a thread
@@ -442,7 +407,6 @@ class BuildService(QObject):
         stopped = end_forked_children(deadline)
         if self._thread.isRunning():
             self._thread.quit()
-            # the native build must wait for this thread: it may still submit a compile
             if not self._thread.wait(round(1000 * _remaining(deadline))):
                 keep_until_finished(self._thread)
                 stopped = False
@@ -451,7 +415,6 @@ class BuildService(QObject):
         for layout in self._worker.abandon_layout(at_once=True):
             layout.join(_remaining(deadline))
             stopped = stopped and not layout.is_alive()
-        stopped = stop_native_build(deadline) and stopped
         warm = self._warm_thread  # numba's warm-up is short and must not be interrupted
         if warm is not None:
             warm.join(_remaining(deadline))

@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("list", "derive", "run", "bench", "methods", "open", "export")
+COMMANDS = ("list", "derive", "run", "bench", "methods", "open", "export", "warm")
 
 
 def _load(name: str):

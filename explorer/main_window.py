@@ -825,7 +825,7 @@ class MainWindow(QMainWindow):
                 if key == "phase":
                     self.panel_refreshes += 1
         if self._frame_due:
-            # the builder's layout and numba's warm-up hold the GIL for a second or more:
+            # the builder's layout and numba's start-up hold the GIL for a second or more:
             # they begin once this redraw has been painted, so the motion shows first
             self._frame_due = False
             QTimer.singleShot(FIRST_PAINT_MS, self.builder.frame_shown)
@@ -841,16 +841,10 @@ class MainWindow(QMainWindow):
         if rate is None:
             self.rate_label.setText("" if self.controls.playing else "paused")
         else:
-            text = f"{rate:.3g} steps/s"
-            tip = "integrator steps per second of wall time, all orbits together"
-            if not self.compiled.handed_over:
-                text += " (interpreted)"
-                tip = (
-                    "numba is compiling this scene's kernels; until it is done they "
-                    "run as plain Python, the same steps about 100 times slower"
-                )
-            self.rate_label.setText(text)
-            self.rate_label.setToolTip(tip)
+            self.rate_label.setText(f"{rate:.3g} steps/s")
+            self.rate_label.setToolTip(
+                "integrator steps per second of wall time, all orbits together"
+            )
         cls = self.compiled.mechanics.classification
         with np.errstate(all="ignore"):
             H = self.compiled.hamiltonian(

@@ -302,42 +302,6 @@ def fast_function(
     return lambda values: np.array(plain(list(values)), dtype=float).reshape(count)
 
 
-def llvm_function(
-    arguments: Sequence[sympy.Symbol], exprs: Sequence[sympy.Expr]
-) -> Callable[[np.ndarray], np.ndarray]:
-    """``exprs`` compiled to machine code by symengine's LLVM backend.
-
-    Made in tens of milliseconds (a ten-link chain's equations: 44 ms) and called in
-    microseconds, for Python loops that evaluate the same expressions thousands of times
-    before numba's kernels are ready (the default step's probe).
-
-    Returns
-    -------
-    callable
-        ``f(values)``, ``values`` shape (len(arguments),), returning shape (len(exprs),).
-
-    Raises
-    ------
-    Unsupported
-        Without symengine or its LLVM backend, or for an expression it cannot compile.
-    """
-    if symengine is None:
-        raise Unsupported("symengine is not installed")
-    try:
-        memo: dict = {}
-        function = symengine.Lambdify(
-            [_to_engine(a, {}, memo) for a in arguments],
-            [_to_engine(as_expr(e), {}, memo) for e in exprs],
-            real=True,
-            cse=True,
-            backend="llvm",
-        )
-    except (RuntimeError, TypeError, ValueError, NotImplementedError, AttributeError) as exc:
-        raise Unsupported(str(exc)) from None
-    count = len(exprs)
-    return lambda values: np.asarray(function(values), dtype=float).reshape(count)
-
-
 def numeric_evaluator(expr: sympy.Expr):
     """``f(values) -> complex``: ``expr`` at the symbol values of a dict.
 

@@ -1,11 +1,15 @@
 """Assemble, cache and import generated kernel modules.
 
-A scene's kernels live in one generated Python file: the stepper templates of
-``systems.integrators.kernels`` followed by the system functions printed from sympy
-(``rhs``, ``hamiltonian``, ...), which the templates call through module globals.
-Numba caches functions that call other jitted functions through globals, not through
-function arguments, so this layout is what makes ``cache=True`` work: a scene opened a
-second time loads its machine code from disk instead of compiling it again.
+Two kinds of generated module, each a Python file in the cache directory whose functions
+numba compiles with ``cache=True`` (machine code kept beside it, loaded on the next use):
+
+- the *drivers* (``driver_module``): the stepper templates of
+  ``systems.integrators.kernels``, the same for every scene, so numba compiles them once
+  per installation (``python main.py warm`` does it ahead of time);
+- a scene's *system functions* (``build_module``): ``rhs``, ``hamiltonian``, ... printed
+  from sympy, compiled with explicit signatures (``SIGNATURES``) as soon as the module
+  is imported, in a fraction of a second. The drivers take them as arguments of numba's
+  first-class function type (``system_function``), so a new scene compiles only these.
 """
 
 from __future__ import annotations
@@ -16,6 +20,8 @@ import inspect
 import re
 import sys
 import textwrap
+import threading
+import warnings
 from pathlib import Path
 from types import CodeType, ModuleType
 
@@ -42,6 +48,35 @@ TOP_LEVEL_DEF = re.compile(r"^def (\w+)\(", re.MULTILINE)
 STEP_DEF = re.compile(r"^def (\w+)_step\(", re.MULTILINE)
 
 _loaded: dict[str, ModuleType] = {}
+_loading = threading.Lock()
+
+# the drivers' fns argument is numba's first-class function type, "experimental" in its
+# words since 0.49 and warned about at every compile of a driver
+warnings.filterwarnings("ignore", message=".*First-class function type feature is experimental")
+
+_F = "float64"
+_V = "float64[::1]"
+SIGNATURES: dict[str, str] = {
+    "rhs": f"void({_F}, {_V}, {_V}, {_V})",
+    "hamiltonian": f"{_F}({_F}, {_V}, {_V})",
+    "velocities": f"void({_F}, {_V}, {_V}, {_V})",
+    "momenta": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
+    "lagrangian": f"{_F}({_F}, {_V}, {_V}, {_V})",
+    "kinetic": f"{_F}({_V}, {_V})",
+    "potential": f"{_F}({_F}, {_V}, {_V})",
+    "grad_kinetic": f"void({_V}, {_V}, {_V})",
+    "grad_potential": f"void({_F}, {_V}, {_V}, {_V})",
+    "drawing": f"void({_F}, {_V}, {_V}, float64[:, ::1])",
+    "c_rhs": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
+    "c_contacts": f"void({_F}, {_V}, {_V}, {_V})",
+    "c_project": f"boolean({_F}, {_V}, {_V}, {_V})",
+    "project": f"boolean({_F}, {_V}, {_V})",
+    "c_event_values": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
+    "c_switch": f"boolean({_F}, {_V}, {_V}, {_V}, int64)",
+}
+"""The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
+with C-contiguous float arrays. A scene's module compiles each it defines for exactly
+this signature, and only these: its other functions are compiled as their callees."""
 
 
 def cache_dir() -> Path:
@@ -162,39 +197,65 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
-def build_module(system_source: str, *, with_templates: bool = True) -> ModuleType:
+def driver_module() -> ModuleType:
+    """The stepper templates of ``systems.integrators.kernels`` as one module of numba
+    dispatchers, the same for every scene (compiled on first call, then loaded from
+    numba's cache; ``systems.integrators.warmup.warm_drivers`` compiles them all)."""
+    module = _loaded.get(_driver_key())
+    return module if module is not None else build_module("", with_templates=True)
+
+
+@functools.cache
+def _driver_key() -> str:
+    return _module_key("", with_templates=True)[1]
+
+
+def build_module(system_source: str, *, with_templates: bool = False) -> ModuleType:
     """Write, import and return the kernel module for ``system_source``.
 
     Parameters
     ----------
     system_source
         Python source of the system functions (plain functions, no decorators), written
-        by ``systems.compiled``. It may use ``math``, ``np`` and nothing else.
+        by ``systems.compiled``. It may use ``math``, ``np`` and nothing else. Those
+        named in ``SIGNATURES`` are compiled (or loaded from numba's cache) on import.
     with_templates
-        Append the stepper templates of ``systems.integrators.kernels``.
+        Put the stepper templates of ``systems.integrators.kernels`` first (the drivers'
+        module, ``driver_module``).
 
     Returns
     -------
     module
-        The imported module; its functions are numba dispatchers, compiled on first call.
-        Modules are keyed by a hash of their source, so the same scene reuses its file
-        and numba's on-disk cache.
+        The imported module; its functions are numba dispatchers. Modules are keyed by a
+        hash of their source, so the same scene reuses its file and numba's on-disk
+        cache.
 
     The file on disk is only what numba's cache and tracebacks refer to: the module runs
     the source compiled here, and a file that differs from it (edited, cut, damaged) is
     rewritten, with one line on stderr. numba's cache entries are checked before use
     (``systems.cache_integrity.guard_numba_caches``).
     """
+    source, key = _module_key(system_source, with_templates)
+    data = source.encode()
+    prefix = kernel_prefix() if with_templates else HEADER
+    with _loading:  # one import of a module, whichever thread asks first
+        if key not in _loaded:
+            _loaded[key] = _import(source, data, key, prefix, with_templates)
+        return _loaded[key]
+
+
+def _module_key(system_source: str, with_templates: bool) -> tuple[str, str]:
+    """(the module's whole source, its key: a hash of that source)."""
     body = textwrap.dedent(system_source).strip() + "\n\n"
     prefix = kernel_prefix() if with_templates else HEADER
     allocating = "np.empty(" in system_source
     wrapped = prefix[len(HEADER) :] + body
     source = prefix + body + "\n" + jit_wrappers(wrapped, reference_counting=allocating)
-    data = source.encode()
-    key = hashlib.sha256(data).hexdigest()[:20]
-    if key in _loaded:
-        return _loaded[key]
-    name = f"pe_kernels_{key}"
+    return source, hashlib.sha256(source.encode()).hexdigest()[:20]
+
+
+def _import(source: str, data: bytes, key: str, prefix: str, drivers: bool) -> ModuleType:
+    name = f"pe_{'drivers' if drivers else 'kernels'}_{key}"
     path = cache_dir() / f"{name}.py"
     try:
         on_disk = path.read_bytes()
@@ -212,7 +273,59 @@ def build_module(system_source: str, *, with_templates: bool = True) -> ModuleTy
     module.__file__ = str(path)
     sys.modules[name] = module
     execute(source, str(path), module.__dict__, prefix)
-    module.__phase_explorer_source__ = source  # what ran, for systems.interpreted
     guard_numba_caches(module)
-    _loaded[key] = module
+    if not drivers:
+        for function, signature in SIGNATURES.items():
+            dispatcher = getattr(module, function, None)
+            if dispatcher is not None:
+                dispatcher.compile(signature)  # or load it from numba's cache
+                dispatcher.disable_compile()  # no other signature, ever
     return module
+
+
+@functools.cache
+def _function_class():
+    from numba.core import types
+
+    class SystemFunction(types.WrapperAddressProtocol):
+        """A compiled system function as a value of numba's first-class function type:
+        the drivers receive its machine code's address, and their own machine code is
+        the same for every scene."""
+
+        def __init__(self, dispatcher):
+            (argtypes,) = dispatcher.signatures
+            result = dispatcher.overloads[argtypes]
+            self.dispatcher = dispatcher
+            self._signature = result.signature
+            # numba's typeof reads this first: the type without building it at each call
+            self._numba_type_ = types.FunctionType(result.signature)
+            wrapper = result.fndesc.llvm_cfunc_wrapper_name
+            self._address = result.library.get_pointer_to_function(wrapper)
+
+        def __wrapper_address__(self) -> int:
+            return self._address
+
+        def signature(self):
+            return self._signature
+
+    return SystemFunction
+
+
+def entry_point(dispatcher, args: tuple):
+    """The machine code of ``dispatcher`` for the types of ``args``, compiled or loaded
+    from numba's cache if need be, as a function called without numba's dispatch.
+
+    A caller that calls with arguments of the same types again and again (a runner's
+    blocks, the batch functions) keeps it: typing a tuple of first-class functions at
+    every call cost 60 us a call, more than a block of a small system.
+    """
+    from numba import typeof
+    from numba.core.typing.typeof import Purpose
+
+    return dispatcher.compile(tuple(typeof(a, Purpose.argument) for a in args))
+
+
+def system_function(dispatcher):
+    """``dispatcher`` (a function of a scene's module, compiled for its ``SIGNATURES``
+    entry) as an argument the drivers take."""
+    return _function_class()(dispatcher)

@@ -1,17 +1,20 @@
 """Compilation: the derived expressions a caller asks for -> numba kernels.
 
 Each wanted function is printed from sympy (after common-subexpression elimination) as
-plain scalar Python, placed in the scene's generated kernel module together with the
-stepper templates (``systems.codegen``), and compiled by numba with ``nogil=True`` and an
-on-disk cache. Parameters are an array argument, so changing a parameter value needs no
-recompilation. What was not asked for is neither printed nor compiled.
+plain scalar Python, placed in the scene's generated module (``systems.codegen``), and
+compiled by numba with ``nogil=True``, an explicit signature and an on-disk cache: a
+fraction of a second for a new scene, a load from disk for one seen before. The
+stepping loops are not part of it: they are compiled once per installation and take
+these functions as arguments (``CompiledSystem.functions``). Parameters are an array
+argument, so changing a parameter value needs no recompilation. What was not asked for
+is neither printed nor compiled.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from types import ModuleType
 
@@ -19,9 +22,8 @@ import numpy as np
 import sympy
 
 from systems import calculus, constraints, matrix_solve
-from systems.codegen import build_module
+from systems.codegen import build_module, driver_module, entry_point, system_function
 from systems.expressions import as_expr
-from systems.interpreted import KernelHandover
 from systems.kernel_printer import SympyPrinter, Unprintable, engine_text
 from systems.mechanics import DerivationError, Mechanics
 
@@ -37,18 +39,17 @@ class CompiledSystem:
     Attributes
     ----------
     mechanics : Mechanics
-    kernels : module or KernelHandover
-        The generated module: scalar system functions and the stepper templates (or,
-        with ``interpreted_start``, its plain-Python twin until the hand-over).
+    kernels : module
+        The generated module of the scalar system functions (numba dispatchers).
     parameters : ndarray, shape (k,)
         Parameter values in ``parameter_names`` order (the array ``P`` of the kernels).
     wanted : frozenset of str
     build_seconds : float
-        Time spent printing and importing the kernel module (numba compiles on first call).
+        Time spent printing the system functions and compiling (or loading) them.
     """
 
     mechanics: Mechanics
-    kernels: ModuleType | KernelHandover
+    kernels: ModuleType
     parameter_names: tuple[str, ...]
     parameters: np.ndarray
     wanted: frozenset[str]
@@ -73,19 +74,15 @@ class CompiledSystem:
             array = np.asarray(values, dtype=float).copy()
         return dataclasses.replace(self, parameters=array)
 
-    def native(self) -> CompiledSystem:
-        """This system with numba's kernels, handed over or not (compiled on first call).
-
-        For timings and for loops too long for the interpreter (ensembles, sweeps).
-        """
-        if isinstance(self.kernels, KernelHandover):
-            return dataclasses.replace(self, kernels=self.kernels.native)
-        return self
-
-    @property
-    def handed_over(self) -> bool:
-        """False while the kernels still run as plain Python (see ``interpreted_start``)."""
-        return not isinstance(self.kernels, KernelHandover) or self.kernels.handed_over
+    def functions(self, names: Sequence[str]) -> tuple:
+        """The system functions ``names`` as the drivers take them (``fns``: numba
+        first-class functions, ``systems.codegen.system_function``)."""
+        key = ("functions", tuple(names))
+        if key not in self._numeric:
+            self._numeric[key] = tuple(
+                system_function(getattr(self.kernels, name)) for name in names
+            )
+        return self._numeric[key]
 
     def require(self, want: str) -> None:
         if want not in self.wanted:
@@ -100,30 +97,12 @@ class CompiledSystem:
         self.kernels.rhs(float(t), np.ascontiguousarray(y, dtype=float), self.parameters, out)
         return out
 
-    def probe_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
-        """A function ``f(t, y)`` like ``rhs``, for Python loops that call it thousands of
-        times (the default step's probe).
-
-        Hamilton's equations compiled by symengine's LLVM backend, the same whether numba's
-        kernels are ready or still interpreted (0.2 ms a call for a ten-link chain, most of
-        its first block), so the probe's answer never depends on how far numba has got. A
-        system in matrix form solves M qdot = p - a with numpy in between. ``rhs`` itself
-        where that cannot be made (constraints, an expression LLVM does not take).
-        """
-        if "probe_rhs" not in self._numeric:
-            self._numeric["probe_rhs"] = _llvm_rhs(self.mechanics, self.parameter_names)
-        evaluate = self._numeric["probe_rhs"]
-        if evaluate is None or "rhs" not in self.wanted:
-            return self.rhs
-        parameters = self.parameters
-        return lambda t, y: evaluate(float(t), np.asarray(y, dtype=float), parameters)
-
     def hamiltonian(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
         """H at many states; ``Y`` shape (N, 2n), ``t`` scalar or (N,); returns (N,)."""
         self.require("hamiltonian")
         ts, Y = _batch(t, Y, 2 * self.n)
         out = np.empty(len(Y))
-        self.kernels.hamiltonian_batch(ts, Y, self.parameters, out)
+        self._batch("batch_scalar", "hamiltonian", ts, Y, out)
         return out
 
     def velocities(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
@@ -131,7 +110,7 @@ class CompiledSystem:
         self.require("velocities")
         ts, Y = _batch(t, Y, 2 * self.n)
         out = np.empty((len(Y), self.n))
-        self.kernels.velocities_batch(ts, Y, self.parameters, out)
+        self._batch("batch_vector", "velocities", ts, Y, out)
         return out
 
     def momenta(self, t: np.ndarray | float, Q: np.ndarray, Qdot: np.ndarray) -> np.ndarray:
@@ -140,7 +119,7 @@ class CompiledSystem:
         ts, Q = _batch(t, Q, self.n)
         Qdot = np.ascontiguousarray(np.atleast_2d(Qdot), dtype=float)
         out = np.empty((len(Q), self.n))
-        self.kernels.momenta_batch(ts, Q, Qdot, self.parameters, out)
+        self._batch("batch_pairs", "momenta", ts, Q, Qdot, out)
         return out
 
     def drawing(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
@@ -148,8 +127,19 @@ class CompiledSystem:
         self.require("drawing")
         ts, Y = _batch(t, Y, 2 * self.n)
         out = np.empty((len(Y), len(self.point_names), 2))
-        self.kernels.drawing_batch(ts, Y, self.parameters, out)
+        self._batch("batch_vector", "drawing", ts, Y, out)
         return out
+
+    def _batch(self, loop: str, name: str, *arrays: np.ndarray) -> None:
+        """``loop`` of the drivers over the rows of ``arrays`` (C-contiguous float arrays,
+        the last one written) with the system function ``name``."""
+        (function,) = self.functions((name,))
+        *inputs, out = arrays
+        args = (function, *inputs, self.parameters, out)
+        key = ("batch", loop, name)
+        if key not in self._numeric:  # the arrays' types never change between calls
+            self._numeric[key] = entry_point(getattr(driver_module(), loop), args)
+        self._numeric[key](*args)
 
     # -- initial state -----------------------------------------------------------------------
 
@@ -245,44 +235,6 @@ class CompiledSystem:
         return lambda t, a, b: function(np.concatenate(([t], a, b, self.parameters)))
 
 
-def _llvm_rhs(mechanics: Mechanics, parameter_names: Sequence[str]):
-    """``evaluate(t, y, P) -> dy/dt`` (shapes (2n,), (k,) -> (2n,)) by
-    ``calculus.llvm_function``, or None where it cannot be made."""
-    if constraints.constrained(mechanics.scene):
-        return None  # the multipliers' saddle-point solve lives in the kernels only
-    n = mechanics.n
-    params = tuple(mechanics.params[name] for name in parameter_names)
-    form = mechanics.matrix_form
-    try:
-        if form is None:
-            whole = calculus.llvm_function(
-                (mechanics.t, *mechanics.q, *mechanics.p, *params), mechanics.hamilton_equations
-            )
-
-            def evaluate(t: float, y: np.ndarray, P: np.ndarray) -> np.ndarray:
-                return whole(np.concatenate(([t], y, P)))
-
-            return evaluate
-        entries = [form.mass_matrix[i, j] for i in range(n) for j in range(n)]
-        mass = calculus.llvm_function((mechanics.t, *mechanics.q, *params), [*entries, *form.shift])
-        forces = calculus.llvm_function(
-            (mechanics.t, *mechanics.q, *mechanics.qdot, *mechanics.p, *params),
-            mechanics.hamilton_equations[n:],
-        )
-    except calculus.Unsupported:
-        return None
-
-    def evaluate_solved(t: float, y: np.ndarray, P: np.ndarray) -> np.ndarray:
-        values = mass(np.concatenate(([t], y[:n], P)))
-        qdot = np.linalg.solve(values[: n * n].reshape(n, n), y[n:] - values[n * n :])
-        out = np.empty(2 * n)
-        out[:n] = qdot
-        out[n:] = forces(np.concatenate(([t], y[:n], qdot, y[n:], P)))
-        return out
-
-    return evaluate_solved
-
-
 def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
     Y = np.ascontiguousarray(np.atleast_2d(Y), dtype=float)
     if Y.shape[1] != width:
@@ -294,8 +246,6 @@ def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
 def compile_system(
     mechanics: Mechanics,
     wanted: Iterable[str] = ("rhs", "hamiltonian"),
-    *,
-    interpreted_start: bool = False,
 ) -> CompiledSystem:
     """Print and load kernels for the wanted functions of ``mechanics``.
 
@@ -306,10 +256,6 @@ def compile_system(
     wanted
         Names from ``WANTS``. ``"separable"`` adds T(p), V(q, t) and their gradients and is
         only possible when the classification says separable.
-    interpreted_start
-        Run the kernels as plain Python (``systems.interpreted.KernelHandover``) until
-        ``systems.simulation.compile_natively`` has compiled them, so a newly opened
-        scene streams at once instead of waiting a second or two for numba.
 
     Returns
     -------
@@ -322,8 +268,6 @@ def compile_system(
         raise ValueError(f"unknown wants {sorted(unknown)}; choose from {sorted(WANTS)}")
     source = _printed_source(mechanics, wanted)
     module = build_module(source)
-    if interpreted_start:
-        module = KernelHandover(module, source)
     scene = mechanics.scene
     return CompiledSystem(
         mechanics=mechanics,
@@ -367,9 +311,7 @@ class _KernelWriter:
 
     def source(self, wanted: frozenset[str]) -> str:
         mech, scene = self.mech, self.scene
-        n = mech.n
-        npoints = len(scene.drawing.points) if scene.drawing else 0
-        parts = [f"N_DOF = {n}\nN_POINTS = {npoints}\n"]
+        parts = []
         state = self.unpack_state()
         if mech.matrix_form is not None and wanted & {"rhs", "hamiltonian", "velocities"}:
             parts.append(matrix_solve.kernel_source())
@@ -379,10 +321,8 @@ class _KernelWriter:
             parts.append(self.function("rhs(t, y, P, out)", state, mech.hamilton_equations))
         if "hamiltonian" in wanted:
             parts.append(self.scalar("hamiltonian(t, y, P)", state, mech.hamiltonian))
-            parts.append(_BATCH_SCALAR.format(name="hamiltonian"))
         if "velocities" in wanted:
             parts.append(self.function("velocities(t, y, P, out)", state, mech.velocities))
-            parts.append(_BATCH_VECTOR.format(name="velocities"))
         if "momenta" in wanted:
             if mech.momenta is None:
                 raise DerivationError(
@@ -392,7 +332,6 @@ class _KernelWriter:
                 )
             unpack = self.unpack("q", scene.coordinates) + self.unpack("qdot", scene.velocity_names)
             parts.append(self.function("momenta(t, q, qdot, P, out)", unpack, mech.momenta))
-            parts.append(_BATCH_MOMENTA)
         if "lagrangian" in wanted and mech.lagrangian is not None:
             unpack = self.unpack("q", scene.coordinates) + self.unpack("qdot", scene.velocity_names)
             parts.append(self.scalar("lagrangian(t, q, qdot, P)", unpack, mech.lagrangian))
@@ -419,7 +358,6 @@ class _KernelWriter:
                 exprs.append(scene.expression(f"drawing.points.{name}.x"))
                 exprs.append(scene.expression(f"drawing.points.{name}.y"))
             parts.append(self.function("drawing(t, y, P, out)", state, exprs, pairs=True))
-            parts.append(_BATCH_DRAWING)
         return "\n\n".join(parts)
 
     def unpack(self, array: str, names: Sequence[str]) -> list[str]:
@@ -530,25 +468,3 @@ class _KernelWriter:
 
 def _indent(lines: list[str]) -> str:
     return lines[0] + "\n" + "\n".join("    " + line for line in lines[1:]) + "\n"
-
-
-_BATCH_SCALAR = """\
-def {name}_batch(ts, Y, P, out):
-    for i in range(Y.shape[0]):
-        out[i] = {name}(ts[i], Y[i], P)
-"""
-_BATCH_VECTOR = """\
-def {name}_batch(ts, Y, P, out):
-    for i in range(Y.shape[0]):
-        {name}(ts[i], Y[i], P, out[i])
-"""
-_BATCH_MOMENTA = """\
-def momenta_batch(ts, Q, Qdot, P, out):
-    for i in range(Q.shape[0]):
-        momenta(ts[i], Q[i], Qdot[i], P, out[i])
-"""
-_BATCH_DRAWING = """\
-def drawing_batch(ts, Y, P, out):
-    for i in range(Y.shape[0]):
-        drawing(ts[i], Y[i], P, out[i])
-"""

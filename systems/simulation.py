@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from systems.codegen import driver_module
 from systems.integrators import STEPPERS, choose_method, get_stepper
 from systems.integrators.codes import CLOCK_SIZE, Clock, Status
 from systems.integrators.events import locate_crossings, periodic_brackets
@@ -440,15 +441,11 @@ class Sampler:
     events_t : list of float
     events_y : list of ndarray, shape (2n,)
         Section crossings found on the way (with a ``section``).
-
-    ``after_block(t)``, if given, is called after each block with the run's time (the
-    ``run`` command hands over to numba's kernels there).
     """
 
-    def __init__(self, run: Run, times, after_block: Callable[[float], None] | None = None):
+    def __init__(self, run: Run, times):
         self.run = run
         self.times = times
-        self.after_block = after_block
         self.last: Block | None = None
         self.worst = 0.0
         self.interrupted = False
@@ -481,8 +478,6 @@ class Sampler:
                     if self.constraints is not None and len(block.t):
                         worst = self.constraints.violation(block.t, block.y)
                         self.violation = max(self.violation, worst)
-                    if self.after_block is not None:
-                        self.after_block(run.t)
                 last = self.last
                 if last is not None and len(last.t) and last.t[-1] > t_last:
                     t_last = float(last.t[-1])
@@ -595,33 +590,6 @@ def precompile(compiled, method: str, y0: np.ndarray | None = None, **kwargs) ->
     return time.perf_counter() - start
 
 
-def compile_natively(
-    compiled, method: str, diagnostics: Sequence[str] = (), y0: np.ndarray | None = None, **kwargs
-) -> float:
-    """Compile (or load from the cache) what a stream of ``method`` calls, then hand over.
-
-    For a system compiled with ``interpreted_start``: numba compiles the stepper's loop,
-    the right-hand side and the ``diagnostics`` by a throwaway run of its native kernels;
-    afterwards every call of ``compiled`` (and of running streams, from their next block
-    on) goes to the machine code. For any other system this is ``precompile``. Returns the
-    seconds it took. ``kwargs`` go to ``stream`` (``dt``, ``tol``).
-    """
-    start = time.perf_counter()
-    native = compiled.native()
-    y0 = native.initial_state() if y0 is None else np.asarray(y0, dtype=float)
-    with np.errstate(all="ignore"):
-        try:
-            native.rhs(0.0, y0)
-            _diagnostics(native, diagnostics, np.zeros(1), y0[None, :])
-        except ArithmeticError:
-            pass  # a singular initial state: stream reports it; the kernels are compiled
-    precompile(native, method, y0, **kwargs)
-    handover = compiled.kernels
-    if not compiled.handed_over:
-        handover.hand_over()
-    return time.perf_counter() - start
-
-
 def run_to_end(compiled, **kwargs) -> tuple[list[Block], Block]:
     """All blocks of a finite run (``t_end`` required) and the last one."""
     blocks = list(stream(compiled, **kwargs))
@@ -670,14 +638,15 @@ def ensemble(
     count = nsteps // stride
     out = np.full((N, count, m), np.nan)
     status = np.zeros(N, dtype=np.int64)
-    native = compiled.native()  # never the interpreter's loops
-    coef = stepper.family.coefficients(stepper, native, t0, Y[0], False)
+    coef = stepper.family.coefficients(stepper, compiled, t0, Y[0], False)
     clock = np.zeros(CLOCK_SIZE)
     clock[Clock.T] = clock[Clock.T0] = t0
     clock[Clock.H] = dt
     clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
     limits = (nsteps, stride)
-    getattr(native.kernels, kernel)(Y, clock, compiled.parameters, coef, limits, out, status)
+    fns = compiled.functions(stepper.family.functions)
+    loop = getattr(driver_module(), kernel)
+    loop(fns, Y, clock, compiled.parameters, coef, limits, out, status)
     t = t0 + dt * stride * np.arange(1, count + 1)
     # rows that failed keep their last good sample instead of NaN
     for r in np.flatnonzero(status):

@@ -265,7 +265,6 @@ def sweep(
     -------
     WorkPrecision
     """
-    compiled = compiled.native()  # timings of numba's kernels, never of the interpreter
     mech = compiled.mechanics
     methods = list(methods) if methods else default_methods(mech)
     for name in methods:

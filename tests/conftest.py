@@ -35,9 +35,30 @@ if not os.environ.get("PHASE_EXPLORER_CONFIG"):
 # An xdist worker inherits the folders the controller set (or the caller's): it takes a
 # subfolder of its own; the controller removes the whole folder at the end.
 _WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+_SHARED_CACHE = os.environ["PHASE_EXPLORER_CACHE"]
 if _WORKER:
     for _name in ("PHASE_EXPLORER_CACHE", "PHASE_EXPLORER_CONFIG"):
         os.environ[_name] = os.path.join(os.environ[_name], _WORKER)
+    # the stepping loops the controller compiled (pytest_configure): a copy of its
+    # kernel folder, modification times kept (numba checks them against its index)
+    _kernels = os.path.join(_SHARED_CACHE, "kernels")
+    if os.path.isdir(_kernels):
+        shutil.copytree(
+            _kernels,
+            os.path.join(os.environ["PHASE_EXPLORER_CACHE"], "kernels"),
+            dirs_exist_ok=True,
+        )
+
+
+def pytest_configure(config):
+    """Compile the integrators' stepping loops once for the whole session, as
+    ``python main.py warm`` does after an installation: in the controller (or the only
+    process), into the cache the workers copy."""
+    if _WORKER:
+        return
+    from systems.integrators.warmup import warm_drivers
+
+    warm_drivers()
 
 
 SLOW_FIRST = (

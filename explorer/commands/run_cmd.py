@@ -75,7 +75,7 @@ def integration_options(args: argparse.Namespace, method: str, t_end: float) -> 
     )
 
 
-def prepare(scene_name: str, method: str | None, extra_wants=("velocities",), *, interpreted=False):
+def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
     """Load, derive, choose and compile. Returns (scene, mechanics, method, why, compiled).
 
     Raises ``UserError`` for an unknown method or one the system does not allow.
@@ -100,7 +100,7 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",), *,
         why = f"requested (the automatic choice would be {auto}: {auto_why})"
     wants = required_wants(method) | {"hamiltonian", *extra_wants}
     with user_errors():
-        compiled = compile_system(mechanics, wants, interpreted_start=interpreted)
+        compiled = compile_system(mechanics, wants)
         check_start(compiled)
     return scene, mechanics, method, why, compiled
 
@@ -115,21 +115,21 @@ def check_method(mechanics, method: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from explorer.commands.kernels import Kernels
-    from systems.simulation import Run, Sampler
+    from systems.simulation import Run, Sampler, precompile
 
     endless = args.t_end is not None and math.isinf(args.t_end) and args.t_end > 0
     check_output(args, endless)
     start = time.perf_counter()
-    scene, mechanics, method, why, compiled = prepare(args.scene, args.method, interpreted=True)
+    scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
     if not endless and not (math.isfinite(t_end) and t_end > 0):
         given = "--t-end" if args.t_end is not None else f"the scene's [view] t_end of {t_end}"
         raise UserError(f"{given} must be a positive finite time (or inf, with --out and --every)")
     options = integration_options(args, method, t_end)
     y0 = compiled.initial_state()
-    kernels = Kernels(compiled, method, ("H",), y0, 0.0, math.inf if endless else t_end)
-    kernels.start()  # numba's, from its cache; else the plain-Python twins for now
+    # the system's functions were compiled (or loaded) with it; the method's driver,
+    # compiled once per installation, is loaded here
+    compile_s = compiled.build_seconds + precompile(compiled, method, y0)
     prepare_s = time.perf_counter() - start
 
     times = sample_times(args, t_end)
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"integrating to t = {t_end:g}; Ctrl+C stops and writes what is done", file=sys.stderr
         )
-    sampler = Sampler(run_, times, after_block=kernels.poll)
+    sampler = Sampler(run_, times)
     if endless:
         t, y, qdot, H = stream_trajectory(args.out, scene, compiled, sampler)
     else:
@@ -175,8 +175,7 @@ def run(args: argparse.Namespace) -> int:
         "setting": {last.setting: last.setting_value} if last.setting else {},
         "wall_s": wall_s,
         "prepare_s": prepare_s,
-        "compile_s": kernels.compile_s,
-        "kernels": kernels.description(),
+        "compile_s": compile_s,
         "t_end": float(t[-1]),
         "final": {
             "q": dict(zip(scene.coordinates, map(float, y[-1, :n]), strict=True)),
@@ -334,7 +333,6 @@ def readable(scene, report: dict) -> str:
         f"  {report['steps']} steps, {report['rhs_evaluations']} evaluations, "
         f"{report['wall_s']:.3g} s after {report['prepare_s']:.3g} s of preparation (numba "
         f"compiled or loaded its kernels in {report['compile_s']:.3g} s of these)",
-        f"  kernels: {report['kernels']}",
     ]
     if report["max_rel_energy_error"] is not None:
         lines.append(f"  max relative energy error: {report['max_rel_energy_error']:.3g}")

@@ -1,15 +1,16 @@
 # ruff: noqa: F821
-# The templates below call the system functions ``rhs``, ``kinetic``, ``potential``,
-# ``grad_kinetic``, ``grad_potential`` (all of the whole state y = (q, p)), the constant
-# ``N_DOF`` and the named codes of ``systems.integrators.codes`` (``STATUS_*``,
-# ``CLOCK_*``, ``INFO_*``) by global name.
-# They are not defined here: ``systems.codegen`` copies everything after the marker line
-# into each scene's generated module, next to the system functions printed from sympy and
-# the code constants, and wraps every top-level function in ``numba.njit``.
+# The templates below use the named codes of ``systems.integrators.codes`` (``STATUS_*``,
+# ``CLOCK_*``, ``INFO_*``) by global name. ``systems.codegen`` copies everything after the
+# marker line into one generated module, the same for every scene, next to those
+# constants, and wraps every top-level function in ``numba.njit`` (cached on disk).
 """Kernel templates: one step function per method family, one driver for all of them.
 
 This module is imported only for its source text (``systems.codegen.template_source``);
-the functions are never called from here.
+the functions are never called from here. They are compiled once per installation, not
+once per scene: a scene's own functions (``rhs``, ``grad_potential``, ``c_project``, ...,
+compiled by ``systems.compiled``) come in as the tuple ``fns`` of numba first-class
+functions, in the order the family declares (``Family.functions`` in
+``systems.integrators.registry``).
 
 A family ``X`` provides two functions:
 
@@ -17,7 +18,7 @@ A family ``X`` provides two functions:
   first-same-as-last gradient) and use as scratch space, for a state of size ``m``. Its
   last array is a flag: the driver zeroes its first entry when it undoes a step, and the
   step then recomputes what it would have carried over;
-- ``X_step(y, comp, clock, P, coef, work) -> (status, evaluations)``: one step from the
+- ``X_step(fns, y, comp, clock, P, coef, work) -> (status, evaluations)``: one step from the
   state ``y`` (shape ``(m,)``, advanced in place, with Kahan compensation terms ``comp``
   where ``coef`` asks for them) at ``clock[CLOCK_T]`` with step ``clock[CLOCK_H]``; it
   advances the clock itself (fixed steps as ``T0 + K H``, others by compensated sums).
@@ -26,7 +27,8 @@ A family ``X`` provides two functions:
 The driver templates ``DRIVER_run`` and ``DRIVER_ensemble_parallel`` are instantiated per
 family by ``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` -> ``X_step``, ``WORK`` ->
 ``X_work``), so numba compiles each as a plain function calling globals (which it can cache
-on disk). The driver owns what every method shares: rollback of a step that failed or
+on disk); the ``fns`` argument is the same type for every scene, so the machine code
+is too. The driver owns what every method shares: rollback of a step that failed or
 went non-finite, the end time (never passed) and the pause time, section crossings,
 strided output and the counters.
 """
@@ -90,7 +92,7 @@ def _combine(M, Z, out):
 # -- explicit Runge-Kutta (Euler, classical RK4: teaching methods) -----------------------
 
 
-def _rk_stages(t, y, P, h, tableau, buffers, stages):
+def _rk_stages(rhs, t, y, P, h, tableau, buffers, stages):
     """Explicit stages ``first`` .. ``last - 1`` (``stages``) of a Runge-Kutta step with
     ``tableau = (A, c)`` into the rows of ``K``, for ``buffers = (K, Yst)``."""
     A, c = tableau
@@ -118,7 +120,7 @@ def erk_work(coef, m):
     return (np.empty((s, m)), np.empty(m), np.zeros(1))
 
 
-def erk_step(y, comp, clock, P, coef, work):
+def erk_step(fns, y, comp, clock, P, coef, work):
     """An explicit Runge-Kutta step with tableau ``(A, b, c)`` on ``rhs``."""
     A, b, c, kahan = coef
     K, Yst, _ = work
@@ -126,7 +128,7 @@ def erk_step(y, comp, clock, P, coef, work):
     m = y.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
-    _rk_stages(t, y, P, h, (A, c), (K, Yst), (0, s))
+    _rk_stages(fns[0], t, y, P, h, (A, c), (K, Yst), (0, s))
     for k in range(m):
         _add(y, comp, k, h * _rk_sum(K, b, k), kahan)
     _tick_fixed(clock)
@@ -141,15 +143,16 @@ def compose_work(coef, m):
     return (np.empty(n), np.empty(n), np.zeros(1))
 
 
-def compose_step(y, comp, clock, P, coef, work):
+def compose_step(fns, y, comp, clock, P, coef, work):
     """Leapfrog composition with merged stage coefficients ``kick`` (s + 1,), ``drift`` (s,).
 
     One gradient of V per stage: the last of a step is the first of the next (kept in
     ``work``). Time advances with the drifts, so V may depend on t.
     """
+    grad_kinetic, grad_potential = fns
     kick, drift, kahan = coef
     F, G, valid = work
-    n = N_DOF
+    n = y.shape[0] // 2
     h = clock[CLOCK_H]
     tau = clock[CLOCK_T]
     evals = 0
@@ -181,7 +184,7 @@ def logh_work(coef, m):
     return compose_work(coef, m)
 
 
-def logh_step(y, comp, clock, P, coef, work):
+def logh_step(fns, y, comp, clock, P, coef, work):
     """One fictitious-time step ``ds = clock[CLOCK_H]`` of a log-H leapfrog composition.
 
     Time is a coordinate with momentum ``-energy``: drifts advance q and t by
@@ -189,9 +192,10 @@ def logh_step(y, comp, clock, P, coef, work):
     (attractive singular potentials such as -k/r); otherwise ``STATUS_BAD_TRANSFORM``.
     For autonomous separable H = T(p) + V(q).
     """
+    kinetic, potential, grad_kinetic, grad_potential = fns
     kick, drift, energy, kahan = coef
     F, G, _ = work
-    n = N_DOF
+    n = y.shape[0] // 2
     ds = clock[CLOCK_H]
     evals = 0
     ns = drift.shape[0]
@@ -245,7 +249,7 @@ def _two_sum(a, b):
     return s, (a - (s - bb)) + (b - bb)
 
 
-def _stage_rates(t, y, comp, P, stages, scaling):
+def _stage_rates(rhs, t, y, comp, P, stages, scaling):
     """f (and the Sundman factor g) at the stages y - comp + Z_i, into ``F`` (and ``G``)."""
     Z, Zlo, F, Yst, hb, T, G, _, _ = stages
     fscale, power = scaling
@@ -257,7 +261,7 @@ def _stage_rates(t, y, comp, P, stages, scaling):
             G[i] = _rate(F[i], fscale, power)
 
 
-def _collocate(t, y, comp, P, MU, stages, scaling, maxit):
+def _collocate(rhs, t, y, comp, P, MU, stages, scaling, maxit):
     """Solve a collocation step for its stage increments by fixed-point iteration.
 
     ``stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)``: increments ``Z`` (s, m) with their
@@ -280,7 +284,7 @@ def _collocate(t, y, comp, P, MU, stages, scaling, maxit):
     diff = 0.0
     while it < maxit:
         it += 1
-        _stage_rates(t, y, comp, P, stages, scaling)
+        _stage_rates(rhs, t, y, comp, P, stages, scaling)
         diff = 0.0
         if exact:
             for j in range(s):
@@ -323,7 +327,7 @@ def _collocate(t, y, comp, P, MU, stages, scaling, maxit):
     if not converged and diff < 1e-10:
         converged = True
     if converged:
-        _stage_rates(t, y, comp, P, stages, scaling)
+        _stage_rates(rhs, t, y, comp, P, stages, scaling)
         it += 1
     return it, converged
 
@@ -383,10 +387,11 @@ def gauss_work(coef, m):
     return _collocation_work(coef, m)
 
 
-def gauss_step(y, comp, clock, P, coef, work):
+def gauss_step(fns, y, comp, clock, P, coef, work):
     """Gauss-Legendre collocation with ``s`` stages (order 2s): ``MU`` (s, s) the tableau
     as a_ij / b_j, ``b``, ``c`` (s,), and ``E`` (s, s), which continues a step's
     collocation polynomial to the starting guess of the next step's stage increments."""
+    rhs = fns[0]
     MU, b, c, E, maxit, kahan = coef
     Z, Zlo, F, Yst, hb, T, G, PH, PL, Zold, _, guess_h = work
     s = b.shape[0]
@@ -403,7 +408,7 @@ def gauss_step(y, comp, clock, P, coef, work):
                 Z[j, k] = c[j] * h * F[0, k]
                 Zlo[j, k] = 0.0
     stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
-    its, ok = _collocate(t, y, comp, P, MU, stages, (1.0, 0.0), maxit)
+    its, ok = _collocate(rhs, t, y, comp, P, MU, stages, (1.0, 0.0), maxit)
     evals += its * s
     if not ok:
         guess_h[0] = 0.0
@@ -433,13 +438,14 @@ def gauss_tt_work(coef, m):
     return _collocation_work(coef, m)
 
 
-def gauss_tt_step(y, comp, clock, P, coef, work):
+def gauss_tt_step(fns, y, comp, clock, P, coef, work):
     """Gauss-Legendre collocation in fictitious time s: dy/ds = g(y) f(t, y), dt/ds = g(y),
     with g = (fscale / |f(y)|)^power (g ~ r^1.5 near a 1/r singularity for power 3/4).
 
     A symmetric method on a reversible system: energy errors stay bounded on Kepler-like
     orbits though the map is not symplectic. ``ds = clock[CLOCK_H]``.
     """
+    rhs = fns[0]
     MU, b, c, E, maxit, fscale, power = coef
     Z, Zlo, F, Yst, hb, T, G, PH, PL, Zold, Told, valid = work
     s = b.shape[0]
@@ -457,7 +463,7 @@ def gauss_tt_step(y, comp, clock, P, coef, work):
                 Z[j, k] = c[j] * ds * g0 * F[0, k]
                 Zlo[j, k] = 0.0
     stages = (Z, Zlo, F, Yst, hb, T, G, PH, PL)
-    its, ok = _collocate(t, y, comp, P, MU, stages, (fscale, power), maxit)
+    its, ok = _collocate(rhs, t, y, comp, P, MU, stages, (fscale, power), maxit)
     evals += its * s
     if not ok:
         valid[0] = 0.0
@@ -504,7 +510,7 @@ def dop853_work(coef, m):
     return (np.empty((S + 1, m)), np.empty(m), np.empty(m), np.zeros(2))
 
 
-def dop853_step(y, comp, clock, P, coef, work):
+def dop853_step(fns, y, comp, clock, P, coef, work):
     """A trial step of Dormand-Prince 8(5,3) with Hairer's error control.
 
     ``A`` (12, 12), ``B`` (12,), ``C`` (12,), ``E3``/``E5`` (13,) are the coefficients of
@@ -513,6 +519,7 @@ def dop853_step(y, comp, clock, P, coef, work):
     The next step is at most ``hmax``: motion DOP853 integrates exactly (a free flight)
     would otherwise be crossed in one step, and a drawing of the states would skip it.
     """
+    rhs = fns[0]
     A, B, C, E3, E5, rtol, atol, hmax = coef
     K, ynew, ys, flags = work
     t = clock[CLOCK_T]
@@ -530,7 +537,7 @@ def dop853_step(y, comp, clock, P, coef, work):
         h = t_end - t
     if h < 1e-14 * max(abs(t), 1.0) * 4.0:
         return STATUS_STEP_COLLAPSED, evals
-    _rk_stages(t, y, P, h, (A, C), (K, ys), (1, S))
+    _rk_stages(rhs, t, y, P, h, (A, C), (K, ys), (1, S))
     for k in range(m):
         ynew[k] = y[k] + h * _rk_sum(K, B, k)
     rhs(t + h, ynew, P, K[S])
@@ -572,7 +579,7 @@ def dop853_step(y, comp, clock, P, coef, work):
 # driver never sees the penetrated state.
 
 
-def _c_stages(t, y, P, act, h, tableau, buffers, stages):
+def _c_stages(c_rhs, t, y, P, act, h, tableau, buffers, stages):
     """``_rk_stages`` on the constrained ``c_rhs`` with the rows ``act``."""
     A, c = tableau
     K, Yst = buffers
@@ -588,7 +595,7 @@ def _c_stages(t, y, P, act, h, tableau, buffers, stages):
 
 def cdop853_work(coef, m):
     S = coef[1].shape[0]
-    k = N_CONSTRAINTS
+    k = coef[5][0]
     # K, ynew, ys, y at the left end of an event's bracket, act, act0, mask (the rows
     # watched for an event: value >= 0 at the start of the step), event values, flags
     # [step kept (the driver zeroes it when it undoes one), last rejected, K[0] valid,
@@ -606,13 +613,13 @@ def cdop853_work(coef, m):
     )
 
 
-def _c_trial(t, y, P, act, h, coef, work):
+def _c_trial(c_rhs, t, y, P, act, h, coef, work):
     """ynew = the DOP853 step of size h from y (K[0] = f(t, y) already), not projected;
     returns the error norm."""
-    A, B, C, E3, E5, rtol, atol, _ = coef
+    A, B, C, E3, E5, _sizes, rtol, atol, _hmax = coef
     K, ynew, ys = work[0], work[1], work[2]
     S = B.shape[0]
-    _c_stages(t, y, P, act, h, (A, C), (K, ys), (1, S))
+    _c_stages(c_rhs, t, y, P, act, h, (A, C), (K, ys), (1, S))
     for k in range(y.shape[0]):
         ynew[k] = y[k] + h * _rk_sum(K, B, k)
     c_rhs(t + h, ynew, P, act, K[S])
@@ -630,11 +637,12 @@ def _c_first(values, mask):
     return worst, which
 
 
-def _c_locate(t, y, P, h, coef, work):
+def _c_locate(fns, t, y, P, h, coef, work):
     """The event inside a step of size h whose end ``ynew`` has a negative event value:
     the largest step size a found with value >= 0 (regula falsi, Illinois), its state in
     ``ynew``. Returns (a, the event's row, evaluations). ``mask`` (in ``work[6]``) holds the
     rows whose value was >= 0 at the start of the step."""
+    c_rhs, _contacts, c_project, c_event_values, _switch = fns
     K, ynew, ys, ya, act, act0, mask, values, flags = work
     S = coef[1].shape[0]
     evals = 0
@@ -658,7 +666,7 @@ def _c_locate(t, y, P, h, coef, work):
             # a row at zero at the start that leaves and comes back within the step (a
             # low bounce): halve until the bracket's left end is clearly inside
             s = 0.5 * (a + b)
-        _c_trial(t, y, P, act, s, coef, work)
+        _c_trial(c_rhs, t, y, P, act, s, coef, work)
         evals += S
         if not c_project(t + s, ynew, P, act) or not _finite(ynew):
             b = s  # no good state there: look before it
@@ -687,7 +695,7 @@ def _c_locate(t, y, P, h, coef, work):
     return a, which, evals
 
 
-def cdop853_step(y, comp, clock, P, coef, work):
+def cdop853_step(fns, y, comp, clock, P, coef, work):
     """A DOP853 step on the constrained ``c_rhs``; an accepted step is projected onto the
     constraints (positions, then velocities), so they hold to round-off after every step.
 
@@ -698,7 +706,8 @@ def cdop853_step(y, comp, clock, P, coef, work):
     leaving it are both kept (a drawing shows the jump of the velocities at the wall, not
     a chord across it). Steps are at most ``hmax``, as in ``dop853_step``.
     """
-    A, B, C, E3, E5, rtol, atol, hmax = coef
+    c_rhs, c_contacts, c_project, c_event_values, c_switch = fns
+    A, B, C, E3, E5, sizes, rtol, atol, hmax = coef
     K, ynew, ys, ya, act, act0, mask, values, flags = work
     t = clock[CLOCK_T]
     evals = 0
@@ -734,7 +743,7 @@ def cdop853_step(y, comp, clock, P, coef, work):
         h = t_end - t
     if h < 1e-14 * max(abs(t), 1.0) * 4.0:
         return STATUS_STEP_COLLAPSED, evals
-    err = _c_trial(t, y, P, act, h, coef, work)
+    err = _c_trial(c_rhs, t, y, P, act, h, coef, work)
     evals += S
     if not err == err or not _finite(ynew):
         clock[CLOCK_H] = h * 0.2
@@ -750,7 +759,7 @@ def cdop853_step(y, comp, clock, P, coef, work):
     if not c_project(t + h, ynew, P, act):
         return STATUS_NOT_CONVERGED, evals
     following = min(h * factor, hmax)
-    if N_BILATERAL < N_CONSTRAINTS:
+    if sizes[1] < sizes[0]:  # unilateral rows
         c_event_values(t + h, ynew, P, act, values)
         event = False
         for i in range(act.shape[0]):
@@ -763,7 +772,7 @@ def cdop853_step(y, comp, clock, P, coef, work):
             _, first = _c_first(values, mask)
             if first >= 0:
                 following = h
-                h, which, used = _c_locate(t, y, P, h, coef, work)
+                h, which, used = _c_locate(fns, t, y, P, h, coef, work)
                 evals += used
                 last = False
                 if h > 0.0:
@@ -784,22 +793,43 @@ def cerk_work(coef, m):
     return erk_work(coef, m)
 
 
-def cerk_step(y, comp, clock, P, coef, work):
+def cerk_step(fns, y, comp, clock, P, coef, work):
     """A fixed explicit Runge-Kutta step on the constrained ``rhs`` (bilateral
     constraints only: the registry refuses unilateral ones), then the projection."""
-    code, evals = erk_step(y, comp, clock, P, coef, work)
+    code, evals = erk_step(fns, y, comp, clock, P, coef, work)
     if code == STATUS_RUNNING:
-        if not project(clock[CLOCK_T], y, P):
+        if not fns[1](clock[CLOCK_T], y, P):  # project
             return STATUS_NOT_CONVERGED, evals
         for k in range(y.shape[0]):
             comp[k] = 0.0
     return code, evals
 
 
+# -- many states at once: a scene's function over the rows of an array ------------------------
+
+
+def batch_scalar(f, ts, Y, P, out):
+    """out[i] = f(ts[i], Y[i], P): H or L at many states."""
+    for i in range(Y.shape[0]):
+        out[i] = f(ts[i], Y[i], P)
+
+
+def batch_vector(f, ts, Y, P, out):
+    """f(ts[i], Y[i], P, out[i]): the velocities or the drawing's points at many states."""
+    for i in range(Y.shape[0]):
+        f(ts[i], Y[i], P, out[i])
+
+
+def batch_pairs(f, ts, Q, Qdot, P, out):
+    """f(ts[i], Q[i], Qdot[i], P, out[i]): the momenta from (q, qdot) at many states."""
+    for i in range(Q.shape[0]):
+        f(ts[i], Q[i], Qdot[i], P, out[i])
+
+
 # -- the drivers -------------------------------------------------------------------------------
 
 
-def DRIVER_run(state, P, coef, work, limits, section, out, info):
+def DRIVER_run(fns, state, P, coef, work, limits, section, out, info):
     """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP`` from
     ``state = (y, comp, clock)``.
 
@@ -843,7 +873,7 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
             cprev[k] = comp[k]
         for k in range(clock.shape[0]):
             kprev[k] = clock[k]
-        code, used = STEP(y, comp, clock, P, coef, work)
+        code, used = STEP(fns, y, comp, clock, P, coef, work)
         evals += used
         if code == STATUS_REJECTED:
             continue
@@ -906,7 +936,7 @@ def DRIVER_run(state, P, coef, work, limits, section, out, info):
     info[INFO_EVALUATIONS] = evals
 
 
-def DRIVER_ensemble_parallel(Y, clock0, P, coef, limits, out, status):
+def DRIVER_ensemble_parallel(fns, Y, clock0, P, coef, limits, out, status):
     """Many initial states ``Y`` (N, m) at once, advanced in place, rows spread over cores.
 
     Every ``stride``-th state of ``limits = (nsteps, stride)`` goes to ``out`` (N, k, m);
@@ -925,7 +955,7 @@ def DRIVER_ensemble_parallel(Y, clock0, P, coef, limits, out, status):
         j = 0
         steps = 0
         while steps < nsteps:
-            code, used = STEP(y, comp, clock, P, coef, work)
+            code, used = STEP(fns, y, comp, clock, P, coef, work)
             if code == STATUS_REJECTED:
                 continue
             if code == STATUS_RUNNING and not _finite(y):

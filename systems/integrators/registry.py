@@ -53,6 +53,9 @@ class Family:
     applies : callable(mechanics, stepper) -> str or None
     wants : frozenset of str
         What ``compile_system`` must provide besides ``rhs``.
+    functions : tuple of str
+        The system functions its step calls, in the order of the kernels' ``fns`` tuple
+        (names of ``systems.codegen.SIGNATURES``).
     """
 
     name: str
@@ -64,6 +67,7 @@ class Family:
     default_setting: Callable
     applies: Callable
     wants: frozenset[str] = frozenset()
+    functions: tuple[str, ...] = ("rhs",)
     symplectic: bool = False
     needs_separable: bool = False
     time_transformed: bool = False
@@ -337,6 +341,12 @@ def _dop853_coef(stepper, compiled, t0, y0, compensated):
     )
 
 
+def _constrained_dop853_coef(stepper, compiled, t0, y0, compensated):
+    """DOP853's, and the numbers of constraints: all rows, and the bilateral ones."""
+    sizes = np.array([compiled.kernels.N_CONSTRAINTS, compiled.kernels.N_BILATERAL])
+    return (*_dop853_coef(stepper, compiled, t0, y0, compensated), sizes.astype(np.int64))
+
+
 def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
     return stepsize.STIFF_TOL if stepper.stiff else stepsize.DEFAULT_TOL
 
@@ -366,6 +376,7 @@ FAMILIES: dict[str, Family] = {
             default_setting=stepsize.default_step,
             applies=_splitting_applies,
             wants=frozenset({"separable"}),
+            functions=("grad_kinetic", "grad_potential"),
             symplectic=True,
             needs_separable=True,
             ensemble=True,
@@ -392,6 +403,7 @@ FAMILIES: dict[str, Family] = {
             default_setting=stepsize.fictitious_step,
             applies=_logh_applies,
             wants=frozenset({"separable", "hamiltonian"}),
+            functions=("kinetic", "potential", "grad_kinetic", "grad_potential"),
             symplectic=True,
             needs_separable=True,
             time_transformed=True,
@@ -426,9 +438,10 @@ FAMILIES: dict[str, Family] = {
             kernel="cdop853",
             setting="tol",
             runner=runners.AdaptiveRunner,
-            coefficients=_dop853_coef,
+            coefficients=_constrained_dop853_coef,
             default_setting=_adaptive_tol,
             applies=_applies_always,
+            functions=("c_rhs", "c_contacts", "c_project", "c_event_values", "c_switch"),
             adaptive=True,
             constrained=True,
         ),
@@ -442,6 +455,7 @@ FAMILIES: dict[str, Family] = {
             coefficients=_constrained_rk4_coef,
             default_setting=stepsize.default_step,
             applies=_fixed_step_constraints_apply,
+            functions=("rhs", "project"),
             constrained=True,
         ),
         Family(
@@ -453,6 +467,7 @@ FAMILIES: dict[str, Family] = {
             coefficients=None,
             default_setting=_adaptive_tol,
             applies=_applies_always,
+            functions=(),
             adaptive=True,
         ),
     )

@@ -16,6 +16,7 @@ import types
 
 import numpy as np
 
+from systems.codegen import driver_module, entry_point
 from systems.integrators.codes import CLOCK_SIZE, INFO_SIZE, Clock, Info, Status
 
 MAX_EVENTS = 4096
@@ -34,9 +35,7 @@ def _as_python(function):
     (the ensembles' drivers call their own compiled copies). The allocators call at most
     one other (``gauss_work`` calls ``_collocation_work``), which calls none.
     """
-    python = getattr(function, "py_func", None)
-    if python is None:  # already plain Python (the interpreted twins)
-        return function
+    python = function.py_func
     env = dict(python.__globals__)
     for name in python.__code__.co_names:
         value = env.get(name)
@@ -53,7 +52,8 @@ class Outcome:
 
 
 class KernelRunner:
-    """A run of one of the compiled families (``X_run`` of the generated kernel module).
+    """A run of one of the compiled families (``X_run`` of ``systems.codegen.driver_module``,
+    given the scene's functions that the family declares).
 
     Parameters
     ----------
@@ -90,8 +90,12 @@ class KernelRunner:
         self.clock[Clock.T_PAUSE] = math.inf
         family = stepper.family
         self.coef = family.coefficients(stepper, compiled, t0, self.y, compensated)
-        allocate = _as_python(getattr(compiled.kernels, f"{family.kernel}_work"))
+        drivers = driver_module()
+        allocate = _as_python(getattr(drivers, f"{family.kernel}_work"))
         self.work = allocate(self.coef, self.m)
+        self.fns = compiled.functions(family.functions)
+        self.loop = getattr(drivers, family.run_kernel)
+        self._entry = None  # the loop's machine code for this run's argument types
 
     @property
     def t(self) -> float:
@@ -105,10 +109,13 @@ class KernelRunner:
         out += (np.empty((MAX_EVENTS, 2, m)),)
         info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.clock[Clock.T_PAUSE] = until
-        run = getattr(self.c.kernels, self.s.family.run_kernel)
         state = (self.y, self.comp, self.clock)
         limits = (int(nsteps), int(stride))
-        run(state, self.c.parameters, self.coef, self.work, limits, self.section, out, info)
+        args = (self.fns, state, self.c.parameters, self.coef, self.work, limits, self.section)
+        args += (out, info)
+        if self._entry is None:
+            self._entry = entry_point(self.loop, args)
+        self._entry(*args)
         n_out, n_ev = int(info[Info.OUTPUTS]), int(info[Info.EVENTS])
         return (
             out[0][:n_out],

@@ -182,19 +182,18 @@ def _probed_rate(compiled, t0: float, y0: np.ndarray, t_end: float) -> float:
     if math.isfinite(t_end) and t_end > t0:
         probe_dt = min(probe_dt, (t_end - t0) / 10.0)
     found = rate
-    probe_rhs = compiled.probe_rhs() if hasattr(compiled, "probe_rhs") else compiled.rhs
     for _ in range(6):
-        states = _probe(probe_rhs, t0, y0, probe_dt, 20 * PROBE_STEPS_PER_PERIOD)
+        states = _probe(compiled.rhs, t0, y0, probe_dt, 20 * PROBE_STEPS_PER_PERIOD)
         if states is not None:
             break
         probe_dt /= 2.0
     else:
         states = []
     # a Jacobian costs 2 * len(y) evaluations: fewer samples for large systems keep the
-    # probe's cost bounded (a ten-link chain's took a second while still interpreted)
+    # probe's cost bounded
     every = max(1, len(y0) * max(len(states), 1) // PROBE_JACOBIAN_BUDGET)
     for t, y in states[every - 1 :: every]:  # forward differences: half the evaluations
-        found = max(found, fastest_rate(compiled, t, y, central=False, rhs=probe_rhs))
+        found = max(found, fastest_rate(compiled, t, y, central=False))
     with _probed_lock:
         if len(memory) >= PROBE_MEMORY:
             memory.pop(next(iter(memory)))
@@ -206,11 +205,9 @@ def _probe(f, t0, y0, dt, nsteps, samples=PROBE_SAMPLES):
     """States ``(t, y)`` along ``nsteps`` classical Runge-Kutta steps of ``dt`` on
     ``f(t, y)``, or None.
 
-    RK4 on ``CompiledSystem.probe_rhs`` rather than the method itself: the states only
-    show where the motion gets fast, and that function costs the same (a few ms for the
-    whole loop) whether the kernels are compiled yet or still interpreted
-    (``systems.interpreted``), so the step chosen never depends on how far numba has
-    got. None when the state stops being finite.
+    RK4 on the compiled ``rhs`` rather than the method itself: the states only show
+    where the motion gets fast (a few ms for the whole loop). None when the state stops
+    being finite.
     """
     y = np.array(y0, dtype=float)
     stride = max(1, nsteps // samples)

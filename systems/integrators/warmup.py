@@ -1,20 +1,101 @@
-"""Start numba's compiler machinery before the first scene opens.
+"""Compile the drivers once per installation, and start numba before the first scene.
 
-The first compiled function a process loads or compiles pays a fixed start-up of about
-half a second (numba initialising its CPU target and registries). ``warm_numba`` pays it
-up front; the application runs it in a background thread while its window appears
-(``warm_in_background``), so that opening a scene costs only that scene's own kernels.
+Every family's stepping loop (``systems.codegen.driver_module``) is the same machine code
+for every scene: numba compiles it the first time it runs and keeps it in its on-disk
+cache. ``warm_drivers`` runs each family once on two small systems of its own (a free
+particle in an attractive 1/r field, and a pendulum in Cartesian coordinates held by a
+constraint), with and without a Poincare section, as ensembles, and the batch
+functions, so that afterwards no scene waits for a driver; ``python main.py warm`` and
+``make run`` call it, and the test session does once.
+
+The first compiled function a process loads pays a fixed start-up of about half a
+second (numba initialising its CPU target): ``warm_in_background`` pays it in a daemon
+thread while the window appears.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
+
+FREE = """
+title = "Warm-up: a particle in an attractive 1/r field"
+[system]
+coordinates = ["x", "y"]
+parameters = { k = 1.0 }
+kinetic = "(x_dot**2 + y_dot**2)/2"
+potential = "-k/sqrt(x**2 + y**2)"
+[initial]
+x = 1.0
+y_dot = 1.1
+[drawing]
+points = { body = ["x", "y"] }
+links = [["origin", "body"]]
+"""
+
+CONSTRAINED = """
+title = "Warm-up: a pendulum in Cartesian coordinates"
+[system]
+coordinates = ["x", "y"]
+parameters = { g = 9.81 }
+kinetic = "(x_dot**2 + y_dot**2)/2"
+potential = "g*y"
+[constraints]
+holonomic = ["x**2 + y**2 - 1"]
+[initial]
+x = 0.6
+y = -0.8
+"""
 
 _warm = threading.Event()
 _started = threading.Lock()
 _thread: threading.Thread | None = None
+
+
+def warm_drivers(progress=None) -> float:
+    """Compile (or load from numba's cache) every family's driver; returns the seconds.
+
+    ``progress(text)``, if given, is called before each family.
+    """
+    from systems.compiled import compile_system
+    from systems.integrators.registry import STEPPERS
+    from systems.mechanics import derive
+    from systems.scene import parse_scene
+    from systems.simulation import ensemble, precompile
+
+    start = time.perf_counter()
+    systems = {}
+    for name, text in (("free", FREE), ("constrained", CONSTRAINED)):
+        mechanics = derive(parse_scene(text, source=f"<warm-up {name}>"))
+        wants = ["rhs", "hamiltonian", "velocities", "momenta"]
+        if name == "free":
+            wants += ["separable", "drawing"]
+        compiled = compile_system(mechanics, wants)
+        y0 = compiled.initial_state()
+        compiled.hamiltonian(0.0, y0[None])
+        compiled.velocities(0.0, y0[None])
+        compiled.momenta(0.0, y0[None, :2], y0[None, 2:])
+        if name == "free":
+            compiled.drawing(0.0, y0[None])
+        systems[name] = compiled
+    done: set[str] = set()
+    for stepper in STEPPERS.values():
+        family = stepper.family
+        if family.kernel is None or family.name in done:
+            continue
+        done.add(family.name)
+        if progress is not None:
+            progress(family.name)
+        compiled = systems["constrained" if family.constrained else "free"]
+        for section in (None, (1, 0.0, 1)):
+            precompile(compiled, stepper.name, section=section)
+        if family.ensemble:
+            Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
+            ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
+    _warm.set()
+    return time.perf_counter() - start
 
 
 def warm_numba() -> None:
@@ -35,7 +116,7 @@ def warm_numba() -> None:
 
 
 def numba_is_warm() -> bool:
-    """True once ``warm_numba`` has finished in this process."""
+    """True once ``warm_numba`` or ``warm_drivers`` has finished in this process."""
     return _warm.is_set()
 
 

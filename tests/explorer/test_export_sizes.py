@@ -48,7 +48,7 @@ def double_pendulum():
     from systems.scene import load_scene
 
     built = build(load_scene("double_pendulum"))
-    return built, built.compiled.native()
+    return built, built.compiled
 
 
 def long_store(built, compiled, rows: int, capacity: int) -> TrajectoryStore:

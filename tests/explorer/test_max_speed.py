@@ -50,7 +50,7 @@ def pendulum():
     from systems.scene import load_scene
 
     built = build(load_scene("simple_pendulum"))
-    return built, built.compiled.native()
+    return built, built.compiled
 
 
 def pendulum_period(compiled) -> float:

@@ -35,7 +35,6 @@ import io
 import json
 import math
 import re
-import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -116,20 +115,6 @@ def test_user_scene_derives(path):
 
 
 # -- the window --------------------------------------------------------------------------------
-
-
-@pytest.fixture(autouse=True)
-def _interpreted_kernels(monkeypatch):
-    """No numba compile: kernels stay on their plain-Python twins, as a window runs them
-    for the first seconds of any new scene (``systems.native_build``)."""
-    from systems import native_build
-
-    def stay_interpreted(compiled, method, diagnostics=(), y0=None):
-        done = threading.Event()
-        done.set()
-        return done
-
-    monkeypatch.setattr(native_build, "compile_in_background", stay_interpreted)
 
 
 class Windows:

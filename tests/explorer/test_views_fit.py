@@ -413,9 +413,7 @@ def test_the_pair_list_is_searchable_for_many_coordinates(qtbot):
             + '"',
         ]
     )
-    compiled = compile_system(
-        derive(parse_scene(text)), ("rhs", "hamiltonian"), interpreted_start=True
-    )
+    compiled = compile_system(derive(parse_scene(text)), ("rhs", "hamiltonian"))
     phase = PhaseView()
     qtbot.addWidget(phase)
     phase.set_system(compiled, compiled.initial_state())

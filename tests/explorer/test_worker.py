@@ -221,7 +221,7 @@ def test_playback_speed_never_changes_the_states(qtbot, method):
     from systems.scene import load_scene
 
     built = build(load_scene("simple_pendulum"))
-    compiled = built.compiled.native()
+    compiled = built.compiled
     paced, blocks = _states(qtbot, compiled, method, 20.0, 3.0)
     fast, _ = _states(qtbot, compiled, method, math.inf, 3.0)
     common = sorted(set(paced) & set(fast))

@@ -26,13 +26,7 @@ RUN = ["run", "harmonic_oscillator", "--t-end", "5", "--method", "yoshida8"]  # 
 
 
 def _isolate(monkeypatch, root: Path) -> None:
-    from explorer.commands import kernels
-
     monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(root))
-    # a five-second oscillator would stay on the plain-Python kernels: here ``run`` has
-    # numba compile after its first block, however short the rest
-    monkeypatch.setattr(kernels, "GRACE", 0.0)
-    monkeypatch.setattr(kernels, "COMPILE_SECONDS", 0.0)
     monkeypatch.setattr(codegen, "_loaded", {})
     monkeypatch.setattr(cache_integrity, "_fallbacks", {})
     monkeypatch.setattr(cache_integrity, "_temporary", [])
@@ -124,7 +118,7 @@ def stored_text(cache: Path, containing: bytes) -> Path:
         ("compose_run", ".nbi", truncate),
         ("compose_run", ".1.nbc", randomise),
         ("rhs", ".1.nbc", flip_a_byte),
-        ("compose_step", ".nbi", empty),
+        ("hamiltonian", ".nbi", empty),
     ],
 )
 def test_damaged_numba_files_are_rebuilt(cache, capsys, function, suffix, damage):
@@ -149,28 +143,6 @@ def test_numba_entries_without_checksums_are_rebuilt_silently(cache, capsys):
     assert run_once(capsys) == []
     assert numba_file(cache, "compose_run", ".nbsum").exists()
     assert run_once(capsys) == []
-
-
-def test_the_native_build_child_heals_and_its_line_reaches_this_process(cache, capsys):
-    from explorer.commands.run_cmd import prepare
-    from systems import native_build
-    from systems.compiled import compile_system
-    from systems.simulation import compile_natively, stream
-
-    _, mechanics, _, _, compiled = prepare("harmonic_oscillator", "yoshida8")
-    twin = compile_system(mechanics, compiled.wanted, interpreted_start=True)
-    truncate(numba_file(cache, "compose_run", ".nbi"))
-    job = native_build._Job(twin, "yoshida8", ("H",), None)
-    native_build._NativeBuilder()._run_child(job)  # the child, not this process, loads it
-    lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("phase-explorer")]
-    assert len(lines) == 1 and ".compose_run-" in lines[0], lines
-    compile_natively(twin, "yoshida8", ("H",))
-    final = list(stream(twin, method="yoshida8", t_end=5.0))[-1]
-    assert final.y[-1, 0] == pytest.approx(math.cos(5.0), abs=1e-8)
-    assert "phase-explorer" not in capsys.readouterr().err
-
-
-# -- the generated module and the remembered texts --------------------------------------
 
 
 def test_an_edited_kernel_module_is_rewritten_never_run(cache, capsys):

@@ -105,37 +105,3 @@ p_b = 2.0
     y0 = compiled.initial_state()
     # p_a = 2 a_dot + b_dot, p_b = a_dot + 2 b_dot = 2  ->  b_dot = 0.75, p_a = 1.75
     np.testing.assert_allclose(y0, [0.0, 0.0, 1.75, 2.0], rtol=1e-10)
-
-
-@pytest.mark.parametrize(
-    "name", ["double_pendulum", "pendulum_chain", "driven_damped_pendulum", "henon_heiles"]
-)
-def test_the_probe_rhs_is_the_kernels_rhs(name):
-    """``CompiledSystem.probe_rhs`` (symengine's LLVM, with numpy's solve in matrix form)
-    gives the kernels' dy/dt to round-off, so the default step does not depend on which
-    evaluates it."""
-    import numpy as np
-
-    from systems.compiled import compile_system
-    from systems.mechanics import derive
-    from systems.scene import load_scene
-
-    compiled = compile_system(derive(load_scene(name)), ("rhs",), interpreted_start=True)
-    fast = compiled.probe_rhs()
-    assert fast != compiled.rhs  # made: these scenes have nothing LLVM lacks
-    rng = np.random.default_rng(3)
-    y0 = compiled.initial_state()
-    for _ in range(5):
-        y = y0 + 0.2 * rng.standard_normal(len(y0))
-        t = float(rng.uniform(0.0, 5.0))
-        want = compiled.rhs(t, y)
-        assert np.max(np.abs(fast(t, y) - want)) <= 1e-12 * max(1.0, np.max(np.abs(want)))
-
-
-def test_a_constrained_scene_probes_with_its_kernels():
-    from systems.compiled import compile_system
-    from systems.mechanics import derive
-    from systems.scene import load_scene
-
-    compiled = compile_system(derive(load_scene("cartesian_pendulum")), ("rhs",))
-    assert compiled.probe_rhs() == compiled.rhs  # the multipliers live in the kernels only

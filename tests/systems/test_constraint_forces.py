@@ -38,7 +38,7 @@ def _compiled(scene, method: str | None = None):
     compilation of a constrained scene's kernels takes 10 to 15 s."""
     mechanics = derive(parse_scene(scene) if "\n" in scene else load_scene(scene))
     wants = WANTS | (required_wants(method) if method else set())
-    return compile_system(mechanics, wants, interpreted_start=True)
+    return compile_system(mechanics, wants)
 
 
 def _run(compiled, t_end: float, **options):
@@ -288,9 +288,8 @@ def test_a_moving_explicit_constraint_works_and_the_balance_closes():
 
 # -- nonholonomic and unilateral constraints, without numba ----------------------------------------
 #
-# These scenes are evaluated with numpy only (the lambdified functions and
-# ``constraints.Numeric``): compiled without kernels, or run with the plain-Python twins of
-# ``interpreted_start``, so no scene here costs numba's compilation.
+# These scenes' forces are evaluated with numpy only (the lambdified functions and
+# ``constraints.Numeric``).
 
 
 def _numpy_only(scene, **values):
@@ -301,14 +300,11 @@ def _numpy_only(scene, **values):
     return compiled.with_parameters(values) if values else compiled
 
 
-def _interpreted_run(name: str, t_end: float):
-    """A short ``constrained_dop853`` run on the plain-Python kernels (never handed over)."""
+def _catalogue_run(name: str, t_end: float):
+    """A short ``constrained_dop853`` run of a catalogue scene."""
     mechanics = derive(load_scene(name))
-    compiled = compile_system(
-        mechanics, WANTS | required_wants("constrained_dop853"), interpreted_start=True
-    )
+    compiled = compile_system(mechanics, WANTS | required_wants("constrained_dop853"))
     t, y = _run(compiled, t_end, method="constrained_dop853")
-    assert not compiled.handed_over  # still the interpreted twins: numba did nothing
     return compiled, t, y
 
 
@@ -386,7 +382,7 @@ def test_the_rolling_constraint_does_no_virtual_work_and_no_work():
 
 
 def test_a_run_of_the_rolling_disk_keeps_its_multipliers_and_its_energy():
-    compiled, t, y = _interpreted_run("rolling_disk", 2.0)
+    compiled, t, y = _catalogue_run("rolling_disk", 2.0)
     analysis = cf.analyse(compiled.mechanics)
     forces = analysis.evaluate(compiled, t, y)
     m, R = compiled.parameters
@@ -475,7 +471,7 @@ def test_the_floor_s_work_is_zero_and_the_impacts_take_one_minus_e_squared():
     """Dropped from y0 = 1 at rest, the ball reaches the floor with v1 = sqrt(2 g y0) and
     leaves it with e v1: each impact keeps e^2 of the energy above the floor, so after
     j impacts E - E0 = -(1 - e^(2j)) m g y0, and none of it is the floor's work W."""
-    compiled, t, y = _interpreted_run("bouncing_ball", 2.0)  # impacts at 0.45, 1.17, 1.75
+    compiled, t, y = _catalogue_run("bouncing_ball", 2.0)  # impacts at 0.45, 1.17, 1.75
     analysis = cf.analyse(compiled.mechanics)
     forces = analysis.evaluate(compiled, t, y)
     m, g, e = compiled.parameters
@@ -502,7 +498,7 @@ def test_the_floor_s_work_is_zero_and_the_impacts_take_one_minus_e_squared():
 
 
 def test_elastic_walls_keep_the_gas_molecule_s_energy():
-    compiled, t, y = _interpreted_run("gas_in_box", 4.0)
+    compiled, t, y = _catalogue_run("gas_in_box", 4.0)
     analysis = cf.analyse(compiled.mechanics)
     assert analysis.multiplier_labels == [
         "lambda_1 (x ≥ 0)",

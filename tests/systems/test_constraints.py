@@ -345,7 +345,7 @@ x = 0.5
     mechanics = derive(parse_scene(text))
     assert not mechanics.classification.hamiltonian_conserved
     wants = required_wants("constrained_dop853") | {"hamiltonian"}
-    compiled = compile_system(mechanics, wants, interpreted_start=True)  # a short run
+    compiled = compile_system(mechanics, wants)  # a short run
     y0 = compiled.initial_state()
     # the start is moved onto the moving constraint: the bead turns with the rod
     assert y0[3] == pytest.approx(0.5 * 1.5)

@@ -5,8 +5,7 @@ The saddle-point system needs M and F, which matrix form has; what changes is th
 velocities are solved from M qdot = p - a at every evaluation, in the kernels and in
 ``constraints.Numeric``. The reference is the same constrained system with the
 Legendre transform in closed form: a three-link chain, derived twice, once forced into
-matrix form. Runs use the plain-Python kernels (``interpreted_start``): numba compiles
-nothing here.
+matrix form.
 """
 
 from __future__ import annotations
@@ -62,13 +61,12 @@ def _run(compiled, t_end: float):
         stream(compiled, method="constrained_dop853", t_end=t_end, tol=1e-11, max_points=100_000)
     )
     assert blocks[-1].status == "ok", blocks[-1].message
-    assert not compiled.handed_over  # the plain-Python kernels: numba compiled nothing
     return np.concatenate([b.t for b in blocks]), np.concatenate([b.y for b in blocks])
 
 
 def _compiled(text: str):
     mechanics = derive(parse_scene(text))
-    return compile_system(mechanics, WANTS, interpreted_start=True)
+    return compile_system(mechanics, WANTS)
 
 
 @pytest.fixture(scope="module")

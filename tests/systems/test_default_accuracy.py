@@ -1,7 +1,6 @@
 """Accurate by default, and pacing never changes the solution."""
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -11,15 +10,10 @@ from systems.compiled import compile_system
 from systems.integrators import choose_method
 from systems.mechanics import derive
 from systems.scene import load_scene
-from systems.simulation import Run, compile_natively, required_wants, stream
+from systems.simulation import Run, required_wants, stream
 
 CATALOGUE = sorted(p.stem for p in Path("resources/scenes").glob("*.toml"))
 TARGET = 1e-10
-
-
-NATIVE_AFTER = 2.0
-"""Seconds a run goes on the plain-Python kernels before numba compiles them: most of the
-catalogue's runs are over sooner than numba's compilation would be (as ``run`` does)."""
 
 
 @pytest.mark.parametrize("name", CATALOGUE)
@@ -29,14 +23,9 @@ def test_every_conservative_catalogue_scene_keeps_its_energy_by_default(name):
         pytest.skip("H is not conserved: nothing to check here")
     method, _ = choose_method(mechanics)
     wants = required_wants(method, ("H",))
-    compiled = compile_system(mechanics, wants, interpreted_start=True)
+    compiled = compile_system(mechanics, wants)
     t_end = float(mechanics.scene.view.get("t_end", 10.0))
-    blocks = []
-    start = time.perf_counter()
-    for block in stream(compiled, t_end=t_end, diagnostics=("H",)):
-        blocks.append(block)
-        if not compiled.handed_over and time.perf_counter() - start > NATIVE_AFTER:
-            compile_natively(compiled, method, ("H",))  # the stream's next block is numba's
+    blocks = list(stream(compiled, t_end=t_end, diagnostics=("H",)))
     assert blocks[-1].status == "ok", blocks[-1].message
     H = np.concatenate([b.diagnostics["H"] for b in blocks])
     H0 = float(compiled.hamiltonian(0.0, compiled.initial_state()[None])[0])
@@ -48,7 +37,7 @@ def test_every_conservative_catalogue_scene_keeps_its_energy_by_default(name):
 def test_stopping_at_any_times_passes_through_the_same_states(method):
     scene = "kepler_cartesian" if method.startswith("logh") else "simple_pendulum"
     mechanics = derive(load_scene(scene))
-    compiled = compile_system(mechanics, required_wants(method, ("H",))).native()
+    compiled = compile_system(mechanics, required_wants(method, ("H",)))
     free = Run(compiled, method=method, t_end=5.0)
     paced = Run(compiled, method=method, t_end=5.0)
     states_free, states_paced = {}, {}

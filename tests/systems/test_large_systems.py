@@ -113,7 +113,7 @@ def test_a_chain_in_matrix_form_has_the_closed_forms_equations():
     assert matrix.matrix_form is not None
     wants = ["rhs", "hamiltonian", "velocities"]
     # the reference as plain Python (no compile); the matrix form's as numba compiles it
-    kernels = [compile_system(closed, wants, interpreted_start=True), compile_system(matrix, wants)]
+    kernels = [compile_system(closed, wants), compile_system(matrix, wants)]
     rng = np.random.default_rng(3)
     for _ in range(5):
         y = rng.uniform(-2, 2, 6)

@@ -139,7 +139,7 @@ def cart_chain(links: int) -> str:
 @pytest.fixture(scope="module")
 def chain5():
     mechanics = derive(parse_scene(pendulum_chain(5)))
-    return mechanics, compile_system(mechanics, WANTS, interpreted_start=True)
+    return mechanics, compile_system(mechanics, WANTS)
 
 
 def test_chains_of_five_and_six_links_derive_in_matrix_form():
@@ -240,7 +240,7 @@ def test_method_choice_start_check_and_references(chain5):
 def test_initial_state_from_velocities_and_from_momenta():
     text = turntable_chain(5)
     mechanics = derive(parse_scene(text))
-    compiled = compile_system(mechanics, WANTS, interpreted_start=True)
+    compiled = compile_system(mechanics, WANTS)
     y0 = compiled.initial_state()
     qdot = np.array([0.3, 0, 0, 0, 0])
     values = dict(zip(mechanics.q, y0[:5], strict=True))
@@ -252,7 +252,7 @@ def test_initial_state_from_velocities_and_from_momenta():
     angles = [(name, value) for name, value in mechanics.scene.initial if name != "q1_dot"]
     momenta = list(zip(mechanics.scene.momentum_names, map(float, y0[5:]), strict=True))
     scene = replace(mechanics.scene, initial=tuple(angles + momenta))
-    given = compile_system(replace(mechanics, scene=scene), WANTS, interpreted_start=True)
+    given = compile_system(replace(mechanics, scene=scene), WANTS)
     np.testing.assert_allclose(given.initial_state(), y0, rtol=1e-12)
     np.testing.assert_allclose(check_start(given), y0, rtol=1e-12)
 
@@ -298,7 +298,7 @@ def test_two_point_problem_on_a_chain(chain5):
 def test_routh_reduction_says_why_not():
     mechanics = derive(parse_scene(cart_chain(4)))
     assert mechanics.matrix_form is not None and "p_x" in mechanics.conserved
-    setup = jobs.reduction_setup(compile_system(mechanics, WANTS, interpreted_start=True))
+    setup = jobs.reduction_setup(compile_system(mechanics, WANTS))
     assert setup.reduction is None and setup.needs_closed_form
     assert setup.reason.startswith(
         "Routh's reduction needs the Legendre transform in closed form, which a system of 5 "
@@ -311,7 +311,7 @@ def test_rheonomic_mass_matrix_energy_theorem():
     mechanics = derive(parse_scene(breathing_chain(5)))
     assert mechanics.matrix_form.mass_matrix.has(mechanics.t)
     assert not mechanics.classification.hamiltonian_conserved
-    compiled = compile_system(mechanics, WANTS, interpreted_start=True)
+    compiled = compile_system(mechanics, WANTS)
     assert choose_method(mechanics)[0] == "dop853"
     b = jobs.energy(compiled, 1.0).balance
     assert np.max(np.abs(b.rate - b.predicted)) < 1e-5 * np.max(np.abs(b.rate))
@@ -324,7 +324,7 @@ def test_matrix_form_gives_the_numbers_of_the_closed_form(text, monkeypatch):
     assert choose_method(closed) == choose_method(forced)
     assert stiffness_ratio(forced) == pytest.approx(stiffness_ratio(closed), rel=1e-10)
     assert potential_at_start(forced) == pytest.approx(potential_at_start(closed), rel=1e-12)
-    compiled = [compile_system(m, WANTS, interpreted_start=True) for m in (closed, forced)]
+    compiled = [compile_system(m, WANTS) for m in (closed, forced)]
     y0 = [check_start(c) for c in compiled]
     np.testing.assert_allclose(y0[1], y0[0], rtol=1e-12)
     rng = np.random.default_rng(5)

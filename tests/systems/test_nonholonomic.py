@@ -50,9 +50,9 @@ def compiled():
 
 
 def _plain_python(mechanics):
-    """A scene run once, briefly: on the plain-Python kernels (numba would take 15 s)."""
+    """A scene with what a constrained_dop853 run and its energy need."""
     wants = required_wants("constrained_dop853") | {"hamiltonian"}
-    return compile_system(mechanics, wants, interpreted_start=True)
+    return compile_system(mechanics, wants)
 
 
 def _trajectory(compiled, method="constrained_dop853", **options):

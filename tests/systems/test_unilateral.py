@@ -49,11 +49,9 @@ V0 = math.sqrt(2 * G * H0)
 WANTS = required_wants("constrained_dop853") | {"hamiltonian", "velocities"}
 
 
-def _compiled(scene, *, interpreted: bool = False):
-    """The scene's system; ``interpreted``: on the plain-Python kernels throughout, for a
-    scene run once and briefly (quicker than numba's compilation of its kernels)."""
-    compiled = compile_system(derive(scene), WANTS, interpreted_start=interpreted)
-    return compiled
+def _compiled(scene):
+    """The scene's system, with what ``run`` compiles."""
+    return compile_system(derive(scene), WANTS)
 
 
 @pytest.fixture(scope="module")
@@ -278,7 +276,7 @@ def _fold(u: np.ndarray, length: float) -> np.ndarray:
 def test_the_gas_molecule_stays_in_its_box_with_its_speeds():
     """Measured over 200 time units (270 impacts): the position follows the folded free
     motion to 3e-13, |v_x| and |v_y| do not change at all, nor does H."""
-    compiled = _compiled(load_scene("gas_in_box"), interpreted=True)
+    compiled = _compiled(load_scene("gas_in_box"))
     c = compiled.mechanics.classification
     assert c.hamiltonian_conserved and c.conservative and not c.bilateral and c.simple
     t, y = _trajectory(compiled, t_end=200.0)  # H is watched (e = 1): the run would stop
@@ -324,7 +322,7 @@ def test_a_particle_leaves_the_sphere_where_cos_theta_is_two_thirds():
         vx=v0 * math.cos(theta0),
         vy=-v0 * math.sin(theta0),
     )
-    compiled = _compiled(parse_scene(text), interpreted=True)
+    compiled = _compiled(parse_scene(text))
     t, y = _trajectory(compiled, t_end=3.0)
     numeric = compiled.constraints()
     contact = numeric.contacts(t, y)[:, 0]
@@ -432,7 +430,7 @@ def test_a_pendulum_bounces_off_a_wall_keeping_its_string():
         'holonomic = ["x**2 + y**2 - l**2"]',
         'holonomic = ["x**2 + y**2 - l**2"]\nunilateral = ["x + l/2"]',
     )
-    compiled = _compiled(parse_scene(text, source="wall.toml"), interpreted=True)
+    compiled = _compiled(parse_scene(text, source="wall.toml"))
     assert constraints.rows(compiled.mechanics).kinds == ("holonomic", "unilateral")
 
     def polar(t, s):
@@ -472,7 +470,7 @@ def test_a_rolling_disk_bounces_off_a_wall_and_keeps_rolling():
     kinetic energy is kept. Measured: H to 2e-14 (relative), slip 2e-16."""
     text = load_scene("rolling_disk").to_toml()
     text = text.replace("nonholonomic = [", 'unilateral = ["x + 1"]\nnonholonomic = [')
-    compiled = _compiled(parse_scene(text, source="walled.toml"), interpreted=True)
+    compiled = _compiled(parse_scene(text, source="walled.toml"))
     assert constraints.rows(compiled.mechanics).kinds == (
         "nonholonomic",
         "nonholonomic",

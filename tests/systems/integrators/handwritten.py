@@ -7,13 +7,10 @@ which read the whole state y = (q, p)).
 
 import numpy as np
 
-from systems.codegen import build_module
+from systems.codegen import build_module, system_function
 
 # H = p^2/(2m) + k q^2/2, P = (m, k)
 OSCILLATOR = """
-N_DOF = 1
-N_POINTS = 0
-
 def rhs(t, y, P, out):
     out[0] = y[1] / P[0]
     out[1] = -P[1] * y[0]
@@ -36,9 +33,6 @@ def grad_potential(t, y, P, out):
 
 # H = p^2/(2 m l^2) - m g l cos(theta), P = (m, g, l)
 PENDULUM = """
-N_DOF = 1
-N_POINTS = 0
-
 def rhs(t, y, P, out):
     out[0] = y[1] / (P[0] * P[2] * P[2])
     out[1] = -P[0] * P[1] * P[2] * math.sin(y[0])
@@ -61,9 +55,6 @@ def grad_potential(t, y, P, out):
 
 # Kepler in the plane, Cartesian: H = |p|^2/(2m) - k/|q|, P = (m, k)
 KEPLER_CARTESIAN = """
-N_DOF = 2
-N_POINTS = 0
-
 def rhs(t, y, P, out):
     r = math.sqrt(y[0] * y[0] + y[1] * y[1])
     f = P[1] / (r * r * r)
@@ -96,9 +87,6 @@ def grad_potential(t, y, P, out):
 # Kepler in polar coordinates (r, theta), non-separable:
 # H = p_r^2/(2m) + p_theta^2/(2 m r^2) - k/r, P = (m, k)
 KEPLER_POLAR = """
-N_DOF = 2
-N_POINTS = 0
-
 def rhs(t, y, P, out):
     r = y[0]
     out[0] = y[2] / P[0]
@@ -113,9 +101,6 @@ def hamiltonian(t, y, P):
 
 # Double pendulum (unit masses and lengths, g = P[0]), non-separable
 DOUBLE_PENDULUM = """
-N_DOF = 2
-N_POINTS = 0
-
 def rhs(t, y, P, out):
     g = P[0]
     a, b, pa, pb = y[0], y[1], y[2], y[3]
@@ -141,17 +126,21 @@ def hamiltonian(t, y, P):
 
 
 def module(source: str):
-    """The generated kernel module of ``source`` with the stepper templates."""
+    """The generated kernel module of ``source`` (its functions compiled for the drivers'
+    signatures)."""
     return build_module(source)
 
 
 class Handwritten:
     """A kernel module and parameter values, in the shape runners expect of a compiled
-    system (``kernels``, ``parameters``, ``rhs``)."""
+    system (``kernels``, ``parameters``, ``rhs``, ``functions``)."""
 
     def __init__(self, kernels, P):
         self.kernels = kernels
         self.parameters = np.asarray(P, dtype=float)
+
+    def functions(self, names):
+        return tuple(system_function(getattr(self.kernels, name)) for name in names)
 
     def rhs(self, t, y):
         out = np.empty(len(y))
