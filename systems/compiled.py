@@ -21,7 +21,7 @@ from types import ModuleType
 import numpy as np
 import sympy
 
-from systems import calculus, constraints, matrix_solve
+from systems import calculus, constraints, llvm_kernels, matrix_solve
 from systems.codegen import build_module, driver_module, entry_point, system_function
 from systems.expressions import as_expr
 from systems.kernel_printer import SympyPrinter, Unprintable, engine_text
@@ -39,8 +39,9 @@ class CompiledSystem:
     Attributes
     ----------
     mechanics : Mechanics
-    kernels : module
-        The generated module of the scalar system functions (numba dispatchers).
+    kernels : module or LLVMKernels
+        The system functions: compiled from LLVM IR (``systems.llvm_kernels``), or, where
+        that writer does not apply, the generated module of numba dispatchers.
     parameters : ndarray, shape (k,)
         Parameter values in ``parameter_names`` order (the array ``P`` of the kernels).
     wanted : frozenset of str
@@ -49,7 +50,7 @@ class CompiledSystem:
     """
 
     mechanics: Mechanics
-    kernels: ModuleType
+    kernels: ModuleType | llvm_kernels.LLVMKernels
     parameter_names: tuple[str, ...]
     parameters: np.ndarray
     wanted: frozenset[str]
@@ -76,12 +77,14 @@ class CompiledSystem:
 
     def functions(self, names: Sequence[str]) -> tuple:
         """The system functions ``names`` as the drivers take them (``fns``: numba
-        first-class functions, ``systems.codegen.system_function``)."""
+        first-class function values)."""
         key = ("functions", tuple(names))
         if key not in self._numeric:
-            self._numeric[key] = tuple(
-                system_function(getattr(self.kernels, name)) for name in names
-            )
+            if isinstance(self.kernels, llvm_kernels.LLVMKernels):
+                found = tuple(self.kernels.functions[name] for name in names)
+            else:
+                found = tuple(system_function(getattr(self.kernels, name)) for name in names)
+            self._numeric[key] = found
         return self._numeric[key]
 
     def require(self, want: str) -> None:
@@ -243,9 +246,14 @@ def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
     return ts, Y
 
 
+BACKENDS = ("auto", "llvm", "numba")
+
+
 def compile_system(
     mechanics: Mechanics,
     wanted: Iterable[str] = ("rhs", "hamiltonian"),
+    *,
+    backend: str = "auto",
 ) -> CompiledSystem:
     """Print and load kernels for the wanted functions of ``mechanics``.
 
@@ -256,6 +264,12 @@ def compile_system(
     wanted
         Names from ``WANTS``. ``"separable"`` adds T(p), V(q, t) and their gradients and is
         only possible when the classification says separable.
+    backend : {"auto", "llvm", "numba"}
+        How the system's functions become machine code: LLVM IR written from the
+        expressions (milliseconds; ``systems.llvm_kernels``), or numba (a tenth of a
+        second and more per function). ``"auto"`` takes LLVM wherever it applies
+        (not for constraints, a system in matrix form, or a node it does not write);
+        ``"llvm"`` raises ``llvm_kernels.Unsupported`` where it does not.
 
     Returns
     -------
@@ -266,8 +280,18 @@ def compile_system(
     unknown = wanted - WANTS
     if unknown:
         raise ValueError(f"unknown wants {sorted(unknown)}; choose from {sorted(WANTS)}")
-    source = _printed_source(mechanics, wanted)
-    module = build_module(source)
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
+    module = None
+    if backend != "numba":
+        writer = _KernelWriter(mechanics)
+        try:
+            module = llvm_kernels.LLVMKernels(writer.specs(wanted), writer.rename)
+        except llvm_kernels.Unsupported:
+            if backend == "llvm":
+                raise
+    if module is None:
+        module = build_module(_printed_source(mechanics, wanted))
     scene = mechanics.scene
     return CompiledSystem(
         mechanics=mechanics,
@@ -359,6 +383,71 @@ class _KernelWriter:
                 exprs.append(scene.expression(f"drawing.points.{name}.y"))
             parts.append(self.function("drawing(t, y, P, out)", state, exprs, pairs=True))
         return "\n\n".join(parts)
+
+    def specs(self, wanted: frozenset[str]) -> list[llvm_kernels.FunctionSpec]:
+        """The wanted functions for ``systems.llvm_kernels``, as ``source`` writes them
+        for numba. Raises ``llvm_kernels.Unsupported`` for constraints and matrix form."""
+        mech, scene = self.mech, self.scene
+        if mech.matrix_form is not None:
+            raise llvm_kernels.Unsupported("the velocities need a linear solve")
+        if constraints.constrained(scene):
+            raise llvm_kernels.Unsupported("the multipliers need a saddle-point solve")
+        n = mech.n
+        Spec = llvm_kernels.FunctionSpec
+        params = [(f"v_{name}", "P", i) for i, (name, _) in enumerate(scene.parameters)]
+        time = [("v_t", "t", None)]
+        names = (*scene.coordinates, *scene.momentum_names)
+        state = time + [(f"v_{name}", "y", i) for i, name in enumerate(names)] + params
+        pairs = time + [(f"v_{name}", "q", i) for i, name in enumerate(scene.coordinates)]
+        pairs += [(f"v_{name}", "qdot", i) for i, name in enumerate(scene.velocity_names)]
+        pairs += params
+        specs = []
+        if "rhs" in wanted:
+            specs.append(Spec("rhs", ("t", "y", "P", "out"), tuple(state),
+                              tuple(mech.hamilton_equations)))  # fmt: skip
+        if "hamiltonian" in wanted:
+            specs.append(Spec("hamiltonian", ("t", "y", "P"), tuple(state),
+                              (mech.hamiltonian,), returns=True))  # fmt: skip
+        if "velocities" in wanted:
+            specs.append(Spec("velocities", ("t", "y", "P", "out"), tuple(state),
+                              tuple(mech.velocities)))  # fmt: skip
+        if "momenta" in wanted:
+            if mech.momenta is None:
+                raise DerivationError(
+                    "this Hamiltonian has no Lagrangian, so momenta from velocities are "
+                    "not defined",
+                    source=scene.source,
+                )
+            specs.append(Spec("momenta", ("t", "q", "qdot", "P", "out"), tuple(pairs),
+                              tuple(mech.momenta)))  # fmt: skip
+        if "lagrangian" in wanted and mech.lagrangian is not None:
+            specs.append(Spec("lagrangian", ("t", "q", "qdot", "P"), tuple(pairs),
+                              (mech.lagrangian,), returns=True))  # fmt: skip
+        if "separable" in wanted:
+            if mech.separable_parts is None:
+                raise DerivationError(
+                    "the Hamiltonian is not separable (H != T(p) + V(q, t))", source=scene.source
+                )
+            T, V = mech.separable_parts
+            pu = tuple(
+                (f"v_{name}", "y", n + i) for i, name in enumerate(scene.momentum_names)
+            ) + tuple(params)
+            qu = tuple(time + [(f"v_{name}", "y", i) for i, name in enumerate(scene.coordinates)])
+            qu += tuple(params)
+            gradient = calculus.Calculus(scene.symbols.values()).gradient
+            specs.append(Spec("kinetic", ("y", "P"), pu, (T,), returns=True))
+            specs.append(Spec("potential", ("t", "y", "P"), qu, (V,), returns=True))
+            specs.append(Spec("grad_kinetic", ("y", "P", "out"), pu, tuple(gradient(T, mech.p))))
+            specs.append(
+                Spec("grad_potential", ("t", "y", "P", "out"), qu, tuple(gradient(V, mech.q)))
+            )
+        if "drawing" in wanted:
+            exprs = []
+            for name, _, _ in scene.drawing.points if scene.drawing else ():
+                exprs.append(scene.expression(f"drawing.points.{name}.x"))
+                exprs.append(scene.expression(f"drawing.points.{name}.y"))
+            specs.append(Spec("drawing", ("t", "y", "P", "out"), tuple(state), tuple(exprs)))
+        return specs
 
     def unpack(self, array: str, names: Sequence[str]) -> list[str]:
         return [f"v_{name} = {array}[{i}]" for i, name in enumerate(names)]

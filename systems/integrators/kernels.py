@@ -826,6 +826,25 @@ def batch_pairs(f, ts, Q, Qdot, P, out):
         f(ts[i], Q[i], Qdot[i], P, out[i])
 
 
+# -- a system function called from Python (systems.llvm_kernels) ----------------------------
+
+
+def call2(f, a, b):
+    return f(a, b)
+
+
+def call3(f, a, b, c):
+    return f(a, b, c)
+
+
+def call4(f, a, b, c, d):
+    return f(a, b, c, d)
+
+
+def call5(f, a, b, c, d, e):
+    return f(a, b, c, d, e)
+
+
 # -- the drivers -------------------------------------------------------------------------------
 
 

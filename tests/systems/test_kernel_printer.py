@@ -99,15 +99,23 @@ def test_replaced_is_xreplace_without_evaluation():
     assert calculus.replaced(expr, {}) is expr
 
 
-def test_template_functions_carry_the_module_file(tmp_path, monkeypatch):
-    """The templates are compiled once per process, yet every module's functions name its
-    own file: numba's cache and tracebacks go by it."""
+def test_generated_functions_carry_their_module_file(tmp_path, monkeypatch):
+    """The templates' code is compiled once per process, yet every generated module's
+    functions name its own file and line: numba's cache and tracebacks go by them."""
+    from systems import codegen
+
     monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    monkeypatch.setattr(codegen, "_loaded", {})
     first = build_module("def rhs(t, y, P, out):\n    out[0] = y[0]\n")
     second = build_module("def rhs(t, y, P, out):\n    out[0] = 2.0*y[0]\n")
-    for module in (first, second):
-        for name in ("rhs", "dop853_step", "compose_run"):
+    drivers = codegen.driver_module()
+    for module, names in (
+        (first, ["rhs"]),
+        (second, ["rhs"]),
+        (drivers, ["dop853_step", "compose_run"]),
+    ):
+        text = open(module.__file__).read().splitlines()
+        for name in names:
             code = getattr(module, name).py_func.__code__
             assert code.co_filename == module.__file__
-            line = module.__phase_explorer_source__.splitlines()[code.co_firstlineno - 1]
-            assert line.startswith(f"def {name}(")
+            assert text[code.co_firstlineno - 1].startswith(f"def {name}(")

@@ -1,0 +1,338 @@
+"""A scene's system functions as machine code in milliseconds: LLVM IR written from
+symengine's common-subexpression elimination and compiled by llvmlite (numba's own
+dependency).
+
+numba needs a tenth of a second and more per function however small (its type
+inference and lowering pipeline), and seconds for a ten-link chain's straight-line
+code; the same functions written as LLVM IR and optimised by LLVM alone take
+milliseconds. They have the calling convention numba uses for a first-class function's
+C wrapper (each argument's LLVM value type, arrays as numba's array structure by value),
+so the drivers, compiled once (``systems.codegen.driver_module``), call them exactly as
+they call numba-compiled ones (``LLVMFunction`` implements numba's wrapper-address
+protocol).
+
+Only what the scene language produces is written: numbers, symbols, sums, products,
+powers and the functions of ``CALLS``; anything else raises ``Unsupported`` and
+``systems.compiled`` compiles the scene's functions with numba instead. So do systems
+in matrix form (a linear solve in every evaluation) and constrained ones (the
+multipliers' saddle-point solve, projections and impacts).
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import functools
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+try:
+    import symengine
+except ImportError:  # pragma: no cover - a dependency
+    symengine = None
+
+INTRINSICS = {
+    "sin": "llvm.sin.f64",
+    "cos": "llvm.cos.f64",
+    "log": "llvm.log.f64",
+    "Abs": "llvm.fabs.f64",
+}
+LIBM = ("tan", "sinh", "cosh", "tanh", "asin", "acos", "atan", "atan2")
+"""symengine's function types written as calls of C's math library (``atan2`` takes
+two arguments)."""
+
+
+class Unsupported(Exception):
+    """An expression or a system this writer does not take: numba compiles it instead."""
+
+
+@dataclass(frozen=True)
+class FunctionSpec:
+    """One system function to write.
+
+    Attributes
+    ----------
+    name : str
+        A key of ``systems.codegen.SIGNATURES`` (which gives the argument types).
+    arguments : tuple of str
+        The argument names, in order (``("t", "y", "P", "out")``).
+    bindings : tuple of (str, str, int or None)
+        (symbol name, argument, index): the symbol is ``argument[index]``, or the
+        scalar argument itself where the index is None.
+    exprs : sequence of sympy expressions
+    returns : bool
+        Return ``exprs[0]`` (a scalar function); otherwise ``out.flat[i] = exprs[i]``.
+    """
+
+    name: str
+    arguments: tuple[str, ...]
+    bindings: tuple[tuple[str, str, int | None], ...]
+    exprs: tuple
+    returns: bool = False
+
+
+@functools.cache
+def _llvm():
+    """llvmlite's binding, initialised, with C's math library loaded into the process."""
+    import llvmlite.binding as llvm
+
+    llvm.initialize_native_target()
+    llvm.initialize_native_asmprinter()
+    path = ctypes.util.find_library("m")
+    if path:
+        llvm.load_library_permanently(path)
+    return llvm
+
+
+def _target_machine():
+    """A new target machine: an execution engine owns (and frees) the one it is given."""
+    llvm = _llvm()
+    return llvm.Target.from_default_triple().create_target_machine(opt=3, jit=True)
+
+
+@functools.cache
+def _signature(name: str):
+    """numba's signature of the system function ``name`` (``codegen.SIGNATURES``)."""
+    from numba.core import sigutils
+
+    from systems.codegen import SIGNATURES
+
+    args, result = sigutils.normalize_signature(SIGNATURES[name])
+    from numba.core.typing import signature
+
+    return signature(result, *args)
+
+
+def _value_type(numba_type):
+    from numba.core.datamodel import default_manager
+
+    return default_manager.lookup(numba_type).get_value_type()
+
+
+class _Writer:
+    """Writes the IR of one function with llvmlite's IR builder."""
+
+    def __init__(self, module, spec: FunctionSpec, rename: dict):
+        from llvmlite import ir
+
+        self.ir = ir
+        self.module = module
+        self.spec = spec
+        self.rename = rename
+        self.double = ir.DoubleType()
+        sig = _signature(spec.name)
+        argument_types = [_value_type(a) for a in sig.args]
+        self.result_type = _value_type(sig.return_type)
+        function_type = ir.FunctionType(self.result_type, argument_types)
+        self.function = ir.Function(module, function_type, name=spec.name)
+        block = self.function.append_basic_block("entry")
+        self.b = ir.IRBuilder(block)
+        self.values: dict = {}
+        self.data: dict[str, object] = {}
+        self.scalars: dict[str, object] = {}
+        for name, argument, numba_type in zip(
+            spec.arguments, self.function.args, sig.args, strict=True
+        ):
+            argument.name = name
+            if hasattr(numba_type, "ndim"):
+                self.data[name] = self.b.extract_value(argument, 4, name=f"{name}_data")
+            else:
+                self.scalars[name] = argument
+
+    def write(self) -> None:
+        from systems.calculus import Unsupported as CalculusUnsupported
+        from systems.calculus import engine_cse
+
+        spec = self.spec
+        for symbol, argument, index in spec.bindings:
+            if index is None:
+                value = self.scalars[argument]
+            else:
+                pointer = self.b.gep(
+                    self.data[argument], [self.ir.Constant(self.ir.IntType(64), index)]
+                )
+                value = self.b.load(pointer, name=symbol)
+            self.values[symbol] = value
+        try:
+            temporaries, reduced = engine_cse(list(spec.exprs), self.rename)
+        except CalculusUnsupported as exc:
+            raise Unsupported(str(exc)) from None
+        for name, expr in temporaries:
+            self.values[name] = self.value(expr)
+        results = [self.value(expr) for expr in reduced]
+        if spec.returns:
+            self.b.ret(results[0])
+            return
+        out = self.data[spec.arguments[-1]]
+        for i, value in enumerate(results):
+            pointer = self.b.gep(out, [self.ir.Constant(self.ir.IntType(64), i)])
+            self.b.store(value, pointer)
+        self.b.ret(self.ir.Constant(self.result_type, None))
+
+    # -- expressions ----------------------------------------------------------------------
+
+    def const(self, value: float):
+        return self.ir.Constant(self.double, float(value))
+
+    def value(self, expr):
+        """The IR value of a symengine expression (each distinct node once)."""
+        try:
+            return self.values[expr]
+        except (KeyError, TypeError):
+            pass
+        try:
+            value = self._node(expr)
+        except RecursionError:
+            raise Unsupported("nested too deeply") from None
+        self.values[expr] = value
+        return value
+
+    def _node(self, expr):
+        if isinstance(expr, symengine.Integer):
+            return self.const(float(int(expr)))
+        if isinstance(expr, symengine.Rational):
+            p, q = expr.get_num_den()
+            return self.const(float(int(p)) / float(int(q)))
+        if isinstance(expr, symengine.RealDouble):
+            return self.const(float(expr))
+        if isinstance(expr, symengine.Symbol):
+            found = self.values.get(str(expr))
+            if found is None:
+                raise Unsupported(f"unknown symbol {expr}")
+            return found
+        kind = type(expr).__name__
+        b = self.b
+        if kind == "Add":
+            values = [self.value(a) for a in expr.args]
+            total = values[0]
+            for v in values[1:]:
+                total = b.fadd(total, v)
+            return total
+        if kind == "Mul":
+            values = [self.value(a) for a in expr.args]
+            total = values[0]
+            for v in values[1:]:
+                total = b.fmul(total, v)
+            return total
+        if kind == "Pow":
+            return self._power(*expr.args)
+        if kind == "Pi":
+            return self.const(3.141592653589793)
+        if kind == "Exp1":
+            return self.const(2.718281828459045)
+        if kind == "sign":
+            x = self.value(expr.args[0])
+            unit = self._call("llvm.copysign.f64", [self.const(1.0), x])
+            return b.select(b.fcmp_ordered("==", x, self.const(0.0)), self.const(0.0), unit)
+        if kind in INTRINSICS:
+            return self._call(INTRINSICS[kind], [self.value(a) for a in expr.args])
+        if kind in LIBM:
+            return self._call(kind, [self.value(a) for a in expr.args])
+        raise Unsupported(f"no machine code for {kind}")
+
+    def _power(self, base, exponent):
+        b = self.b
+        if type(base).__name__ == "Exp1":
+            return self._call("llvm.exp.f64", [self.value(exponent)])
+        if isinstance(exponent, symengine.Integer):
+            k = int(exponent)
+            if 2 <= abs(k) <= 4:
+                x = self.value(base)
+                product = x
+                for _ in range(abs(k) - 1):
+                    product = b.fmul(product, x)
+                return product if k > 0 else b.fdiv(self.const(1.0), product)
+            if k == -1:
+                return b.fdiv(self.const(1.0), self.value(base))
+        if isinstance(exponent, symengine.Rational) and not isinstance(exponent, symengine.Integer):
+            p, q = (int(v) for v in exponent.get_num_den())
+            if (p, q) == (1, 2):
+                return self._call("llvm.sqrt.f64", [self.value(base)])
+            if (p, q) == (-1, 2):
+                root = self._call("llvm.sqrt.f64", [self.value(base)])
+                return b.fdiv(self.const(1.0), root)
+        return self._call("llvm.pow.f64", [self.value(base), self.value(exponent)])
+
+    def _call(self, name: str, args: list):
+        function = self.module.globals.get(name)
+        if function is None:
+            ir = self.ir
+            function_type = ir.FunctionType(self.double, [self.double] * len(args))
+            function = ir.Function(self.module, function_type, name=name)
+        return self.b.call(function, args)
+
+
+class LLVMFunction:
+    """A compiled system function as numba's first-class function value (the
+    wrapper-address protocol: its address and its numba signature)."""
+
+    def __init__(self, name: str, address: int, owner: LLVMKernels):
+        from numba.core import types
+
+        self.name = name
+        self._address = address
+        self._owner = owner  # keeps the machine code alive
+        self._signature = _signature(name)
+        self._numba_type_ = types.FunctionType(self._signature)
+
+    def __wrapper_address__(self) -> int:
+        return self._address
+
+    def signature(self):
+        return self._signature
+
+
+_compile_lock = threading.Lock()
+
+
+class LLVMKernels:
+    """A scene's system functions compiled from LLVM IR.
+
+    ``functions[name]`` are the values the drivers take; attribute access gives a
+    function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
+    (through a small caller compiled once among the drivers).
+    """
+
+    def __init__(self, specs: Sequence[FunctionSpec], rename: dict):
+        if symengine is None:
+            raise Unsupported("symengine is not installed")
+        from llvmlite import ir
+
+        llvm = _llvm()
+        module = ir.Module(name="pe_system")
+        module.triple = llvm.get_process_triple()
+        for spec in specs:
+            _Writer(module, spec, rename).write()
+        with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
+            parsed = llvm.parse_assembly(str(module))
+            parsed.verify()
+            machine = _target_machine()
+            options = llvm.create_pipeline_tuning_options(speed_level=3)
+            builder = llvm.create_pass_builder(machine, options)
+            builder.getModulePassManager().run(parsed, builder)
+            self._engine = llvm.create_mcjit_compiler(parsed, machine)
+            self._engine.finalize_object()
+        self.functions = {
+            spec.name: LLVMFunction(spec.name, self._engine.get_function_address(spec.name), self)
+            for spec in specs
+        }
+        self._callers: dict[str, object] = {}
+
+    def __getattr__(self, name: str):
+        functions = self.__dict__.get("functions", {})
+        if name not in functions:
+            raise AttributeError(name)
+        function = functions[name]
+        callers = self._callers
+
+        def call(*args):
+            caller = callers.get(name)
+            if caller is None:
+                from systems.codegen import driver_module, entry_point
+
+                loop = getattr(driver_module(), f"call{len(args)}")
+                caller = callers[name] = entry_point(loop, (function, *args))
+            return caller(function, *args)
+
+        call.__name__ = name
+        return call

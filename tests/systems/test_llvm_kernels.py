@@ -1,0 +1,113 @@
+"""A scene's functions written as LLVM IR (``systems.llvm_kernels``) compute what numba's
+compile of the same expressions computes, for every function the scene language has, and
+the drivers run them like numba's."""
+
+import numpy as np
+import pytest
+
+from systems import llvm_kernels
+from systems.compiled import compile_system
+from systems.mechanics import derive
+from systems.scene import load_scene, parse_scene
+from systems.simulation import run_to_end
+
+EVERY_FUNCTION = """
+[system]
+coordinates = ["x", "y"]
+parameters = { k = 1.5, c = 0.25 }
+kinetic = "(1 + c*cos(y)**2)*x_dot**2/2 + y_dot**2/2 + c*x_dot*y_dot*tanh(x)"
+potential = "k*(x**2/2 + tan(x/3) + atan2(y, 2) + sinh(x/4) + cosh(y/5) + asin(x/9) + acos(y/9) + atan(x) + exp(-y**2) + log(2 + x**2) + sqrt(1 + y**2) + abs(x)*y**3 + (1 + x**2)**(3/2) + (2 + y**2)**(-1/2) + (3 + x**2)**1.7 + x**5/7 + 1/(4 + y**2)**3)"
+[initial]
+x = 0.4
+y = -0.3
+x_dot = 0.2
+[drawing]
+points = { a = ["sin(x)", "y*cos(x)"], b = ["exp(y/4)", "abs(x - y)"] }
+links = [["origin", "a"], ["a", "b"]]
+"""
+
+SEPARABLE = """
+[system]
+coordinates = ["x", "y"]
+parameters = { k = 1.5 }
+kinetic = "(x_dot**2 + y_dot**2)/2"
+potential = "k*(x**4/4 + cosh(y/3) + atan2(x, 1 + y**2) + abs(y)**2.5)"
+[initial]
+x = 0.7
+"""
+
+WANTS = ("rhs", "hamiltonian", "velocities", "momenta", "lagrangian", "drawing")
+
+
+def _states(compiled, count=40, seed=5):
+    rng = np.random.default_rng(seed)
+    y0 = compiled.initial_state()
+    return y0 + rng.uniform(-1.5, 1.5, (count, len(y0)))
+
+
+def _same(a, b):
+    np.testing.assert_allclose(a, b, rtol=4e-16, atol=0.0, equal_nan=True)
+
+
+@pytest.mark.parametrize("text", [EVERY_FUNCTION, SEPARABLE], ids=["every_function", "separable"])
+def test_llvm_functions_equal_numbas(text):
+    mechanics = derive(parse_scene(text))
+    wants = WANTS if "drawing" in text else (*WANTS[:5], "separable")
+    llvm = compile_system(mechanics, wants, backend="llvm")
+    numba = compile_system(mechanics, wants, backend="numba")
+    assert isinstance(llvm.kernels, llvm_kernels.LLVMKernels)
+    Y = _states(llvm)
+    n = llvm.n
+    ts = np.linspace(0.0, 3.0, len(Y))
+    for t, y in zip(ts, Y, strict=True):
+        _same(llvm.rhs(t, y), numba.rhs(t, y))
+    _same(llvm.hamiltonian(ts, Y), numba.hamiltonian(ts, Y))
+    _same(llvm.velocities(ts, Y), numba.velocities(ts, Y))
+    _same(llvm.momenta(ts, Y[:, :n], Y[:, n:]), numba.momenta(ts, Y[:, :n], Y[:, n:]))
+    if "drawing" in wants:
+        _same(llvm.drawing(ts, Y), numba.drawing(ts, Y))
+    else:
+        P = llvm.parameters
+        for y in Y:
+            _same(llvm.kernels.kinetic(y, P), numba.kernels.kinetic(y, P))
+            _same(llvm.kernels.potential(0.5, y, P), numba.kernels.potential(0.5, y, P))
+            for name in ("grad_kinetic", "grad_potential"):
+                a, b = np.empty(n), np.empty(n)
+                args = (y, P) if name == "grad_kinetic" else (0.5, y, P)
+                getattr(llvm.kernels, name)(*args, a)
+                getattr(numba.kernels, name)(*args, b)
+                _same(a, b)
+
+
+@pytest.mark.parametrize("method", ["gauss_legendre6", "dop853", "rk4", "yoshida8"])
+def test_runs_on_llvm_functions_equal_runs_on_numbas(method):
+    text = SEPARABLE if method == "yoshida8" else EVERY_FUNCTION
+    mechanics = derive(parse_scene(text))
+    wants = ("rhs", "hamiltonian", "separable") if method == "yoshida8" else ("rhs", "hamiltonian")
+    setting = {"tol": 1e-10} if method == "dop853" else {"dt": 0.01}
+    ends = []
+    for backend in ("llvm", "numba"):
+        compiled = compile_system(mechanics, wants, backend=backend)
+        _, last = run_to_end(compiled, method=method, t_end=0.5, **setting)
+        assert last.status == "ok", last.message
+        ends.append((last.steps, last.y[-1]))
+    assert ends[0][0] == ends[1][0]
+    _same(ends[0][1], ends[1][1])
+
+
+def test_constraints_and_matrix_form_are_left_to_numba():
+    from systems.families import pendulum_chain
+
+    for mechanics in (
+        derive(load_scene("cartesian_pendulum")),
+        derive(parse_scene(pendulum_chain(5))),
+    ):
+        with pytest.raises(llvm_kernels.Unsupported):
+            compile_system(mechanics, ("rhs",), backend="llvm")
+        compiled = compile_system(mechanics, ("rhs",))
+        assert not isinstance(compiled.kernels, llvm_kernels.LLVMKernels)
+
+
+def test_an_unknown_backend_is_refused():
+    with pytest.raises(ValueError, match="backend must be one of"):
+        compile_system(derive(load_scene("simple_pendulum")), ("rhs",), backend="gcc")
