@@ -11,18 +11,23 @@ from systems.mechanics import derive
 from systems.scene import load_scene, parse_scene
 from systems.simulation import run_to_end
 
-EVERY_FUNCTION = """
+POTENTIAL = (
+    "k*(x**2/2 + tan(x/3) + atan2(y, 2) + sinh(x/4) + cosh(y/5) + asin(x/9) + acos(y/9)"
+    " + atan(x) + exp(-y**2) + log(2 + x**2) + sqrt(1 + y**2) + abs(x)*y**3"
+    " + (1 + x**2)**(3/2) + (2 + y**2)**(-1/2) + (3 + x**2)**1.7 + x**5/7 + 1/(4 + y**2)**3)"
+)
+EVERY_FUNCTION = f"""
 [system]
 coordinates = ["x", "y"]
-parameters = { k = 1.5, c = 0.25 }
+parameters = {{ k = 1.5, c = 0.25 }}
 kinetic = "(1 + c*cos(y)**2)*x_dot**2/2 + y_dot**2/2 + c*x_dot*y_dot*tanh(x)"
-potential = "k*(x**2/2 + tan(x/3) + atan2(y, 2) + sinh(x/4) + cosh(y/5) + asin(x/9) + acos(y/9) + atan(x) + exp(-y**2) + log(2 + x**2) + sqrt(1 + y**2) + abs(x)*y**3 + (1 + x**2)**(3/2) + (2 + y**2)**(-1/2) + (3 + x**2)**1.7 + x**5/7 + 1/(4 + y**2)**3)"
+potential = "{POTENTIAL}"
 [initial]
 x = 0.4
 y = -0.3
 x_dot = 0.2
 [drawing]
-points = { a = ["sin(x)", "y*cos(x)"], b = ["exp(y/4)", "abs(x - y)"] }
+points = {{ a = ["sin(x)", "y*cos(x)"], b = ["exp(y/4)", "abs(x - y)"] }}
 links = [["origin", "a"], ["a", "b"]]
 """
 
