@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -12,6 +15,43 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+
+WARM_DRIVERS = r"""
+import json, time
+start = time.perf_counter()
+from systems.codegen import driver_module
+from systems.integrators.warmup import warm_drivers
+imported = time.perf_counter()
+seconds = warm_drivers()
+print(json.dumps({"seconds": seconds, "imports": imported - start,
+                  "drivers": driver_module().__name__}))
+"""
+
+
+def cache_env(cache: str | Path | None = None, **extra: str) -> dict:
+    """The environment of a benchmark's child process: ``PHASE_EXPLORER_CACHE=cache`` (if
+    given) and ``extra``. ``NUMBA_CACHE_DIR`` is removed: numba's cache files then sit
+    beside the generated modules in the cache directory, so a copy of that directory
+    (``shutil.copytree``, which keeps the files' times) is a warm cache too, where
+    ``NUMBA_CACHE_DIR`` would key them by each module's absolute path."""
+    env = dict(os.environ, **extra)
+    if cache is not None:
+        env["PHASE_EXPLORER_CACHE"] = str(cache)
+    env.pop("NUMBA_CACHE_DIR", None)
+    return env
+
+
+def warm_drivers(cache: str | Path | None = None) -> dict:
+    """Compile the stepping loops into ``cache`` (default: the environment's cache) in a
+    fresh process, as ``python main.py warm`` does once per installation: ~45 s on an
+    empty cache, ~1 s once compiled. Returns ``{"seconds", "imports", "drivers"}``:
+    ``warm_drivers``'s seconds, the imports' and the drivers' module name."""
+    out = subprocess.run(
+        [sys.executable, "-c", WARM_DRIVERS], cwd=ROOT, env=cache_env(cache),
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def compiled_scene(name: str, wants=("rhs", "hamiltonian")):

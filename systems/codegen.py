@@ -94,10 +94,12 @@ def template_source() -> str:
     """The kernel templates as they go into a generated module.
 
     Everything after the marker line of ``systems.integrators.kernels``, preceded by the
-    named codes of ``systems.integrators.codes``, with the driver templates (functions
+    named codes of ``systems.integrators.codes`` and followed by
+    ``systems.matrix_solve.solve_augmented``, with the driver templates (functions
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
     ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step`` and ``WORK`` ``X_work``.
     """
+    from systems import matrix_solve
     from systems.integrators import kernels
     from systems.integrators.codes import constants_source
 
@@ -106,7 +108,8 @@ def template_source() -> str:
     if not found:
         raise RuntimeError(f"{kernels.__file__} lacks the line {TEMPLATE_MARKER!r}")
     shared, drivers = _split_drivers(body)
-    parts = [constants_source(), shared]
+    # the velocity solve of a system in matrix form, which LLVM-written functions call
+    parts = [constants_source(), shared, matrix_solve.kernel_source()]
     for family in STEP_DEF.findall(shared):
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)

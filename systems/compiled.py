@@ -249,11 +249,18 @@ def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
 BACKENDS = ("auto", "llvm", "numba")
 
 
+def default_backend() -> str:
+    """``PHASE_EXPLORER_KERNELS`` (``auto``, ``llvm`` or ``numba``), else ``auto``."""
+    import os
+
+    return os.environ.get("PHASE_EXPLORER_KERNELS", "auto").strip().lower() or "auto"
+
+
 def compile_system(
     mechanics: Mechanics,
     wanted: Iterable[str] = ("rhs", "hamiltonian"),
     *,
-    backend: str = "auto",
+    backend: str | None = None,
 ) -> CompiledSystem:
     """Print and load kernels for the wanted functions of ``mechanics``.
 
@@ -269,7 +276,8 @@ def compile_system(
         expressions (milliseconds; ``systems.llvm_kernels``), or numba (a tenth of a
         second and more per function). ``"auto"`` takes LLVM wherever it applies
         (not for constraints, a system in matrix form, or a node it does not write);
-        ``"llvm"`` raises ``llvm_kernels.Unsupported`` where it does not.
+        ``"llvm"`` raises ``llvm_kernels.Unsupported`` where it does not. None: the
+        environment's ``PHASE_EXPLORER_KERNELS``, else ``"auto"``.
 
     Returns
     -------
@@ -280,6 +288,7 @@ def compile_system(
     unknown = wanted - WANTS
     if unknown:
         raise ValueError(f"unknown wants {sorted(unknown)}; choose from {sorted(WANTS)}")
+    backend = default_backend() if backend is None else backend
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
     module = None
@@ -386,10 +395,9 @@ class _KernelWriter:
 
     def specs(self, wanted: frozenset[str]) -> list[llvm_kernels.FunctionSpec]:
         """The wanted functions for ``systems.llvm_kernels``, as ``source`` writes them
-        for numba. Raises ``llvm_kernels.Unsupported`` for constraints and matrix form."""
+        for numba (in matrix form, the functions of the state solve for the velocities
+        first). Raises ``llvm_kernels.Unsupported`` for constraints."""
         mech, scene = self.mech, self.scene
-        if mech.matrix_form is not None:
-            raise llvm_kernels.Unsupported("the velocities need a linear solve")
         if constraints.constrained(scene):
             raise llvm_kernels.Unsupported("the multipliers need a saddle-point solve")
         n = mech.n
@@ -402,15 +410,21 @@ class _KernelWriter:
         pairs += [(f"v_{name}", "qdot", i) for i, name in enumerate(scene.velocity_names)]
         pairs += params
         specs = []
+        solve = self._solve_spec()
+        velocity_symbols = set(mech.qdot)
+
+        def of_state(name: str, exprs, returns: bool = False) -> None:
+            uses = any(as_expr(e).free_symbols & velocity_symbols for e in exprs)
+            arguments = ("t", "y", "P") if returns else ("t", "y", "P", "out")
+            specs.append(Spec(name, arguments, tuple(state), tuple(exprs), returns=returns,
+                              solve=solve if uses else None))  # fmt: skip
+
         if "rhs" in wanted:
-            specs.append(Spec("rhs", ("t", "y", "P", "out"), tuple(state),
-                              tuple(mech.hamilton_equations)))  # fmt: skip
+            of_state("rhs", mech.hamilton_equations)
         if "hamiltonian" in wanted:
-            specs.append(Spec("hamiltonian", ("t", "y", "P"), tuple(state),
-                              (mech.hamiltonian,), returns=True))  # fmt: skip
+            of_state("hamiltonian", [mech.hamiltonian], returns=True)
         if "velocities" in wanted:
-            specs.append(Spec("velocities", ("t", "y", "P", "out"), tuple(state),
-                              tuple(mech.velocities)))  # fmt: skip
+            of_state("velocities", mech.velocities)
         if "momenta" in wanted:
             if mech.momenta is None:
                 raise DerivationError(
@@ -446,8 +460,20 @@ class _KernelWriter:
             for name, _, _ in scene.drawing.points if scene.drawing else ():
                 exprs.append(scene.expression(f"drawing.points.{name}.x"))
                 exprs.append(scene.expression(f"drawing.points.{name}.y"))
-            specs.append(Spec("drawing", ("t", "y", "P", "out"), tuple(state), tuple(exprs)))
+            of_state("drawing", exprs)
         return specs
+
+    def _solve_spec(self) -> tuple | None:
+        """``FunctionSpec.solve`` of a system in matrix form, else None."""
+        form = self.mech.matrix_form
+        if form is None:
+            return None
+        n = self.mech.n
+        upper = [(i, j) for i in range(n) for j in range(i, n)]
+        entries = tuple(form.mass_matrix[i, j] for i, j in upper) + tuple(form.shift)
+        momenta = tuple(f"v_{name}" for name in self.scene.momentum_names)
+        velocities = tuple(f"v_{name}" for name in self.scene.velocity_names)
+        return entries, momenta, velocities
 
     def unpack(self, array: str, names: Sequence[str]) -> list[str]:
         return [f"v_{name} = {array}[{i}]" for i, name in enumerate(names)]

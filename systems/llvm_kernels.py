@@ -62,6 +62,11 @@ class FunctionSpec:
     exprs : sequence of sympy expressions
     returns : bool
         Return ``exprs[0]`` (a scalar function); otherwise ``out.flat[i] = exprs[i]``.
+    solve : (entries, momenta, velocities) or None
+        A system in matrix form: the velocity symbols ``velocities`` (n names) are the
+        solution of ``M qdot = p - a`` (``systems.matrix_solve.solve_augmented``), with
+        ``entries`` the upper triangle of M row by row and then a (expressions free of
+        the velocities), ``momenta`` the names of the symbols of p.
     """
 
     name: str
@@ -69,6 +74,7 @@ class FunctionSpec:
     bindings: tuple[tuple[str, str, int | None], ...]
     exprs: tuple
     returns: bool = False
+    solve: tuple | None = None
 
 
 @functools.cache
@@ -153,10 +159,14 @@ class _Writer:
                 )
                 value = self.b.load(pointer, name=symbol)
             self.values[symbol] = value
+        entries = () if spec.solve is None else tuple(spec.solve[0])
         try:
-            temporaries, reduced = engine_cse(list(spec.exprs), self.rename)
+            temporaries, reduced = engine_cse([*entries, *spec.exprs], self.rename)
         except CalculusUnsupported as exc:
             raise Unsupported(str(exc)) from None
+        if spec.solve is not None:
+            temporaries = self._solve(temporaries, reduced[: len(entries)])
+            reduced = reduced[len(entries) :]
         for name, expr in temporaries:
             self.values[name] = self.value(expr)
         results = [self.value(expr) for expr in reduced]
@@ -168,6 +178,65 @@ class _Writer:
             pointer = self.b.gep(out, [self.ir.Constant(self.ir.IntType(64), i)])
             self.b.store(value, pointer)
         self.b.ret(self.ir.Constant(self.result_type, None))
+
+    def _solve(self, temporaries: list, entries: list) -> list:
+        """Write the temporaries free of the velocities, fill ``W = [M | p - a | diag M]``,
+        solve it (``solve_augmented`` of the drivers, through its C wrapper) and bind the
+        velocity symbols; returns the temporaries left, those that use the velocities,
+        as ``systems.compiled._KernelWriter.solved_body`` orders them."""
+        ir, b = self.ir, self.b
+        _, momenta, velocities = self.spec.solve
+        n = len(velocities)
+        pending = set(velocities)
+        after = []
+        for name, expr in temporaries:
+            if {str(s) for s in expr.free_symbols} & pending:
+                pending.add(name)
+                after.append((name, expr))
+            else:
+                self.values[name] = self.value(expr)
+        width = n + 2
+        i64 = ir.IntType(64)
+        with b.goto_entry_block():
+            W = b.alloca(self.double, size=ir.Constant(i64, n * width), name="W")
+
+        def cell(i: int, j: int):
+            return b.gep(W, [ir.Constant(i64, i * width + j)])
+
+        upper = [(i, j) for i in range(n) for j in range(i, n)]
+        for (i, j), expr in zip(upper, entries, strict=False):
+            value = self.value(expr)
+            b.store(value, cell(i, j))
+            b.store(value, cell(j, i) if i != j else cell(i, n + 1))
+        for i, (p, expr) in enumerate(zip(momenta, entries[len(upper) :], strict=True)):
+            b.store(b.fsub(self.values[p], self.value(expr)), cell(i, n))
+        self._call_solver(W, n)
+        for i, name in enumerate(velocities):
+            self.values[name] = b.load(cell(i, n), name=name)
+        return after
+
+    def _call_solver(self, W, n: int) -> None:
+        """``solve_augmented(W, n)`` through the C wrapper of the drivers' copy: its
+        arguments are numba's value types, the array as its structure by value."""
+        ir, b = self.ir, self.b
+        i64, i8p = ir.IntType(64), ir.IntType(8).as_pointer()
+        address, argument_types, result_type = _solver()
+        structure = argument_types[0]
+        value = ir.Constant(structure, ir.Undefined)
+        parts = [
+            ir.Constant(i8p, None),
+            ir.Constant(i8p, None),
+            ir.Constant(i64, n * (n + 2)),
+            ir.Constant(i64, 8),
+            W,
+            ir.Constant(ir.ArrayType(i64, 2), [ir.Constant(i64, n), ir.Constant(i64, n + 2)]),
+            ir.Constant(ir.ArrayType(i64, 2), [ir.Constant(i64, 8 * (n + 2)), ir.Constant(i64, 8)]),
+        ]
+        for k, part in enumerate(parts):
+            value = b.insert_value(value, part, k)
+        pointer_type = ir.FunctionType(result_type, argument_types).as_pointer()
+        function = b.inttoptr(ir.Constant(i64, address), pointer_type)
+        b.call(function, [value, ir.Constant(i64, n)])
 
     # -- expressions ----------------------------------------------------------------------
 
@@ -260,6 +329,26 @@ class _Writer:
             function_type = ir.FunctionType(self.double, [self.double] * len(args))
             function = ir.Function(self.module, function_type, name=name)
         return self.b.call(function, args)
+
+
+SOLVER_SIGNATURE = "void(float64[:, ::1], int64)"
+
+
+def _solver() -> tuple[int, list, object]:
+    """(address, LLVM argument types, LLVM result type) of the C wrapper of the drivers'
+    ``solve_augmented`` (compiled once per installation, loaded from numba's cache)."""
+    from numba.core import sigutils
+
+    from systems.codegen import driver_module
+
+    dispatcher = getattr(driver_module(), "solve_augmented", None)
+    if dispatcher is None:
+        raise Unsupported("the drivers have no solve_augmented")
+    dispatcher.compile(SOLVER_SIGNATURE)
+    args, result = sigutils.normalize_signature(SOLVER_SIGNATURE)
+    compiled = dispatcher.overloads[tuple(args)]
+    address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_cfunc_wrapper_name)
+    return address, [_value_type(a) for a in args], _value_type(result)
 
 
 class LLVMFunction:

@@ -59,13 +59,16 @@ def warm_drivers(progress=None) -> float:
 
     ``progress(text)``, if given, is called before each family.
     """
+    from systems.codegen import driver_module
     from systems.compiled import compile_system
     from systems.integrators.registry import STEPPERS
+    from systems.llvm_kernels import SOLVER_SIGNATURE
     from systems.mechanics import derive
     from systems.scene import parse_scene
     from systems.simulation import ensemble, precompile
 
     start = time.perf_counter()
+    driver_module().solve_augmented.compile(SOLVER_SIGNATURE)
     systems = {}
     for name, text in (("free", FREE), ("constrained", CONSTRAINED)):
         mechanics = derive(parse_scene(text, source=f"<warm-up {name}>"))

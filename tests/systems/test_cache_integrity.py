@@ -27,6 +27,9 @@ RUN = ["run", "harmonic_oscillator", "--t-end", "5", "--method", "yoshida8"]  # 
 
 def _isolate(monkeypatch, root: Path) -> None:
     monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(root))
+    # numba's scene modules and their cache files are what these tests damage; the LLVM
+    # functions are compiled anew at each opening and leave nothing on disk
+    monkeypatch.setenv("PHASE_EXPLORER_KERNELS", "numba")
     monkeypatch.setattr(codegen, "_loaded", {})
     monkeypatch.setattr(cache_integrity, "_fallbacks", {})
     monkeypatch.setattr(cache_integrity, "_temporary", [])
