@@ -56,6 +56,7 @@ warnings.filterwarnings("ignore", message=".*First-class function type feature i
 
 _F = "float64"
 _V = "float64[::1]"
+_M = "float64[:, ::1]"
 SIGNATURES: dict[str, str] = {
     "rhs": f"void({_F}, {_V}, {_V}, {_V})",
     "hamiltonian": f"{_F}({_F}, {_V}, {_V})",
@@ -66,13 +67,15 @@ SIGNATURES: dict[str, str] = {
     "potential": f"{_F}({_F}, {_V}, {_V})",
     "grad_kinetic": f"void({_V}, {_V}, {_V})",
     "grad_potential": f"void({_F}, {_V}, {_V}, {_V})",
-    "drawing": f"void({_F}, {_V}, {_V}, float64[:, ::1])",
-    "c_rhs": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
-    "c_contacts": f"void({_F}, {_V}, {_V}, {_V})",
-    "c_project": f"boolean({_F}, {_V}, {_V}, {_V})",
-    "project": f"boolean({_F}, {_V}, {_V})",
-    "c_event_values": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
-    "c_switch": f"boolean({_F}, {_V}, {_V}, {_V}, int64)",
+    "drawing": f"void({_F}, {_V}, {_V}, {_M})",
+    "c_free_rhs": f"void({_F}, {_V}, {_V}, {_V})",
+    "c_positions": f"void({_F}, {_V}, {_V}, {_V})",
+    "c_rows": f"void({_F}, {_V}, {_V}, {_M})",
+    "c_mass": f"void({_F}, {_V}, {_V}, {_M})",
+    "c_velocities": f"void({_F}, {_V}, {_V}, {_V})",
+    "c_momenta": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
+    "c_saddle": f"void({_F}, {_V}, {_V}, {_M})",
+    "c_gamma": f"void({_F}, {_V}, {_V}, {_V})",
 }
 """The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
 with C-contiguous float arrays. A scene's module compiles each it defines for exactly
@@ -99,7 +102,7 @@ def template_source() -> str:
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
     ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step`` and ``WORK`` ``X_work``.
     """
-    from systems import matrix_solve
+    from systems import constraints, matrix_solve
     from systems.integrators import kernels
     from systems.integrators.codes import constants_source
 
@@ -109,7 +112,12 @@ def template_source() -> str:
         raise RuntimeError(f"{kernels.__file__} lacks the line {TEMPLATE_MARKER!r}")
     shared, drivers = _split_drivers(body)
     # the velocity solve of a system in matrix form, which LLVM-written functions call
-    parts = [constants_source(), shared, matrix_solve.kernel_source()]
+    limits = (
+        f"PROJECTION_ITERATIONS = {constraints.PROJECTION_ITERATIONS}\n"
+        f"CONTACT_GAP = {constraints.CONTACT_GAP!r}\n"
+        f"CONTACT_SPEED = {constraints.CONTACT_SPEED!r}\n"
+    )
+    parts = [constants_source(), limits, shared, matrix_solve.kernel_source()]
     for family in STEP_DEF.findall(shared):
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
@@ -182,22 +190,41 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     ensembles that use ``prange``); all with ``nogil=True, cache=True`` and numpy's error
     model: a division by zero gives inf or nan, which the driver rolls back and reports
     like any other non-finite step, instead of an exception out of a nogil loop. Functions that
-    allocate nothing (steps, system functions, helpers) are compiled without reference
-    counting (``_nrt=False``): every array they unpack from a tuple or hand on would
-    otherwise cost an atomic increment and decrement, about 100 ns a leapfrog step, four
-    times the step itself. With ``reference_counting`` every function keeps it: a system
-    function that allocates (the velocity solve of a system in matrix form) needs it, and
-    numba compiles a callee with its caller's flags.
+    allocate nothing and call nothing that does (most steps, system functions, helpers)
+    are compiled without reference counting (``_nrt=False``): every array they unpack
+    from a tuple or hand on would otherwise cost an atomic increment and decrement, about
+    100 ns a leapfrog step, four times the step itself. numba compiles a callee with its
+    caller's flags, so a function that calls an allocating one (the constrained steps
+    call the saddle-point solves) keeps reference counting too. With
+    ``reference_counting`` every function keeps it (a system function that allocates:
+    the velocity solve of a system in matrix form).
     """
+    names = TOP_LEVEL_DEF.findall(source)  # a regex: ast.parse took 50 ms here
+    chunks = dict(zip(names, re.split(r"(?m)^def \w+\(", source)[1:], strict=True))
+    allocating = {
+        name
+        for name, body in chunks.items()
+        if reference_counting or name.endswith(ALLOCATING) or ALLOCATION.search(body)
+    }
+    calls = {name: set(CALL.findall(body)) & chunks.keys() for name, body in chunks.items()}
+    grown = True
+    while grown:  # whatever calls an allocating function allocates
+        found = {name for name, called in calls.items() if called & allocating}
+        grown = not found <= allocating
+        allocating |= found
     lines = []
-    for name in TOP_LEVEL_DEF.findall(source):  # a regex: ast.parse took 50 ms here
+    for name in names:
         options = "nogil=True, cache=True, error_model='numpy'"
         if name.endswith("_parallel"):
             options += ", parallel=True"
-        if not (reference_counting or name.endswith(ALLOCATING)) and _numba_can_skip_nrt():
+        if name not in allocating and _numba_can_skip_nrt():
             options += ", _nrt=False"
         lines.append(f"{name} = njit({options})({name})")
     return "\n".join(lines) + "\n"
+
+
+ALLOCATION = re.compile(r"\bnp\.(empty|zeros|ones)\(")
+CALL = re.compile(r"\b(\w+)\(")
 
 
 def driver_module() -> ModuleType:

@@ -94,11 +94,35 @@ class CompiledSystem:
     # -- array wrappers ------------------------------------------------------------------
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        """dy/dt at one state; ``y`` shape (2n,), returns shape (2n,)."""
+        """dy/dt at one state; ``y`` shape (2n,), returns shape (2n,). With constraints,
+        the bilateral ones' force included (no contact acts)."""
         self.require("rhs")
         out = np.empty(2 * self.n)
-        self.kernels.rhs(float(t), np.ascontiguousarray(y, dtype=float), self.parameters, out)
+        y = np.ascontiguousarray(y, dtype=float)
+        if constraints.constrained(self.mechanics.scene):
+            self.constrained("c_bilateral_rhs", float(t), y, self.parameters, out)
+        else:
+            self.kernels.rhs(float(t), y, self.parameters, out)
         return out
+
+    def constraint_functions(self) -> tuple:
+        """The drivers' ``cs`` for a constrained scene: its ``constraints.PRIMITIVES`` and
+        ``constraints.sizes``."""
+        key = "constraint functions"
+        if key not in self._numeric:
+            sizes = constraints.sizes(self.mechanics)
+            self._numeric[key] = (*self.functions(constraints.PRIMITIVES), sizes)
+        return self._numeric[key]
+
+    def constrained(self, name: str, *args):
+        """The drivers' constrained function ``name`` (``c_multipliers``,
+        ``c_constraint_values``, ``c_project``, ...) of this scene, called with ``args``
+        after its ``cs``."""
+        cs = self.constraint_functions()
+        key = ("constrained", name)
+        if key not in self._numeric:
+            self._numeric[key] = entry_point(getattr(driver_module(), name), (cs, *args))
+        return self._numeric[key](cs, *args)
 
     def hamiltonian(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
         """H at many states; ``Y`` shape (N, 2n), ``t`` scalar or (N,); returns (N,)."""
@@ -275,7 +299,7 @@ def compile_system(
         How the system's functions become machine code: LLVM IR written from the
         expressions (milliseconds; ``systems.llvm_kernels``), or numba (a tenth of a
         second and more per function). ``"auto"`` takes LLVM wherever it applies
-        (not for constraints, a system in matrix form, or a node it does not write);
+        (everything but an expression node it does not write);
         ``"llvm"`` raises ``llvm_kernels.Unsupported`` where it does not. None: the
         environment's ``PHASE_EXPLORER_KERNELS``, else ``"auto"``.
 
@@ -396,19 +420,13 @@ class _KernelWriter:
     def specs(self, wanted: frozenset[str]) -> list[llvm_kernels.FunctionSpec]:
         """The wanted functions for ``systems.llvm_kernels``, as ``source`` writes them
         for numba (in matrix form, the functions of the state solve for the velocities
-        first). Raises ``llvm_kernels.Unsupported`` for constraints."""
+        first; with constraints, ``rhs`` is the constraints' ``PRIMITIVES``)."""
         mech, scene = self.mech, self.scene
-        if constraints.constrained(scene):
-            raise llvm_kernels.Unsupported("the multipliers need a saddle-point solve")
         n = mech.n
         Spec = llvm_kernels.FunctionSpec
-        params = [(f"v_{name}", "P", i) for i, (name, _) in enumerate(scene.parameters)]
+        state, pairs = self.bindings()
+        params = [b for b in state if b[1] == "P"]
         time = [("v_t", "t", None)]
-        names = (*scene.coordinates, *scene.momentum_names)
-        state = time + [(f"v_{name}", "y", i) for i, name in enumerate(names)] + params
-        pairs = time + [(f"v_{name}", "q", i) for i, name in enumerate(scene.coordinates)]
-        pairs += [(f"v_{name}", "qdot", i) for i, name in enumerate(scene.velocity_names)]
-        pairs += params
         specs = []
         solve = self._solve_spec()
         velocity_symbols = set(mech.qdot)
@@ -419,7 +437,9 @@ class _KernelWriter:
             specs.append(Spec(name, arguments, tuple(state), tuple(exprs), returns=returns,
                               solve=solve if uses else None))  # fmt: skip
 
-        if "rhs" in wanted:
+        if "rhs" in wanted and constraints.constrained(scene):
+            specs += constraints.specs(self, mech)
+        elif "rhs" in wanted:
             of_state("rhs", mech.hamilton_equations)
         if "hamiltonian" in wanted:
             of_state("hamiltonian", [mech.hamiltonian], returns=True)
@@ -462,6 +482,18 @@ class _KernelWriter:
                 exprs.append(scene.expression(f"drawing.points.{name}.y"))
             of_state("drawing", exprs)
         return specs
+
+    def bindings(self) -> tuple[tuple, tuple]:
+        """``FunctionSpec.bindings`` of a function of the state (t, y, P) and of one of
+        (t, q, qdot, P)."""
+        scene = self.scene
+        params = [(f"v_{name}", "P", i) for i, (name, _) in enumerate(scene.parameters)]
+        time = [("v_t", "t", None)]
+        names = (*scene.coordinates, *scene.momentum_names)
+        state = time + [(f"v_{name}", "y", i) for i, name in enumerate(names)] + params
+        pairs = time + [(f"v_{name}", "q", i) for i, name in enumerate(scene.coordinates)]
+        pairs += [(f"v_{name}", "qdot", i) for i, name in enumerate(scene.velocity_names)]
+        return tuple(state), tuple(pairs + params)
 
     def _solve_spec(self) -> tuple | None:
         """``FunctionSpec.solve`` of a system in matrix form, else None."""

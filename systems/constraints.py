@@ -347,81 +347,123 @@ def check(mechanics) -> None:
 # -- kernel source ------------------------------------------------------------------------
 
 
-def kernel_source(writer, mechanics) -> str:
-    """The system functions of a constrained scene, for ``systems.compiled``.
+PRIMITIVES = (
+    "c_free_rhs",
+    "c_positions",
+    "c_rows",
+    "c_mass",
+    "c_velocities",
+    "c_momenta",
+    "c_saddle",
+    "c_gamma",
+)
+"""A constrained scene's own functions, in the order of the drivers' ``cs`` tuple (the
+constrained families' ``Family.functions``); the multipliers, projections, contacts and
+impacts are the drivers' (``systems/integrators/kernels.py``), the same for every scene."""
 
-    ``writer`` is the compiled module's kernel writer (its ``header``, ``body``,
-    ``unpack``, ``unpack_state``). With K constraints (``N_CONSTRAINTS``; the first
-    ``N_HOLONOMIC`` holonomic, up to ``N_BILATERAL`` nonholonomic, then unilateral) it
-    defines, for the state ``y = (q, p)`` (shape (2n,)) and an array ``act`` (K,) that
-    says which rows act (1.0) and which do not (0.0; every bilateral row acts):
 
-    - ``rhs(t, y, P, out)``: Hamilton's equations with the force of the bilateral
-      constraints (no contact acts), and ``c_rhs(t, y, P, act, out)`` with the rows
-      ``act`` selects;
-    - ``multipliers(t, y, P, out)``: lambda (K,), a unilateral row's only where the state
-      is in contact (``c_contacts``), 0 elsewhere;
-    - ``constraint_values(t, y, P, out)``: Phi, a . qdot + b and g (K,);
-    - ``project(t, y, P) -> bool`` and ``c_project(t, y, P, act) -> bool``: y onto the
-      position rows (Phi = 0, g = 0 of the acting contacts) and the velocity rows, in
-      place; False if Newton's iteration did not converge;
-    - ``c_contacts(t, y, P, act)``: which unilateral rows the state is in contact with;
-    - ``c_event_values(t, y, P, act, out)``: g (free unilateral rows) and -lambda
-      (acting contacts), negative when a step went through a wall or a contact pulls;
-    - ``c_switch(t, y, P, act, which)``: at a located event, the release of a contact or
-      Newton's restitution law (a resting contact where the rebound would rise less
-      than the contact gap);
-    - helpers ``c_*`` (the free equations, the saddle-point system, the rows with their
-      velocity-free parts as column n, M, qdot and p) and ``c_solve`` (dense Gaussian
-      elimination).
-    """
+def sizes(mechanics) -> np.ndarray:
+    """The drivers' ``sizes`` (int64, (4,)): the number of constraints, of holonomic ones,
+    of bilateral ones, and the index of the parameter ``restitution`` (-1 without)."""
     pieces = rows(mechanics)
-    scene = mechanics.scene
-    n, k = mechanics.n, pieces.k
-    m = n + k
     kh = sum(kind == "holonomic" for kind in pieces.kinds)
     kb = kh + sum(kind == "nonholonomic" for kind in pieces.kinds)
-    index = restitution_index(scene)
-    state = writer.unpack_state()
-    to_velocities = _velocity_lines(writer, mechanics)
-    parts = [
-        f"N_CONSTRAINTS = {k}\nN_HOLONOMIC = {kh}\nN_BILATERAL = {kb}\n"
-        f"RESTITUTION_INDEX = {-1 if index is None else index}\n",
-        _SOLVE,
-    ]
-    parts.append(_function(writer, "c_free_rhs(t, y, P, out)", state, mechanics.hamilton_equations))
+    index = restitution_index(mechanics.scene)
+    return np.array([pieces.k, kh, kb, -1 if index is None else index], dtype=np.int64)
+
+
+def _primitive_parts(mechanics):
+    """(name, arguments, [(target, expression)], needs the velocities first) of each of
+    ``PRIMITIVES``: targets are indices into ``out`` (``(i,)`` or ``(i, j)``)."""
+    pieces = rows(mechanics)
+    n, k = mechanics.n, pieces.k
+    m = n + k
+    M = mechanics.mass_matrix
     positions = [
         sympy.S.Zero if kind == "nonholonomic" else f
         for kind, f in zip(pieces.kinds, pieces.values, strict=True)
     ]
-    parts.append(_function(writer, "c_positions(t, y, P, out)", state, positions))
-    jacobian = [(f"out[{i}, {j}]", pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
-    jacobian += [(f"out[{i}, {n}]", pieces.time_derivative[i]) for i in range(k)]
-    parts.append(_assign(writer, "c_rows(t, y, P, out)", state, jacobian))
-    M = mechanics.mass_matrix
-    mass = [(f"out[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)]
-    parts.append(_assign(writer, "c_mass(t, y, P, out)", state, mass))
-    parts.append(_function(writer, "c_velocities(t, y, P, out)", state, mechanics.velocities))
-    unpack = writer.unpack("q", scene.coordinates) + writer.unpack("qdot", scene.velocity_names)
-    parts.append(_function(writer, "c_momenta(t, q, qdot, P, out)", unpack, mechanics.momenta))
-    saddle = [(f"W[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)]
-    saddle += [(f"W[{i}, {m}]", mechanics.forcing[i]) for i in range(n)]
-    saddle += [(f"W[{n + i}, {m}]", pieces.gamma[i]) for i in range(k)]
-    saddle += [(f"W[{n + i}, {j}]", pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
-    parts.append(_assign(writer, "c_saddle(t, y, P, W)", state, saddle, before=to_velocities))
-    gamma = [(f"out[{i}]", pieces.gamma[i]) for i in range(k)]
-    parts.append(_assign(writer, "c_gamma(t, y, P, out)", state, gamma, before=to_velocities))
-    parts.append(
-        _KERNELS.format(
-            n=n,
-            k=k,
-            m=m,
-            maxit=PROJECTION_ITERATIONS,
-            gap=CONTACT_GAP,
-            speed=CONTACT_SPEED,
-        )
-    )
+    jacobian = [((i, j), pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
+    jacobian += [((i, n), pieces.time_derivative[i]) for i in range(k)]
+    saddle = [((i, j), M[i, j]) for i in range(n) for j in range(n)]
+    saddle += [((i, m), mechanics.forcing[i]) for i in range(n)]
+    saddle += [((n + i, m), pieces.gamma[i]) for i in range(k)]
+    saddle += [((n + i, j), pieces.jacobian[i, j]) for i in range(k) for j in range(n)]
+    state = ("t", "y", "P", "out")
+    return [
+        ("c_free_rhs", state, list(enumerate(mechanics.hamilton_equations)), False),
+        ("c_positions", state, list(enumerate(positions)), False),
+        ("c_rows", state, jacobian, False),
+        ("c_mass", state, [((i, j), M[i, j]) for i in range(n) for j in range(n)], False),
+        ("c_velocities", state, list(enumerate(mechanics.velocities)), False),
+        ("c_momenta", ("t", "q", "qdot", "P", "out"), list(enumerate(mechanics.momenta)), False),
+        ("c_saddle", state, saddle, True),
+        ("c_gamma", state, list(enumerate(pieces.gamma)), True),
+    ]
+
+
+def kernel_source(writer, mechanics) -> str:
+    """A constrained scene's own functions (``PRIMITIVES``) as Python source, for numba
+    (``systems.compiled``); ``writer`` is the compiled module's kernel writer.
+
+    For the state ``y = (q, p)`` (shape (2n,)) and K constraints (holonomic, then
+    nonholonomic, then unilateral): ``c_free_rhs(t, y, P, out)`` Hamilton's equations
+    without the constraints' force; ``c_positions(t, y, P, out)`` Phi and g (K,; 0 for a
+    nonholonomic row); ``c_rows(t, y, P, out)`` the rows (K, n + 1: the Jacobian and the
+    velocity-free parts Phi_t, b, g_t as column n); ``c_mass(t, y, P, out)`` M (into the
+    top left of out); ``c_velocities(t, y, P, out)`` qdot; ``c_momenta(t, q, qdot, P,
+    out)`` p; ``c_saddle(t, y, P, W)`` M, F, gamma and the rows into the saddle-point
+    system W (m, m + 1), m = n + K; ``c_gamma(t, y, P, out)`` gamma (K,).
+    """
+    parts = []
+    scene = mechanics.scene
+    to_velocities = _velocity_lines(writer, mechanics)
+    for name, arguments, pairs, first in _primitive_parts(mechanics):
+        out = "W" if name == "c_saddle" else "out"
+        targets = [(f"{out}[{_index(target)}]", expr) for target, expr in pairs]
+        signature = f"{name}({', '.join(arguments[:-1])}, {out})"
+        if name == "c_momenta":
+            unpack = writer.unpack("q", scene.coordinates)
+            unpack += writer.unpack("qdot", scene.velocity_names)
+        else:
+            unpack = writer.unpack_state()
+        before = to_velocities if first else ()
+        parts.append(_assign(writer, signature, unpack, targets, before=before))
     return "\n\n".join(parts)
+
+
+def _index(target) -> str:
+    """``i`` or ``i, j``: a target of ``_primitive_parts`` as Python indexing."""
+    return ", ".join(map(str, target if isinstance(target, tuple) else (target,)))
+
+
+def specs(writer, mechanics) -> list:
+    """``PRIMITIVES`` as ``systems.llvm_kernels.FunctionSpec``s (the same expressions as
+    ``kernel_source``): ``c_saddle`` and ``c_gamma`` set the velocities from the state
+    first, by their expressions or, in matrix form, by the velocity solve."""
+    from systems.llvm_kernels import FunctionSpec
+
+    scene = mechanics.scene
+    state, pairs_bindings = writer.bindings()
+    solve = writer._solve_spec()
+    qdot = set(mechanics.qdot)
+    velocities = tuple(f"v_{name}" for name in scene.velocity_names)
+    found = []
+    for name, arguments, pairs, first in _primitive_parts(mechanics):
+        targets = tuple(t if isinstance(t, tuple) else (t,) for t, _ in pairs)
+        exprs = tuple(e for _, e in pairs)
+        bindings = pairs_bindings if name == "c_momenta" else state
+        pre = None
+        if first:
+            pre = (velocities, tuple(mechanics.velocities), solve)
+        uses = any(as_expr(e).free_symbols & qdot for e in exprs)
+        found.append(
+            FunctionSpec(
+                name, arguments, bindings, exprs, targets=targets, pre=pre,
+                solve=solve if uses and not first and name != "c_momenta" else None,
+            )
+        )  # fmt: skip
+    return found
 
 
 def _velocity_lines(writer, mechanics) -> list[str]:
@@ -454,358 +496,6 @@ def _assign(
     lines += temps
     lines += [f"{target} = {value}" for (target, _), value in zip(pairs, values, strict=True)]
     return lines[0] + "\n" + "\n".join("    " + line for line in lines[1:]) + "\n"
-
-
-_SOLVE = '''\
-def c_solve(W, m, r):
-    """Solve A X = B in place for W = [A | B] (m, m + r), A square and invertible.
-
-    Gaussian elimination with partial pivoting (the saddle-point matrix is symmetric but
-    indefinite, so no Cholesky); on return columns m .. m + r - 1 hold X. A singular A
-    gives inf or nan, which the driver rejects like any non-finite step.
-    """
-    for j in range(m):
-        pivot = j
-        for i in range(j + 1, m):
-            if abs(W[i, j]) > abs(W[pivot, j]):
-                pivot = i
-        if pivot != j:
-            for c in range(j, m + r):
-                W[j, c], W[pivot, c] = W[pivot, c], W[j, c]
-        for i in range(j + 1, m):
-            f = W[i, j] / W[j, j]
-            for c in range(j, m + r):
-                W[i, c] -= f * W[j, c]
-    for c in range(m, m + r):
-        for i in range(m - 1, -1, -1):
-            s = W[i, c]
-            for l in range(i + 1, m):
-                s -= W[i, l] * W[l, c]
-            W[i, c] = s / W[i, i]
-'''
-
-_KERNELS = '''\
-def _settled(size, previous, scale):
-    """Newton's correction is at round-off: tiny, or small and no longer shrinking
-    (quadratic convergence halves the digits left at least; noise does not)."""
-    if size <= 1e-14 * scale:
-        return True
-    return size <= 1e-10 * scale and size > 0.5 * previous
-
-
-def c_bilateral(act):
-    """act = 1 for the bilateral rows, 0 for the unilateral ones (no contact)."""
-    for i in range({k}):
-        act[i] = 1.0 if i < N_BILATERAL else 0.0
-
-
-def c_lambda(t, y, P, act, W):
-    """Fill and solve the saddle-point system of the rows with act > 0 (a row that does
-    not act gets an identity row and lambda = 0): W[{n}:{m}, {m}] is lambda, W[:{n}, {m}]
-    qddot."""
-    for i in range({k}):
-        for j in range({k}):
-            W[{n} + i, {n} + j] = 0.0
-    c_saddle(t, y, P, W)
-    for i in range({k}):
-        if act[i] > 0.0:
-            for j in range({n}):
-                W[j, {n} + i] = W[{n} + i, j]
-        else:
-            for j in range({n}):
-                W[j, {n} + i] = 0.0
-                W[{n} + i, j] = 0.0
-            W[{n} + i, {n} + i] = 1.0
-            W[{n} + i, {m}] = 0.0
-    c_solve(W, {m}, 1)
-
-
-def c_rhs(t, y, P, act, out):
-    W = np.empty(({m}, {m} + 1))
-    c_lambda(t, y, P, act, W)
-    R = np.empty(({k}, {n} + 1))
-    c_rows(t, y, P, R)
-    c_free_rhs(t, y, P, out)
-    for i in range({n}):
-        acc = 0.0
-        for j in range({k}):
-            acc += R[j, i] * W[{n} + j, {m}]
-        out[{n} + i] -= acc
-
-
-def rhs(t, y, P, out):
-    act = np.empty({k})
-    c_bilateral(act)
-    c_rhs(t, y, P, act, out)
-
-
-def c_normal_speeds(t, y, P, qd, R, out):
-    """out[i] = R[i, :n] . qd + R[i, n]: each row's velocity (a . qdot + b, G qdot + g_t)."""
-    for i in range({k}):
-        acc = R[i, {n}]
-        for j in range({n}):
-            acc += R[i, j] * qd[j]
-        out[i] = acc
-
-
-def c_contacts(t, y, P, act):
-    """act for the state y: the bilateral rows, and the unilateral rows it touches (g and
-    the normal velocity at zero) where the contact pushes (lambda <= 0)."""
-    c_bilateral(act)
-    if N_BILATERAL == {k}:
-        return
-    g = np.empty({k})
-    c_positions(t, y, P, g)
-    qd = np.empty({n})
-    c_velocities(t, y, P, qd)
-    R = np.empty(({k}, {n} + 1))
-    c_rows(t, y, P, R)
-    v = np.empty({k})
-    c_normal_speeds(t, y, P, qd, R, v)
-    qscale = 1.0
-    vscale = 1.0
-    for j in range({n}):
-        qscale = max(qscale, abs(y[j]))
-        vscale = max(vscale, abs(qd[j]))
-    touching = 0
-    for i in range(N_BILATERAL, {k}):
-        if abs(g[i]) <= {gap} * qscale and abs(v[i]) <= {speed} * vscale:
-            act[i] = 1.0
-            touching += 1
-    W = np.empty(({m}, {m} + 1))
-    while touching > 0:
-        c_lambda(t, y, P, act, W)
-        pulling = False
-        for i in range(N_BILATERAL, {k}):
-            if act[i] > 0.0 and W[{n} + i, {m}] > 0.0:
-                act[i] = 0.0
-                touching -= 1
-                pulling = True
-                break
-        if not pulling:
-            break
-
-
-def multipliers(t, y, P, out):
-    act = np.empty({k})
-    c_contacts(t, y, P, act)
-    W = np.empty(({m}, {m} + 1))
-    c_lambda(t, y, P, act, W)
-    for j in range({k}):
-        out[j] = W[{n} + j, {m}]
-
-
-def constraint_values(t, y, P, out):
-    c_positions(t, y, P, out)
-    if N_BILATERAL > N_HOLONOMIC:
-        qd = np.empty({n})
-        c_velocities(t, y, P, qd)
-        R = np.empty(({k}, {n} + 1))
-        c_rows(t, y, P, R)
-        v = np.empty({k})
-        c_normal_speeds(t, y, P, qd, R, v)
-        for i in range(N_HOLONOMIC, N_BILATERAL):
-            out[i] = v[i]
-
-
-def c_metric(t, y, P, R, use, top, r, out):
-    """out = x of [[M, R_u^T], [R_u, 0]] [x; mu] = [M top; r_u] over the rows with
-    use > 0: x = top - M^-1 R_u^T (R_u M^-1 R_u^T)^-1 (R_u top - r_u), the point of
-    R_u x = r_u nearest to ``top`` in the kinetic metric."""
-    W = np.empty(({m}, {m} + 1))
-    c_mass(t, y, P, W)
-    for i in range({n}):
-        acc = 0.0
-        for j in range({n}):
-            acc += W[i, j] * top[j]
-        W[i, {m}] = acc
-    for a in range({k}):
-        for b in range({k}):
-            W[{n} + a, {n} + b] = 0.0
-        if use[a] > 0.0:
-            for j in range({n}):
-                W[{n} + a, j] = R[a, j]
-                W[j, {n} + a] = R[a, j]
-            W[{n} + a, {m}] = r[a]
-        else:
-            for j in range({n}):
-                W[{n} + a, j] = 0.0
-                W[j, {n} + a] = 0.0
-            W[{n} + a, {n} + a] = 1.0
-            W[{n} + a, {m}] = 0.0
-    c_solve(W, {m}, 1)
-    for i in range({n}):
-        out[i] = W[i, {m}]
-
-
-def c_project(t, y, P, act):
-    """Move y = (q, p) onto the position rows (holonomic, and the acting contacts) and
-    every acting velocity row, in place; False if Newton's iteration did not converge."""
-    qd = np.empty({n})
-    c_velocities(t, y, P, qd)
-    pos = np.empty({k})
-    R = np.empty(({k}, {n} + 1))
-    dq = np.empty({n})
-    zero = np.empty({n})
-    use = np.empty({k})
-    npos = 0
-    for i in range({n}):
-        zero[i] = 0.0
-    for i in range({k}):
-        use[i] = 0.0
-        if act[i] > 0.0 and (i < N_HOLONOMIC or i >= N_BILATERAL):
-            use[i] = 1.0
-            npos += 1
-    converged = True
-    if npos > 0:
-        converged = False
-        previous = math.inf
-        for _ in range({maxit}):
-            c_positions(t, y, P, pos)
-            c_rows(t, y, P, R)
-            c_metric(t, y, P, R, use, zero, pos, dq)
-            size = 0.0
-            scale = 1.0
-            for i in range({n}):
-                y[i] -= dq[i]
-                size = max(size, abs(dq[i]))
-                scale = max(scale, abs(y[i]))
-            if not size == size:
-                return False
-            if _settled(size, previous, scale):
-                converged = True
-                break
-            previous = size
-    c_rows(t, y, P, R)
-    for i in range({k}):
-        pos[i] = -R[i, {n}]
-    c_metric(t, y, P, R, act, qd, pos, dq)
-    p = np.empty({n})
-    c_momenta(t, y, dq, P, p)
-    for i in range({n}):
-        y[{n} + i] = p[i]
-    return converged
-
-
-def project(t, y, P):
-    """Move y = (q, p) onto Phi(q, t) = 0 and the bilateral velocity rows, in place."""
-    act = np.empty({k})
-    c_bilateral(act)
-    return c_project(t, y, P, act)
-
-
-def c_restitution(P):
-    if RESTITUTION_INDEX < 0:
-        return 1.0
-    return max(P[RESTITUTION_INDEX], 0.0)
-
-
-def c_event_values(t, y, P, act, out):
-    """out[i] for the unilateral rows: g (a free row) or -lambda (an acting contact);
-    inf for the bilateral rows. A negative value means the state went through a wall or
-    a contact pulls."""
-    for i in range({k}):
-        out[i] = math.inf
-    if N_BILATERAL == {k}:
-        return
-    g = np.empty({k})
-    c_positions(t, y, P, g)
-    contact = False
-    for i in range(N_BILATERAL, {k}):
-        if act[i] > 0.0:
-            contact = True
-        else:
-            out[i] = g[i]
-    if contact:
-        W = np.empty(({m}, {m} + 1))
-        c_lambda(t, y, P, act, W)
-        for i in range(N_BILATERAL, {k}):
-            if act[i] > 0.0:
-                out[i] = -W[{n} + i, {m}]
-
-
-def c_switch(t, y, P, act, which):
-    """At the located event of row ``which``: release it if it is an acting contact (its
-    multiplier reached zero); otherwise Newton's restitution law on it (and on every other
-    free row as close, g <= its g, that approaches), jointly and keeping every acting row:
-    G qdot+ + g_t = -e (G qdot- + g_t), then p = p(q, qdot+). A rebound that would rise
-    less than the contact gap (v+**2 <= 2 |a_n| CONTACT_GAP max(1, |q|), with a_n the
-    normal acceleration of the free motion after the impact: e = 0, or the end of a Zeno
-    sequence of ever lower bounces) makes the contact a resting one instead (normal
-    velocity 0, act = 1). Contacts that would pull are then released, one at a time.
-    Returns False if nothing changed."""
-    if act[which] > 0.0:
-        act[which] = 0.0
-        return True
-    e = c_restitution(P)
-    qd = np.empty({n})
-    c_velocities(t, y, P, qd)
-    g = np.empty({k})
-    c_positions(t, y, P, g)
-    R = np.empty(({k}, {n} + 1))
-    c_rows(t, y, P, R)
-    v = np.empty({k})
-    c_normal_speeds(t, y, P, qd, R, v)
-    qscale = 1.0
-    for j in range({n}):
-        qscale = max(qscale, abs(y[j]))
-    use = np.empty({k})
-    target = np.empty({k})
-    hit = np.empty({k})
-    level = max(g[which], 0.0)
-    changed = False
-    for i in range({k}):
-        use[i] = act[i]
-        target[i] = -R[i, {n}]
-        hit[i] = 0.0
-        if i >= N_BILATERAL and act[i] == 0.0 and (i == which or g[i] <= level):
-            if v[i] > 0.0:
-                continue  # leaving already
-            use[i] = 1.0
-            hit[i] = 1.0
-            target[i] = -R[i, {n}] - e * v[i]
-            changed = True
-    if not changed:
-        return False
-    new = np.empty({n})
-    c_metric(t, y, P, R, use, qd, target, new)
-    p = np.empty({n})
-    c_momenta(t, y, new, P, p)
-    for i in range({n}):
-        y[{n} + i] = p[i]
-    # how high each rebound would rise: v+**2 / (2 |a_n|) with the free motion's a_n
-    W = np.empty(({m}, {m} + 1))
-    c_lambda(t, y, P, act, W)
-    gamma = np.empty({k})
-    c_gamma(t, y, P, gamma)
-    resting = False
-    for i in range(N_BILATERAL, {k}):
-        if hit[i] > 0.0:
-            a_n = -gamma[i]
-            for j in range({n}):
-                a_n += R[i, j] * W[j, {m}]
-            rebound = -e * v[i]
-            if rebound * rebound <= 2.0 * max(-a_n, 0.0) * {gap} * qscale:
-                act[i] = 1.0
-                target[i] = -R[i, {n}]
-                resting = True
-    if resting:
-        c_metric(t, y, P, R, use, qd, target, new)
-        c_momenta(t, y, new, P, p)
-        for i in range({n}):
-            y[{n} + i] = p[i]
-    for _ in range({k}):
-        c_lambda(t, y, P, act, W)
-        pulling = False
-        for i in range(N_BILATERAL, {k}):
-            if act[i] > 0.0 and W[{n} + i, {m}] > 0.0:
-                act[i] = 0.0
-                pulling = True
-                break
-        if not pulling:
-            break
-    return changed
-'''
 
 
 # -- numpy, for diagnostics and the initial state -----------------------------------------

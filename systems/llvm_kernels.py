@@ -12,10 +12,12 @@ they call numba-compiled ones (``LLVMFunction`` implements numba's wrapper-addre
 protocol).
 
 Only what the scene language produces is written: numbers, symbols, sums, products,
-powers and the functions of ``CALLS``; anything else raises ``Unsupported`` and
-``systems.compiled`` compiles the scene's functions with numba instead. So do systems
-in matrix form (a linear solve in every evaluation) and constrained ones (the
-multipliers' saddle-point solve, projections and impacts).
+powers and the functions of ``INTRINSICS`` and ``LIBM``; anything else raises
+``Unsupported`` and ``systems.compiled`` compiles the scene's functions with numba
+instead. Loops are not written: a system in matrix form calls the drivers'
+``solve_augmented`` (``FunctionSpec.solve``), and a constrained scene's multipliers,
+projections and impacts are the drivers' own, given its straight-line ``PRIMITIVES``
+(``systems.constraints``).
 """
 
 from __future__ import annotations
@@ -67,6 +69,12 @@ class FunctionSpec:
         solution of ``M qdot = p - a`` (``systems.matrix_solve.solve_augmented``), with
         ``entries`` the upper triangle of M row by row and then a (expressions free of
         the velocities), ``momenta`` the names of the symbols of p.
+    targets : tuple of index tuples, optional
+        Where each expression goes in ``out``: ``(i,)`` or ``(i, j)`` (by the array's
+        strides); by default ``out[i] = exprs[i]``.
+    pre : (names, exprs, solve) or None
+        Symbols set before ``exprs`` are written, each to its expression (a CSE of their
+        own; with ``solve``, by the velocity solve instead).
     """
 
     name: str
@@ -75,6 +83,8 @@ class FunctionSpec:
     exprs: tuple
     returns: bool = False
     solve: tuple | None = None
+    targets: tuple | None = None
+    pre: tuple | None = None
 
 
 @functools.cache
@@ -133,59 +143,84 @@ class _Writer:
         self.function = ir.Function(module, function_type, name=spec.name)
         block = self.function.append_basic_block("entry")
         self.b = ir.IRBuilder(block)
-        self.values: dict = {}
+        self.names: dict[str, object] = {}  # symbols and temporaries by name
+        self.memo: dict = {}  # expression nodes of the current CSE
         self.data: dict[str, object] = {}
+        self.rows: dict[str, object] = {}  # a 2-D array's row length, in elements
         self.scalars: dict[str, object] = {}
+        i64 = ir.IntType(64)
         for name, argument, numba_type in zip(
             spec.arguments, self.function.args, sig.args, strict=True
         ):
             argument.name = name
             if hasattr(numba_type, "ndim"):
                 self.data[name] = self.b.extract_value(argument, 4, name=f"{name}_data")
+                if numba_type.ndim == 2:
+                    stride = self.b.extract_value(argument, [6, 0])
+                    self.rows[name] = self.b.sdiv(stride, ir.Constant(i64, 8))
             else:
                 self.scalars[name] = argument
 
     def write(self) -> None:
-        from systems.calculus import Unsupported as CalculusUnsupported
-        from systems.calculus import engine_cse
-
         spec = self.spec
+        ir = self.ir
+        i64 = ir.IntType(64)
         for symbol, argument, index in spec.bindings:
             if index is None:
                 value = self.scalars[argument]
             else:
-                pointer = self.b.gep(
-                    self.data[argument], [self.ir.Constant(self.ir.IntType(64), index)]
-                )
+                pointer = self.b.gep(self.data[argument], [ir.Constant(i64, index)])
                 value = self.b.load(pointer, name=symbol)
-            self.values[symbol] = value
-        entries = () if spec.solve is None else tuple(spec.solve[0])
-        try:
-            temporaries, reduced = engine_cse([*entries, *spec.exprs], self.rename)
-        except CalculusUnsupported as exc:
-            raise Unsupported(str(exc)) from None
-        if spec.solve is not None:
-            temporaries = self._solve(temporaries, reduced[: len(entries)])
-            reduced = reduced[len(entries) :]
-        for name, expr in temporaries:
-            self.values[name] = self.value(expr)
-        results = [self.value(expr) for expr in reduced]
+            self.names[symbol] = value
+        if spec.pre is not None:
+            names, exprs, solve = spec.pre
+            if solve is not None:  # the solve itself binds the velocity symbols
+                self._phase((), solve)
+            else:
+                for name, value in zip(names, self._phase(exprs, None), strict=True):
+                    self.names[name] = value
+        results = self._phase(spec.exprs, spec.solve)
         if spec.returns:
             self.b.ret(results[0])
             return
-        out = self.data[spec.arguments[-1]]
-        for i, value in enumerate(results):
-            pointer = self.b.gep(out, [self.ir.Constant(self.ir.IntType(64), i)])
-            self.b.store(value, pointer)
-        self.b.ret(self.ir.Constant(self.result_type, None))
+        argument = spec.arguments[-1]
+        out = self.data[argument]
+        targets = spec.targets or [(i,) for i in range(len(results))]
+        for target, value in zip(targets, results, strict=True):
+            if len(target) == 1:
+                index = ir.Constant(i64, target[0])
+            else:
+                row = self.b.mul(ir.Constant(i64, target[0]), self.rows[argument])
+                index = self.b.add(row, ir.Constant(i64, target[1]))
+            self.b.store(value, self.b.gep(out, [index]))
+        self.b.ret(ir.Constant(self.result_type, None))
 
-    def _solve(self, temporaries: list, entries: list) -> list:
+    def _phase(self, exprs, solve) -> list:
+        """One common-subexpression elimination of ``exprs`` (after the velocity solve's
+        entries, with ``solve``), written; returns the values of ``exprs``."""
+        from systems.calculus import Unsupported as CalculusUnsupported
+        from systems.calculus import engine_cse
+
+        self.memo = {}  # the temporaries' names are reused by each elimination
+        entries = () if solve is None else tuple(solve[0])
+        try:
+            temporaries, reduced = engine_cse([*entries, *exprs], self.rename)
+        except CalculusUnsupported as exc:
+            raise Unsupported(str(exc)) from None
+        if solve is not None:
+            temporaries = self._solve(temporaries, reduced[: len(entries)], solve)
+            reduced = reduced[len(entries) :]
+        for name, expr in temporaries:
+            self.names[name] = self.value(expr)
+        return [self.value(expr) for expr in reduced]
+
+    def _solve(self, temporaries: list, entries: list, solve: tuple) -> list:
         """Write the temporaries free of the velocities, fill ``W = [M | p - a | diag M]``,
         solve it (``solve_augmented`` of the drivers, through its C wrapper) and bind the
         velocity symbols; returns the temporaries left, those that use the velocities,
         as ``systems.compiled._KernelWriter.solved_body`` orders them."""
         ir, b = self.ir, self.b
-        _, momenta, velocities = self.spec.solve
+        _, momenta, velocities = solve
         n = len(velocities)
         pending = set(velocities)
         after = []
@@ -194,7 +229,7 @@ class _Writer:
                 pending.add(name)
                 after.append((name, expr))
             else:
-                self.values[name] = self.value(expr)
+                self.names[name] = self.value(expr)
         width = n + 2
         i64 = ir.IntType(64)
         with b.goto_entry_block():
@@ -209,10 +244,10 @@ class _Writer:
             b.store(value, cell(i, j))
             b.store(value, cell(j, i) if i != j else cell(i, n + 1))
         for i, (p, expr) in enumerate(zip(momenta, entries[len(upper) :], strict=True)):
-            b.store(b.fsub(self.values[p], self.value(expr)), cell(i, n))
+            b.store(b.fsub(self.names[p], self.value(expr)), cell(i, n))
         self._call_solver(W, n)
         for i, name in enumerate(velocities):
-            self.values[name] = b.load(cell(i, n), name=name)
+            self.names[name] = b.load(cell(i, n), name=name)
         return after
 
     def _call_solver(self, W, n: int) -> None:
@@ -246,14 +281,14 @@ class _Writer:
     def value(self, expr):
         """The IR value of a symengine expression (each distinct node once)."""
         try:
-            return self.values[expr]
+            return self.memo[expr]
         except (KeyError, TypeError):
             pass
         try:
             value = self._node(expr)
         except RecursionError:
             raise Unsupported("nested too deeply") from None
-        self.values[expr] = value
+        self.memo[expr] = value
         return value
 
     def _node(self, expr):
@@ -265,7 +300,7 @@ class _Writer:
         if isinstance(expr, symengine.RealDouble):
             return self.const(float(expr))
         if isinstance(expr, symengine.Symbol):
-            found = self.values.get(str(expr))
+            found = self.names.get(str(expr))
             if found is None:
                 raise Unsupported(f"unknown symbol {expr}")
             return found

@@ -563,11 +563,404 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
     return STATUS_RUNNING, evals
 
 
+# -- constrained systems: the multipliers, the projection, contacts and impacts ------------------
+# ``cs`` is the scene's tuple of constraint functions (``Family.functions`` of the
+# constrained families, in this order: ``c_free_rhs``, ``c_positions``, ``c_rows``,
+# ``c_mass``, ``c_velocities``, ``c_momenta``, ``c_saddle``, ``c_gamma``, see
+# ``systems.constraints.kernel_source``) followed by ``sizes`` (int64: the number of
+# constraints k, of holonomic ones, of bilateral ones (holonomic and nonholonomic), and
+# the index of the parameter ``restitution`` in P, -1 without one). The state y = (q, p)
+# has n = len(y) // 2 coordinates; the saddle-point systems are m = n + k square.
+
+
+def c_solve(W, m, r):
+    """Solve A X = B in place for W = [A | B] (m, m + r), A square and invertible.
+
+    Gaussian elimination with partial pivoting (the saddle-point matrix is symmetric but
+    indefinite, so no Cholesky); on return columns m .. m + r - 1 hold X. A singular A
+    gives inf or nan, which the driver rejects like any non-finite step.
+    """
+    for j in range(m):
+        pivot = j
+        for i in range(j + 1, m):
+            if abs(W[i, j]) > abs(W[pivot, j]):
+                pivot = i
+        if pivot != j:
+            for c in range(j, m + r):
+                W[j, c], W[pivot, c] = W[pivot, c], W[j, c]
+        for i in range(j + 1, m):
+            f = W[i, j] / W[j, j]
+            for c in range(j, m + r):
+                W[i, c] -= f * W[j, c]
+    for c in range(m, m + r):
+        for i in range(m - 1, -1, -1):
+            s = W[i, c]
+            for l in range(i + 1, m):
+                s -= W[i, l] * W[l, c]
+            W[i, c] = s / W[i, i]
+
+
+def _settled(size, previous, scale):
+    """Newton's correction is at round-off: tiny, or small and no longer shrinking
+    (quadratic convergence halves the digits left at least; noise does not)."""
+    if size <= 1e-14 * scale:
+        return True
+    return size <= 1e-10 * scale and size > 0.5 * previous
+
+
+def c_bilateral(cs, act):
+    """act = 1 for the bilateral rows, 0 for the unilateral ones (no contact)."""
+    k = cs[8][0]
+    for i in range(k):
+        act[i] = 1.0 if i < cs[8][2] else 0.0
+
+
+def c_lambda(cs, t, y, P, act, W):
+    """Fill and solve the saddle-point system of the rows with act > 0 (a row that does
+    not act gets an identity row and lambda = 0): W[n:m, m] is lambda, W[:n, m]
+    qddot."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    for i in range(k):
+        for j in range(k):
+            W[n + i, n + j] = 0.0
+    cs[6](t, y, P, W)
+    for i in range(k):
+        if act[i] > 0.0:
+            for j in range(n):
+                W[j, n + i] = W[n + i, j]
+        else:
+            for j in range(n):
+                W[j, n + i] = 0.0
+                W[n + i, j] = 0.0
+            W[n + i, n + i] = 1.0
+            W[n + i, m] = 0.0
+    c_solve(W, m, 1)
+
+
+def c_rhs(cs, t, y, P, act, out):
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    W = np.empty((m, m + 1))
+    c_lambda(cs, t, y, P, act, W)
+    R = np.empty((k, n + 1))
+    cs[2](t, y, P, R)
+    cs[0](t, y, P, out)
+    for i in range(n):
+        acc = 0.0
+        for j in range(k):
+            acc += R[j, i] * W[n + j, m]
+        out[n + i] -= acc
+
+
+def c_bilateral_rhs(cs, t, y, P, out):
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    n + k
+    act = np.empty(k)
+    c_bilateral(cs, act)
+    c_rhs(cs, t, y, P, act, out)
+
+
+def c_normal_speeds(cs, t, y, P, qd, R, out):
+    """out[i] = R[i, :n] . qd + R[i, n]: each row's velocity (a . qdot + b, G qdot + g_t)."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    n + k
+    for i in range(k):
+        acc = R[i, n]
+        for j in range(n):
+            acc += R[i, j] * qd[j]
+        out[i] = acc
+
+
+def c_contacts(cs, t, y, P, act):
+    """act for the state y: the bilateral rows, and the unilateral rows it touches (g and
+    the normal velocity at zero) where the contact pushes (lambda <= 0)."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    c_bilateral(cs, act)
+    if cs[8][2] == k:
+        return
+    g = np.empty(k)
+    cs[1](t, y, P, g)
+    qd = np.empty(n)
+    cs[4](t, y, P, qd)
+    R = np.empty((k, n + 1))
+    cs[2](t, y, P, R)
+    v = np.empty(k)
+    c_normal_speeds(cs, t, y, P, qd, R, v)
+    qscale = 1.0
+    vscale = 1.0
+    for j in range(n):
+        qscale = max(qscale, abs(y[j]))
+        vscale = max(vscale, abs(qd[j]))
+    touching = 0
+    for i in range(cs[8][2], k):
+        if abs(g[i]) <= CONTACT_GAP * qscale and abs(v[i]) <= CONTACT_SPEED * vscale:
+            act[i] = 1.0
+            touching += 1
+    W = np.empty((m, m + 1))
+    while touching > 0:
+        c_lambda(cs, t, y, P, act, W)
+        pulling = False
+        for i in range(cs[8][2], k):
+            if act[i] > 0.0 and W[n + i, m] > 0.0:
+                act[i] = 0.0
+                touching -= 1
+                pulling = True
+                break
+        if not pulling:
+            break
+
+
+def c_multipliers(cs, t, y, P, out):
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    act = np.empty(k)
+    c_contacts(cs, t, y, P, act)
+    W = np.empty((m, m + 1))
+    c_lambda(cs, t, y, P, act, W)
+    for j in range(k):
+        out[j] = W[n + j, m]
+
+
+def c_constraint_values(cs, t, y, P, out):
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    n + k
+    cs[1](t, y, P, out)
+    if cs[8][2] > cs[8][1]:
+        qd = np.empty(n)
+        cs[4](t, y, P, qd)
+        R = np.empty((k, n + 1))
+        cs[2](t, y, P, R)
+        v = np.empty(k)
+        c_normal_speeds(cs, t, y, P, qd, R, v)
+        for i in range(cs[8][1], cs[8][2]):
+            out[i] = v[i]
+
+
+def c_metric(cs, t, y, P, R, use, top, r, out):
+    """out = x of [[M, R_u^T], [R_u, 0]] [x; mu] = [M top; r_u] over the rows with
+    use > 0: x = top - M^-1 R_u^T (R_u M^-1 R_u^T)^-1 (R_u top - r_u), the point of
+    R_u x = r_u nearest to ``top`` in the kinetic metric."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    W = np.empty((m, m + 1))
+    cs[3](t, y, P, W)
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += W[i, j] * top[j]
+        W[i, m] = acc
+    for a in range(k):
+        for b in range(k):
+            W[n + a, n + b] = 0.0
+        if use[a] > 0.0:
+            for j in range(n):
+                W[n + a, j] = R[a, j]
+                W[j, n + a] = R[a, j]
+            W[n + a, m] = r[a]
+        else:
+            for j in range(n):
+                W[n + a, j] = 0.0
+                W[j, n + a] = 0.0
+            W[n + a, n + a] = 1.0
+            W[n + a, m] = 0.0
+    c_solve(W, m, 1)
+    for i in range(n):
+        out[i] = W[i, m]
+
+
+def c_project(cs, t, y, P, act):
+    """Move y = (q, p) onto the position rows (holonomic, and the acting contacts) and
+    every acting velocity row, in place; False if Newton's iteration did not converge."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    n + k
+    qd = np.empty(n)
+    cs[4](t, y, P, qd)
+    pos = np.empty(k)
+    R = np.empty((k, n + 1))
+    dq = np.empty(n)
+    zero = np.empty(n)
+    use = np.empty(k)
+    npos = 0
+    for i in range(n):
+        zero[i] = 0.0
+    for i in range(k):
+        use[i] = 0.0
+        if act[i] > 0.0 and (i < cs[8][1] or i >= cs[8][2]):
+            use[i] = 1.0
+            npos += 1
+    converged = True
+    if npos > 0:
+        converged = False
+        previous = math.inf
+        for _ in range(PROJECTION_ITERATIONS):
+            cs[1](t, y, P, pos)
+            cs[2](t, y, P, R)
+            c_metric(cs, t, y, P, R, use, zero, pos, dq)
+            size = 0.0
+            scale = 1.0
+            for i in range(n):
+                y[i] -= dq[i]
+                size = max(size, abs(dq[i]))
+                scale = max(scale, abs(y[i]))
+            if not size == size:
+                return False
+            if _settled(size, previous, scale):
+                converged = True
+                break
+            previous = size
+    cs[2](t, y, P, R)
+    for i in range(k):
+        pos[i] = -R[i, n]
+    c_metric(cs, t, y, P, R, act, qd, pos, dq)
+    p = np.empty(n)
+    cs[5](t, y, dq, P, p)
+    for i in range(n):
+        y[n + i] = p[i]
+    return converged
+
+
+def c_project_bilateral(cs, t, y, P):
+    """Move y = (q, p) onto Phi(q, t) = 0 and the bilateral velocity rows, in place."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    n + k
+    act = np.empty(k)
+    c_bilateral(cs, act)
+    return c_project(cs, t, y, P, act)
+
+
+def c_restitution(cs, P):
+    cs[8][0]
+    if cs[8][3] < 0:
+        return 1.0
+    return max(P[cs[8][3]], 0.0)
+
+
+def c_event_values(cs, t, y, P, act, out):
+    """out[i] for the unilateral rows: g (a free row) or -lambda (an acting contact);
+    inf for the bilateral rows. A negative value means the state went through a wall or
+    a contact pulls."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    for i in range(k):
+        out[i] = math.inf
+    if cs[8][2] == k:
+        return
+    g = np.empty(k)
+    cs[1](t, y, P, g)
+    contact = False
+    for i in range(cs[8][2], k):
+        if act[i] > 0.0:
+            contact = True
+        else:
+            out[i] = g[i]
+    if contact:
+        W = np.empty((m, m + 1))
+        c_lambda(cs, t, y, P, act, W)
+        for i in range(cs[8][2], k):
+            if act[i] > 0.0:
+                out[i] = -W[n + i, m]
+
+
+def c_switch(cs, t, y, P, act, which):
+    """At the located event of row ``which``: release it if it is an acting contact (its
+    multiplier reached zero); otherwise Newton's restitution law on it (and on every other
+    free row as close, g <= its g, that approaches), jointly and keeping every acting row:
+    G qdot+ + g_t = -e (G qdot- + g_t), then p = p(q, qdot+). A rebound that would rise
+    less than the contact gap (v+**2 <= 2 |a_n| CONTACT_GAP max(1, |q|), with a_n the
+    normal acceleration of the free motion after the impact: e = 0, or the end of a Zeno
+    sequence of ever lower bounces) makes the contact a resting one instead (normal
+    velocity 0, act = 1). Contacts that would pull are then released, one at a time.
+    Returns False if nothing changed."""
+    n = y.shape[0] // 2
+    k = cs[8][0]
+    m = n + k
+    if act[which] > 0.0:
+        act[which] = 0.0
+        return True
+    e = c_restitution(cs, P)
+    qd = np.empty(n)
+    cs[4](t, y, P, qd)
+    g = np.empty(k)
+    cs[1](t, y, P, g)
+    R = np.empty((k, n + 1))
+    cs[2](t, y, P, R)
+    v = np.empty(k)
+    c_normal_speeds(cs, t, y, P, qd, R, v)
+    qscale = 1.0
+    for j in range(n):
+        qscale = max(qscale, abs(y[j]))
+    use = np.empty(k)
+    target = np.empty(k)
+    hit = np.empty(k)
+    level = max(g[which], 0.0)
+    changed = False
+    for i in range(k):
+        use[i] = act[i]
+        target[i] = -R[i, n]
+        hit[i] = 0.0
+        if i >= cs[8][2] and act[i] == 0.0 and (i == which or g[i] <= level):
+            if v[i] > 0.0:
+                continue  # leaving already
+            use[i] = 1.0
+            hit[i] = 1.0
+            target[i] = -R[i, n] - e * v[i]
+            changed = True
+    if not changed:
+        return False
+    new = np.empty(n)
+    c_metric(cs, t, y, P, R, use, qd, target, new)
+    p = np.empty(n)
+    cs[5](t, y, new, P, p)
+    for i in range(n):
+        y[n + i] = p[i]
+    # how high each rebound would rise: v+**2 / (2 |a_n|) with the free motion's a_n
+    W = np.empty((m, m + 1))
+    c_lambda(cs, t, y, P, act, W)
+    gamma = np.empty(k)
+    cs[7](t, y, P, gamma)
+    resting = False
+    for i in range(cs[8][2], k):
+        if hit[i] > 0.0:
+            a_n = -gamma[i]
+            for j in range(n):
+                a_n += R[i, j] * W[j, m]
+            rebound = -e * v[i]
+            if rebound * rebound <= 2.0 * max(-a_n, 0.0) * 1e-10 * qscale:
+                act[i] = 1.0
+                target[i] = -R[i, n]
+                resting = True
+    if resting:
+        c_metric(cs, t, y, P, R, use, qd, target, new)
+        cs[5](t, y, new, P, p)
+        for i in range(n):
+            y[n + i] = p[i]
+    for _ in range(k):
+        c_lambda(cs, t, y, P, act, W)
+        pulling = False
+        for i in range(cs[8][2], k):
+            if act[i] > 0.0 and W[n + i, m] > 0.0:
+                act[i] = 0.0
+                pulling = True
+                break
+        if not pulling:
+            break
+    return changed
+
+
 # -- constrained systems: a step, then the projection onto the constraints ------------------
-# ``c_rhs``, ``c_project``, ``project``, ``c_event_values``, ``c_switch`` and the constants
-# ``N_CONSTRAINTS``, ``N_BILATERAL`` exist only in the kernel module of a scene with
-# constraints (``systems.constraints``), whose ``rhs`` already carries the multipliers'
-# force; numba compiles these steps only when such a scene calls them.
 #
 # The contacts of unilateral constraints are part of the step's work: ``act`` (one entry
 # per constraint, 1.0 where the row acts) and ``act0``, its value at the start of the last
@@ -579,7 +972,7 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
 # driver never sees the penetrated state.
 
 
-def _c_stages(c_rhs, t, y, P, act, h, tableau, buffers, stages):
+def _c_stages(fns, t, y, P, act, h, tableau, buffers, stages):
     """``_rk_stages`` on the constrained ``c_rhs`` with the rows ``act``."""
     A, c = tableau
     K, Yst = buffers
@@ -590,7 +983,7 @@ def _c_stages(c_rhs, t, y, P, act, h, tableau, buffers, stages):
             for j in range(i):
                 acc += A[i, j] * K[j, k]
             Yst[k] = y[k] + h * acc
-        c_rhs(t + c[i] * h, Yst, P, act, K[i])
+        c_rhs(fns, t + c[i] * h, Yst, P, act, K[i])
 
 
 def cdop853_work(coef, m):
@@ -613,16 +1006,16 @@ def cdop853_work(coef, m):
     )
 
 
-def _c_trial(c_rhs, t, y, P, act, h, coef, work):
+def _c_trial(fns, t, y, P, act, h, coef, work):
     """ynew = the DOP853 step of size h from y (K[0] = f(t, y) already), not projected;
     returns the error norm."""
     A, B, C, E3, E5, _sizes, rtol, atol, _hmax = coef
     K, ynew, ys = work[0], work[1], work[2]
     S = B.shape[0]
-    _c_stages(c_rhs, t, y, P, act, h, (A, C), (K, ys), (1, S))
+    _c_stages(fns, t, y, P, act, h, (A, C), (K, ys), (1, S))
     for k in range(y.shape[0]):
         ynew[k] = y[k] + h * _rk_sum(K, B, k)
-    c_rhs(t + h, ynew, P, act, K[S])
+    c_rhs(fns, t + h, ynew, P, act, K[S])
     return _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol)
 
 
@@ -642,18 +1035,17 @@ def _c_locate(fns, t, y, P, h, coef, work):
     the largest step size a found with value >= 0 (regula falsi, Illinois), its state in
     ``ynew``. Returns (a, the event's row, evaluations). ``mask`` (in ``work[6]``) holds the
     rows whose value was >= 0 at the start of the step."""
-    c_rhs, _contacts, c_project, c_event_values, _switch = fns
     K, ynew, ys, ya, act, act0, mask, values, flags = work
     S = coef[1].shape[0]
     evals = 0
-    c_event_values(t, y, P, act, values)
+    c_event_values(fns, t, y, P, act, values)
     fa, _ = _c_first(values, mask)
     fa = max(fa, 0.0)
     for k in range(y.shape[0]):
         ya[k] = y[k]
     a = 0.0
     b = h
-    c_event_values(t + h, ynew, P, act, values)
+    c_event_values(fns, t + h, ynew, P, act, values)
     fb, which = _c_first(values, mask)
     tol = 1e-15 * max(fa, -fb)
     side = 0
@@ -666,13 +1058,13 @@ def _c_locate(fns, t, y, P, h, coef, work):
             # a row at zero at the start that leaves and comes back within the step (a
             # low bounce): halve until the bracket's left end is clearly inside
             s = 0.5 * (a + b)
-        _c_trial(c_rhs, t, y, P, act, s, coef, work)
+        _c_trial(fns, t, y, P, act, s, coef, work)
         evals += S
-        if not c_project(t + s, ynew, P, act) or not _finite(ynew):
+        if not c_project(fns, t + s, ynew, P, act) or not _finite(ynew):
             b = s  # no good state there: look before it
             side = 0
             continue
-        c_event_values(t + s, ynew, P, act, values)
+        c_event_values(fns, t + s, ynew, P, act, values)
         fs, row = _c_first(values, mask)
         if fs < 0.0:
             b = s
@@ -706,14 +1098,13 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     leaving it are both kept (a drawing shows the jump of the velocities at the wall, not
     a chord across it). Steps are at most ``hmax``, as in ``dop853_step``.
     """
-    c_rhs, c_contacts, c_project, c_event_values, c_switch = fns
     A, B, C, E3, E5, sizes, rtol, atol, hmax = coef
     K, ynew, ys, ya, act, act0, mask, values, flags = work
     t = clock[CLOCK_T]
     evals = 0
     if flags[0] == 0.0:  # the start, or the driver undid the last step
         if flags[3] == 0.0:
-            c_contacts(t, y, P, act)
+            c_contacts(fns, t, y, P, act)
             flags[3] = 1.0
         else:
             for i in range(act.shape[0]):
@@ -726,13 +1117,13 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     if flags[4] != 0.0:  # the event the last step ended at: applied here, at the same t
         which = int(flags[4]) - 1
         flags[4] = 0.0
-        c_switch(t, y, P, act, which)
+        c_switch(fns, t, y, P, act, which)
         for k in range(y.shape[0]):
             comp[k] = 0.0
         flags[2] = 0.0
         return STATUS_RUNNING, evals
     if flags[2] == 0.0:  # K[0] is f at the start of the step
-        c_rhs(t, y, P, act, K[0])
+        c_rhs(fns, t, y, P, act, K[0])
         evals += 1
         flags[2] = 1.0
     S = B.shape[0]
@@ -743,7 +1134,7 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
         h = t_end - t
     if h < 1e-14 * max(abs(t), 1.0) * 4.0:
         return STATUS_STEP_COLLAPSED, evals
-    err = _c_trial(c_rhs, t, y, P, act, h, coef, work)
+    err = _c_trial(fns, t, y, P, act, h, coef, work)
     evals += S
     if not err == err or not _finite(ynew):
         clock[CLOCK_H] = h * 0.2
@@ -756,17 +1147,17 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
     if flags[1] != 0.0:
         factor = min(1.0, factor)
-    if not c_project(t + h, ynew, P, act):
+    if not c_project(fns, t + h, ynew, P, act):
         return STATUS_NOT_CONVERGED, evals
     following = min(h * factor, hmax)
     if sizes[1] < sizes[0]:  # unilateral rows
-        c_event_values(t + h, ynew, P, act, values)
+        c_event_values(fns, t + h, ynew, P, act, values)
         event = False
         for i in range(act.shape[0]):
             if values[i] < 0.0:
                 event = True
         if event:
-            c_event_values(t, y, P, act, mask)
+            c_event_values(fns, t, y, P, act, mask)
             for i in range(act.shape[0]):
                 mask[i] = 1.0 if mask[i] >= 0.0 and mask[i] < math.inf else 0.0
             _, first = _c_first(values, mask)
@@ -777,7 +1168,7 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
                 last = False
                 if h > 0.0:
                     flags[4] = which + 1.0  # the next call applies it
-                elif not c_switch(t, ynew, P, act, which):
+                elif not c_switch(fns, t, ynew, P, act, which):
                     return STATUS_NOT_CONVERGED, evals  # an event at once that changes nothing
     for k in range(y.shape[0]):
         y[k] = ynew[k]
@@ -790,19 +1181,29 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
 
 
 def cerk_work(coef, m):
-    return erk_work(coef, m)
+    s = coef[0].shape[0]
+    return (np.empty((s, m)), np.empty(m), np.empty(coef[4][0]), np.zeros(1))
 
 
 def cerk_step(fns, y, comp, clock, P, coef, work):
-    """A fixed explicit Runge-Kutta step on the constrained ``rhs`` (bilateral
-    constraints only: the registry refuses unilateral ones), then the projection."""
-    code, evals = erk_step(fns, y, comp, clock, P, coef, work)
-    if code == STATUS_RUNNING:
-        if not fns[1](clock[CLOCK_T], y, P):  # project
-            return STATUS_NOT_CONVERGED, evals
-        for k in range(y.shape[0]):
-            comp[k] = 0.0
-    return code, evals
+    """A fixed explicit Runge-Kutta step on the equations with the multipliers of the
+    bilateral constraints (the registry refuses unilateral ones), then the projection."""
+    A, b, c, kahan, _sizes = coef
+    K, Yst, act, _ = work
+    s = b.shape[0]
+    m = y.shape[0]
+    t = clock[CLOCK_T]
+    h = clock[CLOCK_H]
+    c_bilateral(fns, act)
+    _c_stages(fns, t, y, P, act, h, (A, c), (K, Yst), (0, s))
+    for k in range(m):
+        _add(y, comp, k, h * _rk_sum(K, b, k), kahan)
+    _tick_fixed(clock)
+    if not c_project_bilateral(fns, clock[CLOCK_T], y, P):
+        return STATUS_NOT_CONVERGED, s
+    for k in range(m):
+        comp[k] = 0.0
+    return STATUS_RUNNING, s
 
 
 # -- many states at once: a scene's function over the rows of an array ------------------------

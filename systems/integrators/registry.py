@@ -216,6 +216,18 @@ def _applies_always(mechanics, stepper: Stepper) -> str | None:
 
 
 CONSTRAINED_METHODS = "constrained_dop853 or constrained_rk4"
+CONSTRAINED_FUNCTIONS = (
+    "c_free_rhs",
+    "c_positions",
+    "c_rows",
+    "c_mass",
+    "c_velocities",
+    "c_momenta",
+    "c_saddle",
+    "c_gamma",
+)
+"""``systems.constraints.PRIMITIVES``: the constrained families' steps take them and
+``constraints.sizes`` as ``cs`` (``CompiledSystem.constraint_functions``)."""
 
 
 def _constraints_fit(mechanics, stepper: Stepper) -> str | None:
@@ -325,8 +337,11 @@ def _fixed_step_constraints_apply(mechanics, stepper: Stepper) -> str | None:
 
 
 def _constrained_rk4_coef(stepper, compiled, t0, y0, compensated):
+    from systems.constraints import sizes
+
     A, b, c = EXPLICIT_TABLEAUX["rk4"]
-    return (A, b, c, False)  # each step's projection resets the Kahan terms
+    # each step's projection resets the Kahan terms
+    return (A, b, c, False, sizes(compiled.mechanics))
 
 
 def _dop853_coef(stepper, compiled, t0, y0, compensated):
@@ -342,9 +357,10 @@ def _dop853_coef(stepper, compiled, t0, y0, compensated):
 
 
 def _constrained_dop853_coef(stepper, compiled, t0, y0, compensated):
-    """DOP853's, and the numbers of constraints: all rows, and the bilateral ones."""
-    sizes = np.array([compiled.kernels.N_CONSTRAINTS, compiled.kernels.N_BILATERAL])
-    return (*_dop853_coef(stepper, compiled, t0, y0, compensated), sizes.astype(np.int64))
+    """DOP853's, and ``constraints.sizes``."""
+    from systems.constraints import sizes
+
+    return (*_dop853_coef(stepper, compiled, t0, y0, compensated), sizes(compiled.mechanics))
 
 
 def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
@@ -441,7 +457,7 @@ FAMILIES: dict[str, Family] = {
             coefficients=_constrained_dop853_coef,
             default_setting=_adaptive_tol,
             applies=_applies_always,
-            functions=("c_rhs", "c_contacts", "c_project", "c_event_values", "c_switch"),
+            functions=CONSTRAINED_FUNCTIONS,
             adaptive=True,
             constrained=True,
         ),
@@ -455,7 +471,7 @@ FAMILIES: dict[str, Family] = {
             coefficients=_constrained_rk4_coef,
             default_setting=stepsize.default_step,
             applies=_fixed_step_constraints_apply,
-            functions=("rhs", "project"),
+            functions=CONSTRAINED_FUNCTIONS,
             constrained=True,
         ),
         Family(

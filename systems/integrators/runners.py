@@ -93,7 +93,10 @@ class KernelRunner:
         drivers = driver_module()
         allocate = _as_python(getattr(drivers, f"{family.kernel}_work"))
         self.work = allocate(self.coef, self.m)
-        self.fns = compiled.functions(family.functions)
+        if family.constrained:
+            self.fns = compiled.constraint_functions()
+        else:
+            self.fns = compiled.functions(family.functions)
         self.loop = getattr(drivers, family.run_kernel)
         self._entry = None  # the loop's machine code for this run's argument types
 
@@ -249,13 +252,10 @@ class ScipyRunner:
         self.m = len(y0)
         self.evals = 0
         self.value = float(value)
-        P, K = compiled.parameters, compiled.kernels
 
         def fun(t, y):
             self.evals += 1
-            out = np.empty(self.m)
-            K.rhs(float(t), np.ascontiguousarray(y, dtype=float), P, out)
-            return out
+            return compiled.rhs(t, y)
 
         bound = t_end if math.isfinite(t_end) else ENDLESS
         tol = max(self.value, 1e-12)

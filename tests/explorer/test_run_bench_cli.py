@@ -257,9 +257,17 @@ def test_ctrl_c_stops_a_run_and_writes_the_rows_so_far(tmp_path):
 
     out = tmp_path / "long.csv"
     out.write_text("old\n")
+    # a terminal's Ctrl+C: the child starts with SIGINT handled and unblocked, whatever
+    # the test worker's own state (a worker once passed SIGINT on ignored or blocked, and
+    # the run went on to its end)
+    launch = (
+        "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT]); "
+        "sys.argv = ['main.py', *sys.argv[1:]]; runpy.run_path('main.py', run_name='__main__')"
+    )
     process = subprocess.Popen(
-        [sys.executable, str(ROOT / "main.py"), "run", "double_pendulum", "--t-end", "1e5",
-         "--out", str(out)],
+        [sys.executable, "-c", launch, "run", "double_pendulum", "--t-end", "1e5", "--out",
+         str(out)],
         stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
     )  # fmt: skip
     try:

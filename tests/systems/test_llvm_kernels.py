@@ -100,12 +100,31 @@ def test_runs_on_llvm_functions_equal_runs_on_numbas(method):
     _same(ends[0][1], ends[1][1])
 
 
-def test_constraints_are_left_to_numba():
-    mechanics = derive(load_scene("cartesian_pendulum"))
-    with pytest.raises(llvm_kernels.Unsupported):
-        compile_system(mechanics, ("rhs",), backend="llvm")
-    compiled = compile_system(mechanics, ("rhs",))
-    assert not isinstance(compiled.kernels, llvm_kernels.LLVMKernels)
+@pytest.mark.parametrize("name", ["cartesian_pendulum", "rolling_disk", "bouncing_ball"])
+def test_constrained_scenes_functions_equal_numbas(name):
+    """A constrained scene's own functions (``constraints.PRIMITIVES``: the rows, the
+    saddle-point system with its 2-D targets, gamma, ...) and what the drivers' generic
+    multipliers, projection and impacts make of them."""
+    mechanics = derive(load_scene(name))
+    wants = ("rhs", "hamiltonian", "velocities")
+    llvm = compile_system(mechanics, wants, backend="llvm")
+    numba = compile_system(mechanics, wants, backend="numba")
+    assert isinstance(llvm.kernels, llvm_kernels.LLVMKernels)
+    Y = _states(llvm, count=10)
+    k = int(llvm.constraint_functions()[-1][0])
+    for t, y in zip(np.linspace(0.0, 1.0, len(Y)), Y, strict=True):
+        _same(llvm.rhs(t, y), numba.rhs(t, y))
+        a, b = np.empty(k), np.empty(k)
+        llvm.constrained("c_multipliers", t, y, llvm.parameters, a)
+        numba.constrained("c_multipliers", t, y, numba.parameters, b)
+        _same(a, b)
+    ends = []
+    for compiled in (llvm, numba):
+        _, last = run_to_end(compiled, method="constrained_dop853", t_end=1.0, tol=1e-10)
+        assert last.status == "ok", last.message
+        ends.append((last.steps, last.y[-1]))
+    assert ends[0][0] == ends[1][0]
+    _same(ends[0][1], ends[1][1])
 
 
 def test_a_system_in_matrix_form_solves_for_its_velocities_as_numba_does():

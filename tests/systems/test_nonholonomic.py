@@ -154,7 +154,7 @@ def test_the_multipliers_are_the_grounds_centripetal_force(compiled):
     assert np.max(np.abs(lam[:, 1] + M * RHO * W**2 * np.cos(phi))) <= 1e-9
     kernel = np.empty(2)
     for row in range(0, len(t), max(1, len(t) // 40)):
-        compiled.kernels.multipliers(float(t[row]), y[row], compiled.parameters, kernel)
+        compiled.constrained("c_multipliers", float(t[row]), y[row], compiled.parameters, kernel)
         assert np.max(np.abs(kernel - lam[row])) <= 1e-12
 
 

@@ -206,7 +206,7 @@ def test_the_ball_comes_to_rest_and_the_floor_pushes_with_m_g(ball):
     assert ball.hamiltonian(t[-1], y[-1:])[0] == pytest.approx(M * VX**2 / 2, abs=1e-10)
     kernel = np.empty(1)
     for row in np.flatnonzero(resting | flying)[:: max(1, len(t) // 30)]:
-        ball.kernels.multipliers(float(t[row]), y[row], ball.parameters, kernel)
+        ball.constrained("c_multipliers", float(t[row]), y[row], ball.parameters, kernel)
         assert kernel[0] == lam[row]
 
 
