@@ -258,6 +258,11 @@ class Run:
     def t(self) -> float:
         return self.good[0] if self.runner is None else self.runner.t
 
+    @property
+    def takes_samples(self) -> bool:
+        """True if ``advance(samples=...)`` finds the sample states in the compiled loop."""
+        return self.stepper.family.kernel is not None and self.section_period is None
+
     def _block(self, t, y, status, message, diag=None, events=None) -> Block:
         if status != "running":
             self.finished = True
@@ -297,9 +302,15 @@ class Run:
             self.compiled, bt, by, int(index), levels, dense=self.stepper.family.name == "dop853"
         )
 
-    def advance(self, seconds: float = 0.03, until: float = math.inf) -> Block:
+    def advance(self, seconds: float = 0.03, until: float = math.inf, samples=None) -> Block:
         """The next block: about ``seconds`` of computing, ending early after the first
-        step that reaches ``until``."""
+        step that reaches ``until``.
+
+        ``samples`` (ascending times, ndarray): the block holds the states of the first
+        steps at or after them, found inside the compiled loop, which returns after the
+        last (the latest state ends the block, as always); ignored where the method has
+        no compiled loop or a section on an angle needs every step (``takes_samples``).
+        """
         if self.finished:
             raise RuntimeError("this run has finished")
         if self.runner is None:
@@ -329,7 +340,10 @@ class Run:
         # a section on an angle needs every step: thinned to max_points after the search
         points = nsteps + 2 if self.section_period is not None else self.max_points
         try:
-            out = self.runner.advance(nsteps, points, until)
+            if samples is not None and self.takes_samples:
+                out = self.runner.advance(nsteps, points, until, samples)
+            else:
+                out = self.runner.advance(nsteps, points, until)
         except ZeroDivisionError as exc:
             return self.stop(
                 "singular", _division(exc) + f"; the last good state is at t = {self.good[0]:.6g}"
@@ -453,42 +467,89 @@ class Sampler:
         self.violation = None if self.constraints is None else 0.0
         self.events_t: list[float] = []
         self.events_y: list[np.ndarray] = []
+        self._H0: float | None = None
 
     def __iter__(self) -> Iterator[tuple[float, np.ndarray]]:
         run = self.run
-        t_last = run.t0
         if self.constraints is not None:
             self.violation = self.constraints.violation(run.t0, run.y0[None])
         yield run.t0, run.y0.copy()
-        H0 = None
         try:
-            for target in self.times:
-                if target <= run.t0:
-                    continue
-                while run.t < target and not run.finished:
-                    block = self.last = run.advance(0.25, until=target)
-                    self.events_t.extend(map(float, block.events_t))
-                    self.events_y.extend(np.array(block.events_y))
-                    if "H" in block.diagnostics and len(block.t):
-                        if H0 is None:
-                            H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
-                        with np.errstate(all="ignore"):
-                            change = np.max(np.abs(block.diagnostics["H"] - H0))
-                        self.worst = max(self.worst, float(change))
-                    if self.constraints is not None and len(block.t):
-                        worst = self.constraints.violation(block.t, block.y)
-                        self.violation = max(self.violation, worst)
-                last = self.last
-                if last is not None and len(last.t) and last.t[-1] > t_last:
-                    t_last = float(last.t[-1])
-                    yield t_last, np.array(last.y[-1])
-                if run.finished:
-                    break
+            if run.takes_samples:
+                yield from self._sampled()
+            else:
+                yield from self._paused()
         except KeyboardInterrupt:
             self.interrupted = True
             return
         if self.last is None:  # nothing to integrate: the start is all there is
             self.last = run.advance(0.25)
+
+    def _record(self, block: Block) -> None:
+        """What a block adds to the events, the energy change and the violation."""
+        run = self.run
+        self.last = block
+        self.events_t.extend(map(float, block.events_t))
+        self.events_y.extend(np.array(block.events_y))
+        if "H" in block.diagnostics and len(block.t):
+            if self._H0 is None:
+                self._H0 = float(run.compiled.hamiltonian(run.t0, run.y0[None])[0])
+            with np.errstate(all="ignore"):
+                change = np.max(np.abs(block.diagnostics["H"] - self._H0))
+            self.worst = max(self.worst, float(change))
+        if self.constraints is not None and len(block.t):
+            worst = self.constraints.violation(block.t, block.y)
+            self.violation = max(self.violation, worst)
+
+    def _sampled(self) -> Iterator[tuple[float, np.ndarray]]:
+        """The samples found by the compiled loop, ``SAMPLE_CHUNK`` times a call at most:
+        one Python block for thousands of samples."""
+        run = self.run
+        times = iter(self.times)
+        t_last = run.t0
+        pending: list[float] = []
+        exhausted = False
+        while not run.finished:
+            while not exhausted and len(pending) < SAMPLE_CHUNK:
+                target = next(times, None)
+                if target is None:
+                    exhausted = True
+                elif target > t_last and (not pending or target > pending[-1]):
+                    pending.append(float(target))
+            if not pending:
+                break
+            block = run.advance(0.25, samples=np.array(pending))
+            self._record(block)
+            for t, y in zip(block.t, block.y, strict=True):
+                if not pending or t < pending[0]:
+                    continue  # the latest state, before the next sample time
+                while pending and pending[0] <= t:
+                    pending.pop(0)
+                if t > t_last:
+                    t_last = float(t)
+                    yield t_last, np.array(y)
+            if run.finished and len(block.t) and block.t[-1] > t_last:
+                yield float(block.t[-1]), np.array(block.y[-1])  # stopped before a sample
+
+    def _paused(self) -> Iterator[tuple[float, np.ndarray]]:
+        """The samples by runs paused at each time (scipy's solvers, angle sections)."""
+        run = self.run
+        t_last = run.t0
+        for target in self.times:
+            if target <= run.t0:
+                continue
+            while run.t < target and not run.finished:
+                self._record(run.advance(0.25, until=target))
+            last = self.last
+            if last is not None and len(last.t) and last.t[-1] > t_last:
+                t_last = float(last.t[-1])
+                yield t_last, np.array(last.y[-1])
+            if run.finished:
+                break
+
+
+SAMPLE_CHUNK = 4096
+"""Sample times handed to the compiled loop in one call at most."""
 
 
 def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str, message: str):

@@ -62,6 +62,7 @@ class Info(IntEnum):
     STATUS = 2
     EVENTS = 3
     EVALUATIONS = 4
+    SAMPLED = 5
 
 
 INFO_SIZE = len(Info)

@@ -1249,9 +1249,14 @@ def call5(f, a, b, c, d, e):
 # -- the drivers -------------------------------------------------------------------------------
 
 
-def DRIVER_run(fns, state, P, coef, work, limits, section, out, info):
+def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
     """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP`` from
     ``state = (y, comp, clock)``.
+
+    With ``samples`` (times, ascending; None: numba compiles the loop without them) the
+    output is the state of the first step at or after each time instead of every
+    ``stride``-th (one row for several times a step passes), and the call returns after
+    the last of them (``info[INFO_SAMPLED]``: how many were passed).
 
     ``out = (out_t (k,), out_y (k, m), ev_t (e, 2), ev_y (e, 2, m))`` receives every
     ``stride``-th state, both states of a jump (a step that applies an event without
@@ -1286,6 +1291,7 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, out, info):
     outputs = 0
     events = 0
     count = 0
+    sampled = 0
     wrote = True  # the state before the first step: the caller has it
     while steps < nsteps:
         for k in range(m):
@@ -1325,6 +1331,21 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, out, info):
                     ev_y[events, 0, k] = yprev[k]
                     ev_y[events, 1, k] = y[k]
                 events += 1
+        if samples is not None:
+            if sampled < samples.shape[0] and t >= samples[sampled]:
+                if outputs < out_t.shape[0]:
+                    out_t[outputs] = t
+                    for k in range(m):
+                        out_y[outputs, k] = y[k]
+                    outputs += 1
+                while sampled < samples.shape[0] and samples[sampled] <= t:
+                    sampled += 1
+            if t >= t_end - slack:
+                status = STATUS_END
+                break
+            if t >= clock[CLOCK_T_PAUSE] or sampled >= samples.shape[0]:
+                break
+            continue
         count += 1
         # a step that does not move in time applied an event (an impact): the states on
         # both sides of the jump are kept whatever the stride, while the rows left for
@@ -1354,6 +1375,7 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, out, info):
     info[INFO_STATUS] = status
     info[INFO_EVENTS] = events
     info[INFO_EVALUATIONS] = evals
+    info[INFO_SAMPLED] = sampled
 
 
 def DRIVER_ensemble_parallel(fns, Y, clock0, P, coef, limits, out, status):

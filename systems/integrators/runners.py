@@ -98,16 +98,19 @@ class KernelRunner:
         else:
             self.fns = compiled.functions(family.functions)
         self.loop = getattr(drivers, family.run_kernel)
-        self._entry = None  # the loop's machine code for this run's argument types
+        self._entries = {}  # the loop's machine code for this run's argument types
+        self.sampled = 0  # sample times the last call passed
 
     @property
     def t(self) -> float:
         return float(self.clock[Clock.T])
 
-    def _call(self, nsteps: int, stride: int, until: float):
+    def _call(self, nsteps: int, stride: int, until: float, samples=None):
         m = self.m
         # only a constrained family's events jump: the others' calls allocate no more
         cap = nsteps // stride + 1 + (JUMP_ROWS if self.s.family.constrained else 0)
+        if samples is not None:
+            cap = len(samples) + 1
         out = (np.empty(cap), np.empty((cap, m)), np.empty((MAX_EVENTS, 2)))
         out += (np.empty((MAX_EVENTS, 2, m)),)
         info = np.zeros(INFO_SIZE, dtype=np.int64)
@@ -115,10 +118,13 @@ class KernelRunner:
         state = (self.y, self.comp, self.clock)
         limits = (int(nsteps), int(stride))
         args = (self.fns, state, self.c.parameters, self.coef, self.work, limits, self.section)
-        args += (out, info)
-        if self._entry is None:
-            self._entry = entry_point(self.loop, args)
-        self._entry(*args)
+        args += (samples, out, info)
+        key = samples is None
+        entry = self._entries.get(key)
+        if entry is None:
+            entry = self._entries[key] = entry_point(self.loop, args)
+        entry(*args)
+        self.sampled = int(info[Info.SAMPLED])
         n_out, n_ev = int(info[Info.OUTPUTS]), int(info[Info.EVENTS])
         return (
             out[0][:n_out],
@@ -129,11 +135,20 @@ class KernelRunner:
             int(info[Info.EVALUATIONS]),
         )
 
-    def advance(self, nsteps: int, max_points: int, until: float = math.inf) -> Outcome:
-        """Up to ``nsteps`` steps, stopping after the first that reaches ``until``."""
+    def advance(
+        self, nsteps: int, max_points: int, until: float = math.inf, samples=None
+    ) -> Outcome:
+        """Up to ``nsteps`` steps, stopping after the first that reaches ``until``.
+
+        With ``samples`` (ndarray of ascending times): the states of the first steps at
+        or after them, instead of ``max_points`` evenly spaced; stops after the last.
+        """
         stride = max(1, math.ceil(nsteps / max(max_points - 1, 1)))
         t_before = self.t
-        t, y, code, events, steps, evals = self._call(nsteps, stride, until)
+        if samples is not None:
+            stride = 1
+            samples = np.ascontiguousarray(samples, dtype=float)
+        t, y, code, events, steps, evals = self._call(nsteps, stride, until, samples)
         ts, ys, evs = [t], [y], [events]
         if code == Status.OVERSHOT:
             code, more_steps, more_evals = self._land(ts, ys, evs, steps, t_before)
@@ -181,9 +196,11 @@ class TimeTransformedRunner(KernelRunner):
         super().__init__(*args, **kwargs)
         self.recent_dt = math.inf
 
-    def advance(self, nsteps: int, max_points: int, until: float = math.inf) -> Outcome:
+    def advance(
+        self, nsteps: int, max_points: int, until: float = math.inf, samples=None
+    ) -> Outcome:
         t_before = self.t
-        outcome = super().advance(nsteps, max_points, until)
+        outcome = super().advance(nsteps, max_points, until, samples)
         if outcome.steps:
             self.recent_dt = (self.t - t_before) / outcome.steps
         return outcome

@@ -65,7 +65,7 @@ def warm_drivers(progress=None) -> float:
     from systems.llvm_kernels import SOLVER_SIGNATURE
     from systems.mechanics import derive
     from systems.scene import parse_scene
-    from systems.simulation import ensemble, precompile
+    from systems.simulation import Run, ensemble, precompile
 
     start = time.perf_counter()
     driver_module().solve_augmented.compile(SOLVER_SIGNATURE)
@@ -94,6 +94,10 @@ def warm_drivers(progress=None) -> float:
         compiled = systems["constrained" if family.constrained else "free"]
         for section in (None, (1, 0.0, 1)):
             precompile(compiled, stepper.name, section=section)
+        # the loop that finds the states at given times (Sampler: run --out, export)
+        setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
+        run = Run(compiled, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
+        run.advance(0.01, samples=np.array([5e-3]))
         if family.ensemble:
             Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
             ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
