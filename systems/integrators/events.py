@@ -40,8 +40,9 @@ def dop853_interpolant(compiled, t0, y0, t1, y1) -> Callable[[float], np.ndarray
     three extra stages and Hairer's interpolation polynomial of order 7, as in scipy.
     Returns ``u(s)``, s in [0, 1] -> state (2n,).
     """
-    from scipy.integrate._ivp import dop853_coefficients as dc
+    from systems.integrators.tableaux import dop853_coefficients
 
+    dc = dop853_coefficients()
     h = t1 - t0
     m = len(y0)
     K = np.empty((dc.N_STAGES_EXTENDED, m))

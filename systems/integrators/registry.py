@@ -26,6 +26,7 @@ from systems.integrators.tableaux import (
     TRIPLE_JUMP,
     YOSHIDA6,
     YOSHIDA8,
+    dop853_coefficients,
     gauss_tableau,
     kick_drift,
     symplectic_weights,
@@ -345,8 +346,7 @@ def _constrained_rk4_coef(stepper, compiled, t0, y0, compensated):
 
 
 def _dop853_coef(stepper, compiled, t0, y0, compensated):
-    from scipy.integrate._ivp import dop853_coefficients as dc
-
+    dc = dop853_coefficients()
     return (
         np.ascontiguousarray(dc.A[:12, :12]),
         dc.B.copy(),

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 from functools import cache
+from types import ModuleType
 
 import numpy as np
 
@@ -113,3 +115,23 @@ def symplectic_weights(stages: int) -> np.ndarray:
             if (MU[i, j] - 1.0) + MU[j, i] != 0.0:
                 raise ArithmeticError(f"MU[{i}, {j}] is outside [1/2, 2] for {stages} stages")
     return MU
+
+
+@functools.cache
+def dop853_coefficients() -> ModuleType:
+    """scipy's ``dop853_coefficients`` module, read without importing ``scipy.integrate``
+    (whose package initialisation took 0.26 s of a first dop853 run; the module itself
+    needs only numpy)."""
+    import importlib.util
+    from pathlib import Path
+
+    scipy = importlib.util.find_spec("scipy")
+    path = Path(scipy.origin).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
+    spec = importlib.util.spec_from_file_location("_phase_explorer_dop853", path)
+    if spec is None or not path.exists():
+        from scipy.integrate._ivp import dop853_coefficients
+
+        return dop853_coefficients
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
