@@ -381,12 +381,7 @@ class _KernelWriter:
         if "velocities" in wanted:
             parts.append(self.function("velocities(t, y, P, out)", state, mech.velocities))
         if "momenta" in wanted:
-            if mech.momenta is None:
-                raise DerivationError(
-                    "this Hamiltonian has no Lagrangian, so momenta from velocities are "
-                    "not defined",
-                    source=scene.source,
-                )
+            self._require_momenta()
             unpack = self.unpack("q", scene.coordinates) + self.unpack("qdot", scene.velocity_names)
             parts.append(self.function("momenta(t, q, qdot, P, out)", unpack, mech.momenta))
         if "lagrangian" in wanted and mech.lagrangian is not None:
@@ -446,22 +441,14 @@ class _KernelWriter:
         if "velocities" in wanted:
             of_state("velocities", mech.velocities)
         if "momenta" in wanted:
-            if mech.momenta is None:
-                raise DerivationError(
-                    "this Hamiltonian has no Lagrangian, so momenta from velocities are "
-                    "not defined",
-                    source=scene.source,
-                )
+            self._require_momenta()
             specs.append(Spec("momenta", ("t", "q", "qdot", "P", "out"), tuple(pairs),
                               tuple(mech.momenta)))  # fmt: skip
         if "lagrangian" in wanted and mech.lagrangian is not None:
             specs.append(Spec("lagrangian", ("t", "q", "qdot", "P"), tuple(pairs),
                               (mech.lagrangian,), returns=True))  # fmt: skip
         if "separable" in wanted:
-            if mech.separable_parts is None:
-                raise DerivationError(
-                    "the Hamiltonian is not separable (H != T(p) + V(q, t))", source=scene.source
-                )
+            self._require_separable()
             T, V = mech.separable_parts
             pu = tuple(
                 (f"v_{name}", "y", n + i) for i, name in enumerate(scene.momentum_names)
@@ -482,6 +469,19 @@ class _KernelWriter:
                 exprs.append(scene.expression(f"drawing.points.{name}.y"))
             of_state("drawing", exprs)
         return specs
+
+    def _require_momenta(self) -> None:
+        if self.mech.momenta is None:
+            raise DerivationError(
+                "this Hamiltonian has no Lagrangian, so momenta from velocities are not defined",
+                source=self.scene.source,
+            )
+
+    def _require_separable(self) -> None:
+        if self.mech.separable_parts is None:
+            raise DerivationError(
+                "the Hamiltonian is not separable (H != T(p) + V(q, t))", source=self.scene.source
+            )
 
     def bindings(self) -> tuple[tuple, tuple]:
         """``FunctionSpec.bindings`` of a function of the state (t, y, P) and of one of

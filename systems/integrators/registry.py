@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from systems.constraints import PRIMITIVES
 from systems.integrators import runners, stepsize
 from systems.integrators.tableaux import (
     EXPLICIT_TABLEAUX,
@@ -217,18 +218,9 @@ def _applies_always(mechanics, stepper: Stepper) -> str | None:
 
 
 CONSTRAINED_METHODS = "constrained_dop853 or constrained_rk4"
-CONSTRAINED_FUNCTIONS = (
-    "c_free_rhs",
-    "c_positions",
-    "c_rows",
-    "c_mass",
-    "c_velocities",
-    "c_momenta",
-    "c_saddle",
-    "c_gamma",
-)
-"""``systems.constraints.PRIMITIVES``: the constrained families' steps take them and
-``constraints.sizes`` as ``cs`` (``CompiledSystem.constraint_functions``)."""
+CONSTRAINED_FUNCTIONS = PRIMITIVES
+"""The constrained families' steps take these and ``constraints.sizes`` as ``cs``
+(``CompiledSystem.constraint_functions``)."""
 
 
 def _constraints_fit(mechanics, stepper: Stepper) -> str | None:

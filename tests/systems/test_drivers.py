@@ -127,10 +127,3 @@ def test_ensembles_take_the_scenes_functions_too(method):
             compiled, method=method, y0=y0, t_end=2.0, dt=1e-3, energy_tolerance=None
         )
         np.testing.assert_allclose(row[-1], last.y[-1], rtol=0, atol=1e-12)
-
-
-def test_the_constrained_families_take_the_constraints_primitives():
-    from systems import constraints
-
-    for name in ("constrained", "constrained_fixed"):
-        assert FAMILIES[name].functions == constraints.PRIMITIVES
