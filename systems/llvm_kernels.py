@@ -459,4 +459,5 @@ class LLVMKernels:
             return caller(function, *args)
 
         call.__name__ = name
+        setattr(self, name, call)  # found without __getattr__ from now on (probe loops)
         return call
