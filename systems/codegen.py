@@ -319,18 +319,16 @@ def _function_class():
 
     class SystemFunction(types.WrapperAddressProtocol):
         """A compiled system function as a value of numba's first-class function type:
-        the drivers receive its machine code's address, and their own machine code is
-        the same for every scene."""
+        the address of its machine code (C wrapper calling convention) and its numba
+        signature. The drivers receive the address, so their own machine code is the
+        same for every scene."""
 
-        def __init__(self, dispatcher):
-            (argtypes,) = dispatcher.signatures
-            result = dispatcher.overloads[argtypes]
-            self.dispatcher = dispatcher
-            self._signature = result.signature
+        def __init__(self, address: int, signature, owner):
+            self._address = address
+            self._signature = signature
+            self._owner = owner  # keeps the machine code alive
             # numba's typeof reads this first: the type without building it at each call
-            self._numba_type_ = types.FunctionType(result.signature)
-            wrapper = result.fndesc.llvm_cfunc_wrapper_name
-            self._address = result.library.get_pointer_to_function(wrapper)
+            self._numba_type_ = types.FunctionType(signature)
 
         def __wrapper_address__(self) -> int:
             return self._address
@@ -339,6 +337,12 @@ def _function_class():
             return self._signature
 
     return SystemFunction
+
+
+def function_value(address: int, signature, owner):
+    """Machine code at ``address`` with numba ``signature`` (kept alive by ``owner``) as a
+    value the drivers take."""
+    return _function_class()(address, signature, owner)
 
 
 def entry_point(dispatcher, args: tuple):
@@ -357,5 +361,9 @@ def entry_point(dispatcher, args: tuple):
 
 def system_function(dispatcher):
     """``dispatcher`` (a function of a scene's module, compiled for its ``SIGNATURES``
-    entry) as an argument the drivers take."""
-    return _function_class()(dispatcher)
+    entry) as a value the drivers take: the address of its C wrapper."""
+    (argtypes,) = dispatcher.signatures
+    result = dispatcher.overloads[argtypes]
+    wrapper = result.fndesc.llvm_cfunc_wrapper_name
+    address = result.library.get_pointer_to_function(wrapper)
+    return function_value(address, result.signature, dispatcher)

@@ -8,8 +8,8 @@ code; the same functions written as LLVM IR and optimised by LLVM alone take
 milliseconds. They have the calling convention numba uses for a first-class function's
 C wrapper (each argument's LLVM value type, arrays as numba's array structure by value),
 so the drivers, compiled once (``systems.codegen.driver_module``), call them exactly as
-they call numba-compiled ones (``LLVMFunction`` implements numba's wrapper-address
-protocol).
+they call numba-compiled ones (``systems.codegen.function_value``: numba's
+wrapper-address protocol).
 
 Only what the scene language produces is written: numbers, symbols, sums, products,
 powers and the functions of ``INTRINSICS`` and ``LIBM``; anything else raises
@@ -386,26 +386,6 @@ def _solver() -> tuple[int, list, object]:
     return address, [_value_type(a) for a in args], _value_type(result)
 
 
-class LLVMFunction:
-    """A compiled system function as numba's first-class function value (the
-    wrapper-address protocol: its address and its numba signature)."""
-
-    def __init__(self, name: str, address: int, owner: LLVMKernels):
-        from numba.core import types
-
-        self.name = name
-        self._address = address
-        self._owner = owner  # keeps the machine code alive
-        self._signature = _signature(name)
-        self._numba_type_ = types.FunctionType(self._signature)
-
-    def __wrapper_address__(self) -> int:
-        return self._address
-
-    def signature(self):
-        return self._signature
-
-
 _compile_lock = threading.Lock()
 
 
@@ -436,8 +416,12 @@ class LLVMKernels:
             builder.getModulePassManager().run(parsed, builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)
             self._engine.finalize_object()
+        from systems.codegen import function_value
+
         self.functions = {
-            spec.name: LLVMFunction(spec.name, self._engine.get_function_address(spec.name), self)
+            spec.name: function_value(
+                self._engine.get_function_address(spec.name), _signature(spec.name), self
+            )
             for spec in specs
         }
         self._callers: dict[str, object] = {}
