@@ -1,18 +1,17 @@
 """Derivation and compilation off the GUI thread.
 
-The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``; a worker in a
-``QThread`` reads it, derives the mechanics and compiles the kernels, and sends back a
-``Built`` value or a ``BuildFailure`` with the field and position of the problem. Requests
-are numbered: a request overtaken by a newer one is skipped, and only the newest result
-is delivered, so typing fast never shows a stale system.
+The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``. A worker
+process (``systems.processes``) reads it and derives the mechanics, limited in CPU time;
+the builder thread (a ``QThread`` that only waits for it) then compiles the system's
+functions, a fraction of a second of LLVM, and sends back a ``Built`` value or a
+``BuildFailure`` with the field and position of the problem. Requests are numbered: a
+request overtaken by a newer one is skipped, and only the newest result is delivered, so
+typing fast never shows a stale system.
 
-``BuildService.stop`` does not wait for a build: it abandons the builder thread
-(``systems.deadline.abandon``: sympy is pure Python, so a derivation ends within a few
-bytecodes, wherever that is safe) and the layout threads likewise (a newer request only
-cancels a layout: ``systems.deadline.cancel``, it stops at its next checkpoint, between
-two lines of the derivation's layout or while it waits for the forked child in which the
-equilibrium search runs ``sympy.solve``), kills those children, and returns within
-``STOP_SECONDS``.
+The derivation's layout (the readable equations and the equilibrium search) runs in
+worker processes too, after the window has drawn the new system's first frame. A newer
+request or ``BuildService.stop`` ends the processes still working for an older one: no
+thread of the window ever runs sympy, and nothing is interrupted but a process.
 """
 
 from __future__ import annotations
@@ -24,7 +23,7 @@ from dataclasses import dataclass
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from explorer.worker import keep_until_finished
-from systems.deadline import Abandoned, abandon, cancel, cancellable
+from systems import processes
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -64,26 +63,19 @@ def wants_for(mechanics) -> tuple[str, ...]:
     return tuple(wants)
 
 
-def build(source, request: int = 0) -> Built:
-    """Read (TOML text or the tables of one), derive and compile; raises the core's errors.
+def derive_source(source):
+    """Read (TOML text, the editor's tables or a ``Scene``) and derive; raises the core's
+    errors. Runs in a worker process for the window, in the caller's for ``build``.
 
-    A ``Scene`` is built as it is and TOML text is read strictly (``parse_scene``). A dict
-    is the editor's document: it is read with ``drop_unfit=True``, so a drawing or
+    A ``Scene`` is derived as it is and TOML text is read strictly (``parse_scene``). A
+    dict is the editor's document: it is read with ``drop_unfit=True``, so a drawing or
     ``[view]`` setting that does not fit the system is left out and listed in
-    ``built.scene.warnings`` instead of failing the build.
-
-    The system's functions are compiled (or loaded from numba's cache) here, a fraction
-    of a second, and so is the chosen method's driver (compiled once per installation,
-    ``python main.py warm``), so the first block comes in machine code.
+    ``mechanics.scene.warnings`` instead of failing the build.
     """
-    from systems.compiled import compile_system
     from systems.integrators import choose_method
     from systems.mechanics import derive
     from systems.scene import Scene, parse_scene, scene_from_dict
-    from systems.simulation import DIAGNOSTICS, precompile
-    from systems.start_check import check_start
 
-    start = time.perf_counter()
     if isinstance(source, Scene):
         scene = source
     elif isinstance(source, dict):  # the editor's document: what does not fit is left out
@@ -91,70 +83,50 @@ def build(source, request: int = 0) -> Built:
     else:
         scene = parse_scene(source, source="<editor>")
     mechanics = derive(scene)
+    choose_method(mechanics)  # whatever symbolic work the choice does, done here
+    return mechanics
+
+
+def compile_built(mechanics, request: int = 0, start: float | None = None) -> Built:
+    """Compile a derived system for the window and choose its method.
+
+    The system's functions are compiled here, a fraction of a second, and so is the
+    chosen method's driver loaded (compiled once per installation, ``python main.py
+    warm``), so the first block comes in machine code.
+    """
+    from systems.compiled import compile_system
+    from systems.integrators import choose_method
+    from systems.simulation import DIAGNOSTICS, precompile
+    from systems.start_check import check_start
+
+    start = time.perf_counter() if start is None else start
     method, reason = choose_method(mechanics)
     wants = wants_for(mechanics)
     compiled = compile_system(mechanics, wants)
     check_start(compiled)
     diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
     precompile(compiled, method, diagnostics=diagnostics)
-    return Built(request, scene, compiled, method, reason, time.perf_counter() - start)
+    return Built(request, mechanics.scene, compiled, method, reason, time.perf_counter() - start)
+
+
+def build(source, request: int = 0) -> Built:
+    """Read, derive and compile in this process (the command line, a sweep, tests)."""
+    start = time.perf_counter()
+    return compile_built(derive_source(source), request, start)
 
 
 FIRST_FRAME_WAIT = 10.0
 """Seconds the builder waits at most for the window's first frame of a new system before
 laying out its derivation (the window says at once when none is coming: paused, or the
-run failed): laying out the derivation (sympy, holding the GIL) before the first block
-of a large system made that block three times later."""
+run failed): on two cores the layout's processes would compete with the first blocks."""
+
+LAYOUT_SECONDS = 30.0
+"""CPU seconds each part of a layout may take in its worker (the readable derivation; the
+equilibrium search, which has its own limit within)."""
 
 
 def _remaining(deadline: float) -> float:
     return max(0.0, deadline - time.monotonic())
-
-
-def end_forked_children(deadline: float) -> bool:
-    """Kill and reap this process's ``multiprocessing`` children; True if none is left.
-
-    They are the bounded ``sympy.solve`` runs of the equilibrium search
-    (``systems.textbook._numeric.run_bounded``), of the builder and of the Textbook dock;
-    a killed one makes its ``run_bounded`` return None at once (no exact solutions), so
-    the thread waiting for it goes on.
-    """
-    import multiprocessing
-
-    children = multiprocessing.active_children()
-    for child in children:
-        child.kill()
-    for child in children:
-        child.join(max(0.05, _remaining(deadline)))
-    return not any(child.is_alive() for child in children)
-
-
-def end_left_limits(ident: int) -> None:
-    """Stop the ``systems.deadline`` time limits a thread that has ended left armed.
-
-    ``time_limit`` starts its watcher thread before it enters its ``try``; ``Abandoned``
-    landing while ``Thread.start`` waits for the watcher to run skips the ``finally`` that
-    would stop it. Left alone, the watcher would raise ``TimeUp`` into that thread id (a
-    new thread may have it by then) every half second from its limit on, and the id
-    would stay marked as inside a limit, so a new thread with it would run unlimited.
-    A stopgap until ``systems.deadline`` arms the watcher inside its ``try``.
-    """
-    from systems import deadline
-
-    for thread in threading.enumerate():
-        limit = getattr(getattr(thread, "_target", None), "__self__", None)
-        if isinstance(limit, deadline._Limit) and limit.ident == ident:
-            limit.finish()
-    deadline._active.pop(ident, None)
-
-
-def _reap(child, deadline: float) -> None:
-    if child.poll() is None:
-        child.kill()
-    try:
-        child.wait(max(0.1, _remaining(deadline)))  # reaped: no zombie left behind
-    except Exception:  # noqa: BLE001 - TimeoutExpired: the caller sees poll() is None
-        pass
 
 
 def failure_from(exc: Exception, request: int) -> BuildFailure:
@@ -184,13 +156,26 @@ def equilibria_lines(mechanics) -> list[str]:
     return lines
 
 
+class _Layout:
+    """The layout of one build: its thread, and the worker job it waits for."""
+
+    def __init__(self):
+        self.stopped = threading.Event()
+        self.job: processes.Job | None = None
+        self.thread: threading.Thread | None = None
+
+    def stop(self) -> None:
+        self.stopped.set()
+        job = self.job
+        if job is not None:
+            job.cancel()
+
+
 class _BuildWorker(QObject):
     """Builds in the builder thread; lays out what a build derived in a layout thread.
 
-    The layout (the readable derivation, about a second of sympy printing, and the
-    equilibrium search, up to ``SEARCH_SECONDS``) runs in its own thread, so that the next
-    request is built at once; a newer request abandons the layout still running for an
-    older one, whose results nobody would see.
+    Both only wait for worker processes (and compile, in the builder thread): a newer
+    request or ``stop`` ends those processes, and the waiting threads go on at once.
     """
 
     built = Signal(object)
@@ -201,106 +186,115 @@ class _BuildWorker(QObject):
     def __init__(self):
         super().__init__()
         self.latest = 0
+        self.stopped = False
         self._lock = threading.Lock()
-        self._ident: int | None = None  # the builder thread's, while a build runs
-        self._layouts: list[threading.Thread] = []  # started, maybe still running
+        self._job: processes.Job | None = None  # the derivation in progress
+        self._layouts: list[_Layout] = []
         self.first_frame = threading.Event()
 
     @Slot(object)
     def build(self, job) -> None:
         request, source = job
-        if request < self.latest:
+        if request < self.latest or self.stopped:
             return  # overtaken by a newer request while waiting
-        self.abandon_layout()
+        self.stop_layouts()
+        start = time.perf_counter()
         try:
-            with cancellable():
-                with self._lock:
-                    self._ident = threading.get_ident()
-                try:
-                    self._build(request, source)
-                finally:
-                    with self._lock:
-                        self._ident = None
-        except Abandoned:
-            pass  # the window closed: nobody waits for this build any more
-
-    def abandon(self) -> int | None:
-        """End the build in progress within a few bytecodes; returns the thread's ident
-        if one was running. The layout thread is abandoned too.
-
-        ``systems.deadline.abandon`` raises ``Abandoned`` only inside ``build``'s
-        ``cancellable`` block, and only where the thread is interruptible.
-        """
-        self.abandon_layout(at_once=True)
-        with self._lock:
-            ident, self._ident = self._ident, None
-            if ident is not None:
-                abandon(ident)
-            return ident
-
-    def abandon_layout(self, *, at_once: bool = False) -> list[threading.Thread]:
-        """Ask the layouts of older builds still running to stop at their next checkpoint
-        (usually a fraction of a second away, up to seconds for a large system's
-        accelerations); ``at_once`` (the window closing) abandons them as well, so that
-        they end within a few bytecodes. Returns their threads."""
-        with self._lock:
-            self._layouts = [thread for thread in self._layouts if thread.is_alive()]
-            for thread in self._layouts:
-                (abandon if at_once else cancel)(thread)
-            return list(self._layouts)
-
-    def _build(self, request: int, source) -> None:
-        from systems.expressions import ExpressionError
-        from systems.mechanics import DerivationError
-        from systems.scene import SceneError
-
-        try:
-            result = build(source, request)
-        except (SceneError, ExpressionError, DerivationError, ValueError) as exc:
+            mechanics = self._derive(source)
+        except processes.Cancelled:
+            return  # the window closed: nobody waits for this build any more
+        except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
             self.build_failed.emit(failure_from(exc, request))
             return
+        if request < self.latest or self.stopped:
+            return
+        try:
+            result = compile_built(mechanics, request, start)
         except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
             self.build_failed.emit(failure_from(exc, request))
             return
         self.first_frame.clear()
         self.built.emit(result)
-        # an older layout that has not reached a checkpoint while this build ran (a large
-        # system's accelerations) would hold the GIL beside the new one: it ends now
-        self.abandon_layout(at_once=True)
-        layout = threading.Thread(
-            target=self._lay_out, args=(request, result), name="scene-layout", daemon=True
+        layout = _Layout()
+        layout.thread = threading.Thread(
+            target=self._lay_out, args=(request, result, layout), name="scene-layout", daemon=True
         )
         with self._lock:
+            self._layouts = [old for old in self._layouts if old.thread.is_alive()]
             self._layouts.append(layout)
-        layout.start()
+        layout.thread.start()
 
-    def _lay_out(self, request: int, result: Built) -> None:
+    def _derive(self, source):
+        from systems.cpu_limit import limit_seconds
+
+        job = processes.Job(
+            derive_source,
+            (source,),
+            # derive's own limit (limit_seconds) reports an overrun; this one is its
+            # backstop, and bounds reading the scene too
+            cpu_seconds=2 * limit_seconds() + 5.0,
+            what="reading and deriving the scene",
+        )
+        with self._lock:
+            self._job = job
+        if self.stopped:
+            job.cancel()
         try:
-            with cancellable():
-                if request < self.latest:  # overtaken before it could be asked to stop
-                    return
-                self._describe(request, result)
-        except Abandoned:
-            pass  # a newer request or the window closing: nobody waits for this layout
+            return job.result()
+        finally:
+            with self._lock:
+                self._job = None
 
-    def _describe(self, request: int, result: Built) -> None:
-        # The derivation's pretty-printing holds the GIL for a second or so: let the
-        # window draw the first frame of the new system before it (the motion first).
+    def stop(self) -> list[threading.Thread]:
+        """End the derivation and every layout in progress; returns the layout threads."""
+        self.stopped = True
+        with self._lock:
+            job = self._job
+        if job is not None:
+            job.cancel()
+        return self.stop_layouts()
+
+    def stop_layouts(self) -> list[threading.Thread]:
+        """End the layouts of older builds (their processes); returns their threads."""
+        with self._lock:
+            layouts, self._layouts = self._layouts, []
+        for layout in layouts:
+            layout.stop()
+        return [layout.thread for layout in layouts if layout.thread is not None]
+
+    def _lay_out(self, request: int, result: Built, layout: _Layout) -> None:
+        # the motion first: on two cores the layout's processes would slow the first frame
         self.first_frame.wait(FIRST_FRAME_WAIT)
-        if request < self.latest:
+        mechanics = result.compiled.mechanics
+        text = self._part(layout, describe, mechanics, "laying out the derivation")
+        if text is None or request < self.latest:
             return
-        try:
-            text = describe(result.compiled.mechanics)
-        except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
-            text = f"(the derivation could not be laid out: {exc})"
+        if isinstance(text, Exception):
+            text = f"(the derivation could not be laid out: {text})"
         self.described.emit(request, text)
-        if request < self.latest:
+        lines = self._part(layout, equilibria_lines, mechanics, "the equilibrium search")
+        if lines is None or request < self.latest:
             return
-        try:
-            lines = equilibria_lines(result.compiled.mechanics)
-        except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
-            lines = [f"equilibria not found: {exc}"]
+        if isinstance(lines, Exception):
+            lines = [f"equilibria not found: {lines}"]
         self.equilibria_found.emit(request, lines)
+
+    @staticmethod
+    def _part(layout: _Layout, function, mechanics, what: str):
+        """``function(mechanics)`` in a worker: its value, its exception, or None if the
+        layout was stopped."""
+        if layout.stopped.is_set():
+            return None
+        job = processes.Job(function, (mechanics,), cpu_seconds=LAYOUT_SECONDS, what=what)
+        layout.job = job
+        if layout.stopped.is_set():
+            job.cancel()
+        try:
+            return job.result()
+        except processes.Cancelled:
+            return None
+        except Exception as exc:  # noqa: BLE001 - the derivation itself succeeded
+            return exc
 
 
 class BuildService(QObject):
@@ -327,6 +321,7 @@ class BuildService(QObject):
         self._counter = 0
         self._stopped = False
         self._warm_thread: threading.Thread | None = None
+        processes.start()  # the fork server's imports, while the window appears
         self._thread = QThread()
         self._thread.setObjectName("scene-builder")
         self._worker = _BuildWorker()
@@ -370,6 +365,12 @@ class BuildService(QObject):
         return self._counter
 
     @property
+    def deriving(self) -> bool:
+        """True while a worker process derives a requested scene."""
+        job = self._worker._job
+        return job is not None and not job.done()
+
+    @property
     def latest(self) -> int:
         return self._counter
 
@@ -392,27 +393,25 @@ class BuildService(QObject):
             self.equilibria_found.emit(request, lines)
 
     def stop(self, timeout: float = STOP_SECONDS) -> bool:
-        """End the builder thread and its layout threads; no results after this.
+        """End the builder thread, its layout threads and their processes; no results
+        after this.
 
-        The build in progress is abandoned, not waited for. Returns True if every thread
-        and child process of the builder has ended within ``timeout`` seconds; a thread
-        that has not (stuck in C code) is kept referenced until it ends.
+        Returns True if every thread has ended within ``timeout`` seconds; one that has
+        not (compiling, in C) is kept referenced until it ends.
         """
         deadline = time.monotonic() + timeout
         self._stopped = True
         self._counter += 1  # any result still on its way is now stale
         self._worker.latest = self._counter
-        self._worker.first_frame.set()  # a builder waiting for the first frame goes on
-        abandoned = self._worker.abandon()
-        stopped = end_forked_children(deadline)
+        self._worker.first_frame.set()  # a layout waiting for the first frame goes on
+        layouts = self._worker.stop()
+        stopped = True
         if self._thread.isRunning():
             self._thread.quit()
             if not self._thread.wait(round(1000 * _remaining(deadline))):
                 keep_until_finished(self._thread)
                 stopped = False
-        if abandoned is not None and not self._thread.isRunning():
-            end_left_limits(abandoned)
-        for layout in self._worker.abandon_layout(at_once=True):
+        for layout in layouts:
             layout.join(_remaining(deadline))
             stopped = stopped and not layout.is_alive()
         warm = self._warm_thread  # numba's warm-up is short and must not be interrupted

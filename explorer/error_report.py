@@ -4,8 +4,7 @@ An exception that escapes a Qt slot goes to ``sys.excepthook`` (PySide calls it)
 ends a Python thread goes to ``threading.excepthook``. ``ErrorReporter.install`` takes over
 both while a window lives: the error is handed to the GUI thread as the ``reported``
 signal (the window shows it and keeps running), then passed on to the hook that was there
-before (the interpreter's prints it on stderr; pytest-qt's fails the test). A thread ended
-on purpose with ``systems.deadline.Abandoned`` is not an error and is not reported.
+before (the interpreter's prints it on stderr; pytest-qt's fails the test).
 
 If someone else replaced the hooks after ours (pytest-qt does, around each test phase),
 ``uninstall`` cannot take ours out of their chain; it then leaves them inert: they pass
@@ -20,8 +19,6 @@ import traceback
 from collections.abc import Callable
 
 from PySide6.QtCore import QObject, Signal
-
-from systems.deadline import Abandoned
 
 
 class ErrorReporter(QObject):
@@ -66,13 +63,11 @@ class ErrorReporter(QObject):
         self._previous_hook = self._previous_thread_hook = None
 
     def report(self, exc_type, exc, tb, where: str = "") -> bool:
-        """Emit ``reported`` for one exception; False for ``Abandoned`` (not an error).
+        """Emit ``reported`` for one exception.
 
         Returns whether it was the first report of this error (same type and message),
         so that a slot failing 40 times a second prints its traceback once.
         """
-        if exc_type is not None and issubclass(exc_type, Abandoned):
-            return False
         if getattr(self._reporting, "busy", False):
             return True
         summary = "".join(traceback.format_exception_only(exc_type, exc)).strip()
@@ -92,14 +87,13 @@ class ErrorReporter(QObject):
 
     def _excepthook(self, exc_type, exc, tb) -> None:
         if not self._active:
-            if not issubclass(exc_type, Abandoned):
-                sys.__excepthook__(exc_type, exc, tb)
+            sys.__excepthook__(exc_type, exc, tb)
             return
         if self.report(exc_type, exc, tb):
             (self._previous_hook or sys.__excepthook__)(exc_type, exc, tb)
 
     def _thread_excepthook(self, args) -> None:
-        if args.exc_type is SystemExit or issubclass(args.exc_type, Abandoned):
+        if args.exc_type is SystemExit:
             return
         if not self._active:
             threading.__excepthook__(args)

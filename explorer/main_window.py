@@ -10,7 +10,7 @@ Nothing the user does ends in a traceback the window does not show: a file that 
 opened is reported (and the running system kept), a parameter value that would make the
 equations singular is refused in the editor, and any other exception escaping a slot or a
 thread is shown in the status bar with its traceback behind "Details…". Closing returns
-within ``CLOSE_SECONDS``: builds are abandoned, not waited for.
+within ``CLOSE_SECONDS``: symbolic work is ended with its process, not waited for.
 """
 
 from __future__ import annotations
@@ -662,7 +662,7 @@ class MainWindow(QMainWindow):
             if closing_within is None:
                 self.runner.stop()
             else:
-                self.runner.stop(closing_within, abandon=True)
+                self.runner.stop(closing_within)
             self.runner = None
 
     @property
@@ -1135,12 +1135,12 @@ class MainWindow(QMainWindow):
 
         After ``_closed`` is set a build finishing meanwhile cannot start a new worker. The
         worker is told to abort first, so that it finishes its frame while the builder
-        abandons its build and kills the child processes (numba's compile, sympy's bounded
-        solves); the Textbook's computations, which it waits for, then end sooner too.
+        and the Textbook end their worker processes (``systems.processes``); every process
+        still working for this window is ended last.
         """
         if self._closed:
             return
-        from explorer.builder import end_forked_children
+        from systems import processes
 
         deadline = time.monotonic() + CLOSE_SECONDS
         self._closed = True
@@ -1154,7 +1154,7 @@ class MainWindow(QMainWindow):
         self._stop_worker(max(0.05, deadline - time.monotonic()))
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()
-        end_forked_children(deadline)  # one the Textbook started meanwhile
+        processes.cancel_all(max(0.05, deadline - time.monotonic()))
         self.collector.stop()
         self.error_reporter.uninstall()
 

@@ -54,8 +54,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
-from systems.deadline import Abandoned, abandon, cancellable
-
 FRAME_SECONDS = 0.03
 CHUNK_SECONDS = 0.012
 """Wall time of compiled stepping between two looks at the commands, at most."""
@@ -85,8 +83,6 @@ MIN_FRAGMENT = 256
 """Rows of a part handed over after a gap, at least: until the bucket holds that many, a
 trajectory's rows wait (a closed orbit of the default step is drawn a few turns at a
 time)."""
-ABANDON_AFTER = 0.25
-"""Seconds ``WorkerThread.stop`` waits for the loop to see its abort before abandoning it."""
 STOP_SECONDS = 5.0
 """How long ``WorkerThread.stop`` waits by default (closing the window passes less)."""
 PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled", "budget")
@@ -361,8 +357,6 @@ class SimulationWorker(QObject):
         self._settings = settings
         self._runs = runs
         self._lock = threading.Lock()
-        self._ident_lock = threading.Lock()
-        self._ident: int | None = None  # the worker thread's, while ``work`` runs
         self._wake = threading.Event()
         self._abort = False
         self._paused = False
@@ -435,37 +429,17 @@ class SimulationWorker(QObject):
         self._abort = True
         self._wake.set()
 
-    def abandon(self) -> bool:
-        """Raise ``Abandoned`` in the loop within a few bytecodes, where that is safe
-        (``systems.deadline.abandon``: never inside numba or an import), for a block that
-        will not end (a long interpreted step); True if the loop was running."""
-        with self._ident_lock:
-            if self._ident is None:
-                return False
-            abandon(self._ident)
-            self._ident = None
-            return True
-
     # -- the loop, in the worker thread ------------------------------------------------------
 
     def work(self) -> None:
         """Run until aborted; emits ``blocks_ready`` once per frame with new blocks."""
         try:
-            with self._ident_lock:
-                self._ident = threading.get_ident()
             if not self._connected:
                 # connected last, so its slot runs after every consumer's: a frame counts
                 # as taken once the GUI has handled it
                 self.blocks_ready.connect(self._receipt.take)
                 self._connected = True
-            try:
-                with cancellable():
-                    self._loop()
-            finally:
-                with self._ident_lock:
-                    self._ident = None
-        except Abandoned:
-            pass  # stopped from outside: nobody wants these blocks any more
+            self._loop()
         except Exception as exc:  # noqa: BLE001 - reported to the GUI, never lost
             self.failed.emit(f"{type(exc).__name__}: {exc}")
         finally:
@@ -797,25 +771,17 @@ class WorkerThread:
     def start(self) -> None:
         self.thread.start()
 
-    def stop(self, timeout: float = STOP_SECONDS, *, abandon: bool = False) -> bool:
+    def stop(self, timeout: float = STOP_SECONDS) -> bool:
         """Abort the loop and wait up to ``timeout`` seconds for the thread to end.
 
-        The loop checks for abort between blocks of about 30 ms. With ``abandon`` (the
-        window closing), a loop that has not seen it after ``ABANDON_AFTER`` seconds (a
-        slow interpreted step) is abandoned; otherwise (a restart) it is only waited for,
-        since it may be in numba's first compile of a method, which must not be cut
-        short. A thread still running at the end is kept referenced until it ends (a
-        ``QThread`` destroyed while running aborts the process); its frames carry an old
-        generation and are ignored. Returns whether it ended.
+        The loop checks for abort between blocks of about 30 ms (compiled steps release
+        the GIL; nothing is ever raised into the thread). A thread still running at the
+        end is kept referenced until it ends (a ``QThread`` destroyed while running
+        aborts the process); its frames carry an old generation and are ignored. Returns
+        whether it ended.
         """
         self.worker.abort()
         self.thread.quit()
-        if abandon:
-            grace = min(ABANDON_AFTER, timeout)
-            if self.thread.wait(round(1000 * grace)):
-                return True
-            self.worker.abandon()
-            timeout -= grace
         if self.thread.wait(round(1000 * max(0.0, timeout))):
             return True
         keep_until_finished(self.thread)

@@ -62,6 +62,11 @@ class CompiledSystem:
     def n(self) -> int:
         return self.mechanics.n
 
+    def __reduce__(self):
+        # machine code does not cross between processes: the worker compiles it again
+        # (``systems.processes``), a fraction of a second
+        return (_compiled_again, (self.mechanics, tuple(sorted(self.wanted)), self.parameters))
+
     def with_parameters(self, values: Sequence[float] | dict[str, float]) -> CompiledSystem:
         """The same kernels with other parameter values (no recompilation)."""
         if isinstance(values, dict):
@@ -278,6 +283,11 @@ def default_backend() -> str:
     import os
 
     return os.environ.get("PHASE_EXPLORER_KERNELS", "auto").strip().lower() or "auto"
+
+
+def _compiled_again(mechanics: Mechanics, wanted: tuple[str, ...], parameters) -> CompiledSystem:
+    """A ``CompiledSystem`` unpickled in another process: compiled there again."""
+    return compile_system(mechanics, wanted).with_parameters(parameters)
 
 
 def compile_system(

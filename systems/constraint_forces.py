@@ -42,7 +42,9 @@ formed, so that E - E(0) - W, what the impacts changed, can be reported as such.
 
 Everything is made once per ``Mechanics`` (sympy, then ``sympy.lambdify`` to numpy
 functions of many states at once, the parameters an argument) and evaluated on arrays of
-states; nothing here imports Qt.
+states; nothing here imports Qt. A ``ConstraintForces`` pickles, its functions as their
+source (``systems.lambdified``): the window makes it in a worker process and evaluates it
+in its own (``remember`` files it under the window's ``Mechanics``).
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ import sympy
 
 from systems import constraints
 from systems.expressions import as_expr
+from systems.lambdified import lambdify
 from systems.particles import depends_on_time, gravity_vector
 
 _ANALYSES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -406,6 +409,12 @@ def known(mechanics) -> ConstraintForces | None:
     return _ANALYSES.get(mechanics)
 
 
+def remember(mechanics, analysis: ConstraintForces) -> None:
+    """File ``analysis``, made elsewhere (in a worker process, from a copy of
+    ``mechanics``), as the analysis of ``mechanics``: ``known`` and ``analyse`` return it."""
+    _ANALYSES[mechanics] = analysis
+
+
 def presence(scene) -> str | None:
     """Why ``scene`` has no constraint forces, or None if it has some (explicit
     constraints, or particles with fewer coordinates than Cartesian components).
@@ -478,7 +487,7 @@ def _analyse(mechanics) -> ConstraintForces:
     arguments = (t, *mechanics.q, *mechanics.qdot, *params)
 
     def lam(exprs) -> Callable:
-        return sympy.lambdify(arguments, [as_expr(e) for e in exprs], modules="numpy", cse=True)
+        return lambdify(arguments, [as_expr(e) for e in exprs], modules="numpy", cse=True)
 
     if k:
         functions["jacobian"] = lam(list(pieces.jacobian))
@@ -489,7 +498,7 @@ def _analyse(mechanics) -> ConstraintForces:
         functions["momenta"] = lam(list(mechanics.momenta))
     if mechanics.matrix_form is None:  # for a system compiled without its velocities
         q_p = (t, *mechanics.q, *mechanics.p, *params)
-        functions["velocities"] = sympy.lambdify(
+        functions["velocities"] = lambdify(
             q_p, [as_expr(e) for e in mechanics.velocities], modules="numpy"
         )
     energy_name, energy = "", None
@@ -558,7 +567,7 @@ def _particle_functions(functions, mechanics, transformation, lam, params) -> No
     functions["columns"] = lam(columns)
     functions["rates"] = lam(rates)
     functions["bias"] = lam(bias)
-    functions["masses"] = sympy.lambdify(params, list(transformation.masses), modules="numpy")
+    functions["masses"] = lambdify(params, list(transformation.masses), modules="numpy")
     scene = mechanics.scene
     dimension = len(transformation.positions[0])
     if isinstance(scene.gravity, tuple):
@@ -568,7 +577,7 @@ def _particle_functions(functions, mechanics, transformation, lam, params) -> No
     else:
         field_ = sympy.S.Zero
     g = gravity_vector(field_, dimension)
-    functions["gravity"] = sympy.lambdify(params, [as_expr(c) for c in g], modules="numpy")
+    functions["gravity"] = lambdify(params, [as_expr(c) for c in g], modules="numpy")
 
 
 def _moving(pieces: constraints.Rows, t: sympy.Symbol) -> bool:

@@ -18,7 +18,7 @@ import sympy
 
 from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix, replaced
 from systems.classification import Classification, classify
-from systems.deadline import TimeLimitExceeded, limit_seconds, time_limit
+from systems.cpu_limit import TimeLimitExceeded, cpu_limit, limit_seconds
 from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
 from systems.expressions import as_expr
@@ -177,7 +177,7 @@ def derive(scene: Scene) -> Mechanics:
     ------
     DerivationError
         For a singular Legendre transform or one that cannot be inverted, or a
-        derivation that runs past ``systems.deadline.limit_seconds()``.
+        derivation that runs past ``systems.cpu_limit.limit_seconds()`` of CPU time.
     """
     from systems import derivation_cache
 
@@ -185,7 +185,7 @@ def derive(scene: Scene) -> Mechanics:
     if cached is not None:
         return cached
     try:
-        with time_limit(limit_seconds(), "deriving the equations of motion"):
+        with cpu_limit(limit_seconds(), "deriving the equations of motion"):
             mechanics = _derive(scene)
             if (
                 scene.holonomic_constraints

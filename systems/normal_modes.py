@@ -55,7 +55,7 @@ import sympy
 
 from systems.angles import angle_flags
 from systems.calculus import to_symengine
-from systems.deadline import TimeLimitExceeded, time_limit
+from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.mechanics import Mechanics
 
 PREPARE_SECONDS = 10.0
@@ -370,7 +370,7 @@ def prepare(mechanics: Mechanics) -> _Prepared:
         return _PREPARED[mechanics]
     except (KeyError, TypeError):
         pass
-    with time_limit(PREPARE_SECONDS, "the normal-mode analysis"):
+    with cpu_limit(PREPARE_SECONDS, "the normal-mode analysis"):
         prepared = _Prepared(mechanics)
     try:
         _PREPARED[mechanics] = prepared

@@ -19,7 +19,6 @@ import sympy
 
 from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
-from systems.deadline import checkpoint
 from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
 from systems.expressions import as_expr
 from systems.symmetries import ROTATIONS, TRANSLATIONS
@@ -712,7 +711,6 @@ def _rows(rows: list[tuple[str, object]], scene: Scene) -> list[str]:
     lines = []
     names = None
     for label, expr in rows:
-        checkpoint()  # a layout nobody waits for any more ends here
         if not isinstance(expr, sympy.Basic):  # symengine, from ``_Compact``
             text = str(expr)
             if len(text) > PRETTY_CHARS:  # renamed as text: no sympy at all

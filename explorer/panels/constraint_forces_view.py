@@ -18,12 +18,13 @@ for them, the caption says which contacts act at the last row and what the impac
 changed of the energy (E - E0 - W, never presented as a balance that holds).
 
 ``set_system`` rebuilds the view for a new system; the sympy part (the derivatives of
-the positions, lambdified) is made in a background thread the first time a system is
-seen, and the view shows it when it arrives, or the reason nothing is computed. The
-analysis is remembered per derivation, so a reset or a parameter change needs no new
-one. ``refresh(store)`` (the window's redraw timer) takes the main orbit's rows after the
-last one seen (O(new rows) a frame); curves against time are ``EnvelopeCurve``s in a
-``PacedLayoutWidget``, as in the conserved-quantities view.
+the positions, lambdified) is made in a worker process (``systems.processes``) the first
+time a system is seen, and the view shows it when it arrives, or the reason nothing is
+computed; the worker is ended when another system comes or the window closes. The
+analysis is remembered per derivation (``constraint_forces.remember``), so a reset or a
+parameter change needs no new one. ``refresh(store)`` (the window's redraw timer) takes
+the main orbit's rows after the last one seen (O(new rows) a frame); curves against time
+are ``EnvelopeCurve``s in a ``PacedLayoutWidget``, as in the conserved-quantities view.
 
 ``attach(window)`` puts the view in a dock tabbed with the conserved quantities, offered
 (its tab shown) only for a scene with constraint forces: explicit constraints, or
@@ -34,7 +35,6 @@ from __future__ import annotations
 
 import html
 import math
-import threading
 import time
 
 import numpy as np
@@ -55,6 +55,7 @@ from explorer.panels.log_axis import SparseLogAxis
 from explorer.panels.offered_dock import OfferedDockLink
 from explorer.trajectories import is_gap
 from systems import constraint_forces as cf
+from systems import processes
 
 DOCK_KEY = "constraints"
 FLOOR = 1e-17
@@ -69,6 +70,8 @@ at full speed a frame's rows cost more to hand to pyqtgraph than to compute."""
 """Room ahead on the time axes, a fraction of the span: each growth redraws every curve."""
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e377c2")
 MAX_FORCE_CURVES = 6
+CPU_SECONDS = 60.0
+"""CPU seconds the analysis may take in its worker before it is stopped and said so."""
 
 
 class _Series:
@@ -88,9 +91,18 @@ class _Series:
 
 
 class _Relay(QObject):
-    """Carries an analysis from its thread to the GUI thread (queued)."""
+    """Carries an analysis from the thread that waits for its worker to the GUI thread
+    (queued). It has no parent and that thread holds it, so it is alive whenever the
+    thread emits."""
 
-    delivered = Signal(int, object)
+    delivered = Signal(int, object, bool)  # generation, analysis, made by the worker
+
+
+def _failed(exc: BaseException) -> cf.ConstraintForces:
+    """What the view shows when the analysis raised (or its worker failed)."""
+    return cf.ConstraintForces(
+        applies=True, note=f"the constraint forces could not be formed: {exc}"
+    )
 
 
 def _number(value: float) -> str:
@@ -110,8 +122,9 @@ class ConstraintForcesView(QWidget):
         self.analysis: cf.ConstraintForces | None = None
         self._generation = 0
         self._closed = False
+        self._job: processes.Job | None = None
         self._relay = _Relay()
-        self._relay.delivered.connect(self._on_relay_delivered)
+        self._relay.delivered.connect(self._on_relay_delivered, Qt.ConnectionType.QueuedConnection)
         self._store = None
         self._key = None
         self._seen_t = -math.inf
@@ -196,7 +209,9 @@ class ConstraintForcesView(QWidget):
 
     def set_system(self, compiled) -> None:
         """Show a newly compiled system (a reset or new parameters count as new): the data
-        start again; the analysis is made in a thread unless this derivation has one."""
+        start again; the analysis is made in a worker process unless this derivation has
+        one."""
+        self._end_job()
         self.compiled = compiled
         self.analysis = None
         self._generation += 1
@@ -216,32 +231,52 @@ class ConstraintForcesView(QWidget):
         self._show_message("Working out the constraint forces…")
         generation, relay = self._generation, self._relay
 
-        def work() -> None:
+        def report(job: processes.Job) -> None:  # in the thread that waited for the worker
+            made = False
             try:
-                result = cf.analyse(mechanics)
-            except Exception as exc:  # noqa: BLE001 - shown in the view, never lost
-                result = cf.ConstraintForces(
-                    applies=True, note=f"the constraint forces could not be formed: {exc}"
-                )
-            except BaseException:  # abandoned (the window closed)
+                result, made = job.result(0), True
+            except processes.Cancelled:  # another system came, or the window closed
                 return
-            relay.delivered.emit(generation, result)
+            except Exception as exc:  # noqa: BLE001 - shown in the view, never lost
+                result = _failed(exc)
+            try:
+                relay.delivered.emit(generation, result, made)
+            except RuntimeError:  # the relay's C++ side is gone: nobody is left to tell
+                pass
 
-        threading.Thread(target=work, name="constraint-forces", daemon=True).start()
+        try:
+            self._job = processes.submit(
+                cf.analyse,
+                mechanics,
+                cpu_seconds=CPU_SECONDS,
+                what="working out the constraint forces",
+                on_done=report,
+            )
+        except Exception as exc:  # noqa: BLE001 - no worker: said in the view
+            relay.delivered.emit(generation, _failed(exc), False)
 
     def _offered(self, compiled) -> None:
         if self.link is not None:
             self.link.system_set(compiled)
 
     def shutdown(self) -> None:
-        """Drop any analysis still under way (the window is closing)."""
+        """End any analysis still under way (the window is closing)."""
         self._closed = True
         self._generation += 1
         self._draw_later.stop()
+        self._end_job()
 
-    def _on_relay_delivered(self, generation: int, analysis) -> None:
+    def _end_job(self) -> None:
+        """End the worker of an analysis nobody waits for any more."""
+        job, self._job = self._job, None
+        if job is not None:
+            job.cancel()
+
+    def _on_relay_delivered(self, generation: int, analysis, made: bool) -> None:
         if self._closed or generation != self._generation:
             return  # a system replaced meanwhile
+        if made:  # from a copy of this derivation: filed under the window's own
+            cf.remember(self.compiled.mechanics, analysis)
         self._deliver(analysis)
 
     def _deliver(self, analysis: cf.ConstraintForces) -> None:

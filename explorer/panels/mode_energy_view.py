@@ -2,8 +2,9 @@
 and the energies against the mode number now (the Fermi-Pasta-Ulam-Tsingou picture).
 
 ``set_system`` rebuilds the view for a new system: the modes are computed by
-``systems.normal_modes`` in a background thread (about 0.1 s for a 64-particle chain) and
-the view shows them when they arrive, or the reason there are none. ``refresh(store)``
+``systems.normal_modes`` in a worker process (``systems.processes``; about 0.1 s for a
+64-particle chain, ended when another system comes or the window closes) and the view
+shows them when they arrive, or the reason there are none. ``refresh(store)``
 (the window's redraw timer) and ``update(t, Y)`` take the new states of the main orbit.
 
 Drawing stays cheap however long the run: the curves are kept as the minimum and maximum
@@ -19,8 +20,6 @@ equilibrium with every frequency positive. It is shown, in front, for a new syst
 """
 
 from __future__ import annotations
-
-import threading
 
 import numpy as np
 import pyqtgraph as pg
@@ -42,8 +41,9 @@ from explorer.panels.curves import OutsideLegend, RangeKeeper, set_title, style_
 from explorer.panels.log_axis import SparseLogAxis
 from explorer.panels.offered_dock import OfferedDockLink
 from explorer.trajectories import is_gap
+from systems import processes
 from systems.display import pretty_name
-from systems.normal_modes import ModeAnalysis, analyse_compiled
+from systems.normal_modes import ModeAnalysis, analyse
 
 MAX_CURVES = 8
 """Modes drawn against time (the lowest ones); the spectrum shows them all."""
@@ -62,6 +62,8 @@ COLOURS = (
     "#17becf",
 )
 DOCK_KEY = "modes"
+CPU_SECONDS = 60.0
+"""CPU seconds the analysis may take in its worker (its symbolic part stops itself at 10)."""
 
 
 class PeakBuckets:
@@ -185,8 +187,9 @@ class GridLegend(OutsideLegend):
 
 
 class _Relay(QObject):
-    """Carries an analysis from its thread to the GUI thread (queued). It has no parent and
-    the thread holds it, so it is alive whenever the thread emits."""
+    """Carries an analysis from the thread that waits for its worker to the GUI thread
+    (queued). It has no parent and that thread holds it, so it is alive whenever the
+    thread emits."""
 
     delivered = Signal(int, object)
 
@@ -211,9 +214,9 @@ class ModeEnergyView(QWidget):
         self.analysis: ModeAnalysis | None = None
         self._generation = 0
         self._closed = False
-        self._thread: threading.Thread | None = None
+        self._job: processes.Job | None = None
         self._relay = _Relay()
-        self._relay.delivered.connect(self._on_relay_delivered)
+        self._relay.delivered.connect(self._on_relay_delivered, Qt.ConnectionType.QueuedConnection)
         self._store = None
         self._seen_t = -np.inf
         self._buckets: PeakBuckets | None = None
@@ -291,8 +294,9 @@ class ModeEnergyView(QWidget):
         return self.log_box.isChecked()
 
     def set_system(self, compiled, y0: np.ndarray | None = None) -> None:
-        """Show a newly compiled system: the modes are found again (in a thread) about the
-        stable equilibrium nearest ``y0`` (the scene's start by default)."""
+        """Show a newly compiled system: the modes are found again (in a worker process)
+        about the stable equilibrium nearest ``y0`` (the scene's start by default)."""
+        self._end_job()
         self.compiled = compiled
         self.analysis = None
         self._generation += 1
@@ -302,25 +306,46 @@ class ModeEnergyView(QWidget):
             self._show_message("Finding the normal modes…")
         if y0 is None:
             y0 = compiled.initial_state()
-        y0 = np.array(y0, dtype=float)
+        start = np.array(y0, dtype=float)[: compiled.n]
         generation, relay = self._generation, self._relay
 
-        def work() -> None:
+        def report(job: processes.Job) -> None:  # in the thread that waited for the worker
             try:
-                result = analyse_compiled(compiled, y0)
+                result = job.result(0)
+            except processes.Cancelled:  # another system came, or the window closed
+                return
             except Exception as exc:  # noqa: BLE001 - shown in the view, never lost
                 result = ModeAnalysis(None, f"the normal-mode analysis failed: {exc}")
-            except BaseException:  # abandoned (the window closed)
-                return
-            relay.delivered.emit(generation, result)
+            try:
+                relay.delivered.emit(generation, result)
+            except RuntimeError:  # the relay's C++ side is gone: nobody is left to tell
+                pass
 
-        self._thread = threading.Thread(target=work, name="normal-modes", daemon=True)
-        self._thread.start()
+        try:
+            self._job = processes.submit(
+                analyse,
+                compiled.mechanics,
+                np.asarray(compiled.parameters, dtype=float),
+                start,
+                cpu_seconds=CPU_SECONDS,
+                what="the normal-mode analysis",
+                on_done=report,
+            )
+        except Exception as exc:  # noqa: BLE001 - no worker: said in the view
+            failed = ModeAnalysis(None, f"the normal-mode analysis failed: {exc}")
+            relay.delivered.emit(generation, failed)
 
     def shutdown(self) -> None:
-        """Drop any analysis still under way (the window is closing)."""
+        """End any analysis still under way (the window is closing)."""
         self._closed = True
         self._generation += 1
+        self._end_job()
+
+    def _end_job(self) -> None:
+        """End the worker of an analysis nobody waits for any more."""
+        job, self._job = self._job, None
+        if job is not None:
+            job.cancel()
 
     def _on_relay_delivered(self, generation: int, analysis: ModeAnalysis) -> None:
         if self._closed or generation != self._generation:

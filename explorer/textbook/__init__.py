@@ -17,8 +17,8 @@ Tabs (each a ``TextbookTabView`` that computes when shown after a change):
   for U = u0 − c cos q.
 - ``EnergyTheoremView``: dH/dt against −∂L/∂t + Σ q̇ Q, and H against T + V.
 
-Computations run in ``TaskRunner`` (a private two-thread ``QThreadPool``, newest job
-per tab wins, cancelled and waited for when the window closes); the computations
+Computations run in ``TaskRunner`` (each in a worker process, newest job per tab wins, an
+older one's process ended; all ended when the window closes); the computations
 themselves are Qt-free, in ``systems.textbook.jobs``.
 """
 

@@ -23,16 +23,6 @@ from systems.display import pretty_name
 from systems.textbook import jobs
 
 
-def action_angle_job(compiled, cancel=jobs.NEVER) -> jobs.ActionAngleResult:
-    """Equilibria (for the well and the separatrix), then J and T over the energies."""
-    reason = jobs.action_angle_reason(compiled)
-    if reason:
-        raise ValueError(reason)
-    found = jobs.equilibria(compiled, cancel)
-    cancel.check()
-    return jobs.action_angle_data(compiled, found.search, cancel=cancel)
-
-
 class ActionAngleView(TextbookTabView):
     """J(E) = ∮ p dq and T(E) = dJ/dE from the bottom of the well to past the separatrix."""
 
@@ -67,10 +57,11 @@ class ActionAngleView(TextbookTabView):
         generation = self.generation
         self.runner.submit(
             self.key,
-            action_angle_job,
+            jobs.action_angle_table,
             self.compiled,
             on_done=lambda result: self._on_table_done(result, generation),
             on_failed=lambda message: self._show_reason(message.split(": ", 1)[-1]),
+            what="the action–angle table",
         )
 
     def _show_reason(self, reason: str) -> None:

@@ -18,7 +18,12 @@ from explorer.textbook.plots import (
     pen,
     spin_box,
 )
+from explorer.textbook.tasks import CPU_SECONDS
 from systems.textbook import jobs
+
+CPU_SECONDS_PER_TIME = 0.05
+"""CPU seconds the run may take per unit of its duration, beyond ``CPU_SECONDS``: a long
+run is numeric work, not runaway algebra (the double pendulum takes about 0.007)."""
 
 
 def explanation(result: jobs.EnergyResult) -> str:
@@ -131,6 +136,8 @@ class EnergyTheoremView(TextbookTabView):
             self.duration.value(),
             on_done=lambda result: self._on_balance_done(result, generation),
             on_failed=lambda message: self.summary.setText(f"Not available: {message}"),
+            what="the energy balance along the run",
+            cpu_seconds=CPU_SECONDS + CPU_SECONDS_PER_TIME * self.duration.value(),
         )
 
     def _on_balance_done(self, result: jobs.EnergyResult, generation: int) -> None:

@@ -187,6 +187,7 @@ class EquilibriaView(TextbookTabView):
             self.compiled,
             on_done=lambda result: self._on_search_done(result, generation),
             on_failed=self._on_search_failed,
+            what="the equilibrium search",
         )
 
     def _on_search_failed(self, message: str) -> None:

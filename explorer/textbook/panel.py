@@ -74,7 +74,7 @@ class TextbookPanel(QWidget):
             self.markers.show_result(result)
 
     def shutdown(self) -> None:
-        """Cancel the computations, wait for their threads, take the markers away."""
+        """End the computations' worker processes, take the markers away."""
         self.runner.shutdown()
         if self.markers is not None:
             self.markers.remove()

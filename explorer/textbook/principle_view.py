@@ -165,6 +165,7 @@ class PrincipleView(TextbookTabView):
             self.start_time.value(),
             on_done=lambda result: self._on_principle_done(result, generation),
             on_failed=self._on_failed,
+            what="the action along the run (Hamilton's principle)",
         )
 
     def _on_failed(self, message: str) -> None:
@@ -291,6 +292,7 @@ class PrincipleView(TextbookTabView):
             self.result.run.t[0] if self.result is not None else 0.0,
             on_done=lambda result: self._on_two_point_done(result, generation),
             on_failed=lambda message: self.boundary_note.setText(f"Two-point problem: {message}"),
+            what="the two-point problem",
         )
 
     def _on_two_point_done(self, result: jobs.TwoPointResult, generation: int) -> None:

@@ -82,10 +82,11 @@ class ReductionView(TextbookTabView):
         generation = self.generation
         self.runner.submit(
             self.key,
-            _setup_with_curves,
+            jobs.reduction_with_curves,
             self.compiled,
             on_done=lambda result: self._on_setup_done(result, generation),
             on_failed=lambda message: self.summary.setText(f"Reduction failed: {message}"),
+            what="the Routhian reduction",
         )
 
     def _on_setup_done(self, result, generation: int) -> None:
@@ -282,15 +283,6 @@ class ReductionView(TextbookTabView):
                 options={"xatol": 1e-10},
             )
         return float(found.x) if found.success else curves.minimum
-
-
-def _setup_with_curves(compiled, cancel=jobs.NEVER):
-    setup = jobs.reduction_setup(compiled, cancel)
-    if setup.reduction is None:
-        return setup, None
-    cancel.check()
-    curves = jobs.reduction_curves(setup, jobs.parameters_of(compiled), setup.p_cyclic)
-    return setup, curves
 
 
 def _slider_range(scene, name: str, value: float) -> tuple[float, float]:

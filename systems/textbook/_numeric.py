@@ -8,23 +8,19 @@ broadcasts constant entries to the shape of its inputs.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import time
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import sympy
 
-from systems.deadline import checkpoint
+from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.expressions import as_expr
+from systems.lambdified import Lambdified, lambdify
 from systems.matrix_solve import lambdify_cse
 from systems.mechanics import Mechanics
 
 TWO_PI = 2.0 * math.pi
-POLL_SECONDS = 0.05
-"""How often ``run_bounded`` looks, while it waits for its child, whether the thread was
-asked to stop (``systems.deadline.checkpoint``)."""
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -84,22 +80,41 @@ def vectorize(
     The arrays are broadcast together; constant expressions are broadcast to their shape.
     """
     exprs = [as_expr(e) for e in exprs]
-    raw = sympy.lambdify(list(args), exprs, modules="numpy", cse=lambdify_cse)
+    return Vectorized(lambdify(list(args), exprs, modules="numpy", cse=lambdify_cse), len(exprs))
 
-    def function(*arrays) -> np.ndarray:
+
+class Vectorized:
+    """What ``vectorize`` returns: ``f(*arrays) -> ndarray (count, *shape)``, picklable
+    (its function crosses as source text: ``systems.lambdified``).
+
+    Parameters
+    ----------
+    raw : Lambdified
+        The lambdified list of ``count`` expressions.
+    count : int
+    """
+
+    __slots__ = ("count", "raw")
+
+    def __init__(self, raw: Lambdified, count: int):
+        self.raw = raw
+        self.count = count
+
+    def __call__(self, *arrays) -> np.ndarray:
         arrays = [np.asarray(a, dtype=float) for a in arrays]
         shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else ()
         if not shape:  # one point (a root finder's call): no broadcasting loop
             with np.errstate(all="ignore"):
-                return np.array(raw(*arrays), dtype=float)
+                return np.array(self.raw(*arrays), dtype=float)
         with np.errstate(all="ignore"):
-            values = raw(*arrays)
-        out = np.empty((len(exprs), *shape))
+            values = self.raw(*arrays)
+        out = np.empty((self.count, *shape))
         for i, value in enumerate(values):
             out[i] = np.broadcast_to(np.asarray(value, dtype=float), shape)
         return out
 
-    return function
+    def __reduce__(self):
+        return (Vectorized, (self.raw, self.count))
 
 
 def is_periodic(expr: sympy.Expr, symbol: sympy.Symbol, others: Sequence[sympy.Symbol]) -> bool:
@@ -234,53 +249,18 @@ def _brent(function, a: float, b: float) -> float:
 
 
 def run_bounded(function: Callable, args: tuple, timeout: float):
-    """Run ``function(*args)`` in a forked child process; None if it fails or overruns.
+    """``function(*args)`` stopped after ``timeout`` seconds of CPU time; None if it fails
+    or overruns (the caller falls back to a numeric method).
 
-    sympy's solvers may run for a very long time on some inputs; a child process can be
-    stopped, a thread cannot. Where ``fork`` is unavailable, returns None (the caller
-    falls back to a numeric method). A thread asked to stop (``systems.deadline.cancel``)
-    raises ``Abandoned`` within ``POLL_SECONDS``, its child killed.
+    sympy's solvers may run for a very long time on some inputs. The limit is
+    ``systems.cpu_limit``'s, so this runs in a process's main thread: the command line's,
+    or the worker process the window sends an equilibrium search to.
     """
-    checkpoint()
     try:
-        context = multiprocessing.get_context("fork")
-    except ValueError:
+        with cpu_limit(timeout, "sympy.solve"):
+            try:
+                return function(*args)
+            except Exception:  # noqa: BLE001 - sympy gave up: numeric methods instead
+                return None
+    except TimeLimitExceeded:
         return None
-    receiver, sender = context.Pipe(duplex=False)
-    process = context.Process(target=_child, args=(sender, function, args), daemon=True)
-    try:
-        process.start()
-    except OSError:
-        return None
-    sender.close()
-    result = None
-    end = time.monotonic() + timeout
-    try:
-        while not receiver.poll(min(POLL_SECONDS, max(0.0, end - time.monotonic()))):
-            checkpoint()  # nobody waits for the answer any more: the child is killed below
-            if time.monotonic() >= end:
-                break
-        else:
-            status, value = receiver.recv()
-            result = value if status == "ok" else None
-    except (EOFError, OSError):
-        result = None
-    finally:
-        receiver.close()
-        if process.is_alive():
-            process.kill()
-        process.join(1.0)
-    return result
-
-
-def _child(sender, function, args) -> None:
-    try:
-        value = function(*args)
-        sender.send(("ok", value))
-    except BaseException as exc:  # noqa: BLE001 - reported to the parent as a failure
-        try:
-            sender.send(("error", repr(exc)))
-        except Exception:  # noqa: BLE001
-            pass
-    finally:
-        sender.close()

@@ -44,7 +44,7 @@ import scipy.optimize
 import sympy
 
 from systems.calculus import Calculus, Unsupported
-from systems.deadline import TimeLimitExceeded, checkpoint, time_limit
+from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
 from systems.textbook._numeric import (
     cache_for,
@@ -335,7 +335,7 @@ def search_equilibria(
     parameters : mapping of name to float, optional
         Parameter values overriding the scene's.
     symbolic : bool
-        Try ``sympy.solve`` first (in a child process stopped after ``timeout`` seconds).
+        Try ``sympy.solve`` first (stopped after ``timeout`` seconds of CPU time).
 
     Returns
     -------
@@ -344,7 +344,7 @@ def search_equilibria(
         search that runs past ``SEARCH_SECONDS`` is stopped and says so.
     """
     try:
-        with time_limit(SEARCH_SECONDS, "the equilibrium search"):
+        with cpu_limit(SEARCH_SECONDS, "the equilibrium search"):
             return _search_equilibria(mechanics, box, parameters, symbolic, timeout)
     except TimeLimitExceeded as exc:
         return EquilibriumSearch([], "none", f"{exc} (the potential is too large to scan)")
@@ -898,7 +898,6 @@ class _Problem:
             return self.gradient(*x)
 
         for x0 in self.starts():
-            checkpoint()
             with np.errstate(all="ignore"):
                 try:
                     sol = scipy.optimize.root(
@@ -1225,7 +1224,6 @@ class _Problem:
         equilibria: list[Equilibrium] = []
         sets: list[dict] = []
         for point, exact in found:
-            checkpoint()
             member = self._member(point, sets)
             if member is not None:
                 member["found"] += 1

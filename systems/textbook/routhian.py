@@ -11,7 +11,7 @@ read as a function of (q_r, p_r) with p_c a parameter (H does not contain q_c).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.integrate
@@ -50,6 +50,10 @@ class Reduction:
         ``(qdot_r..., pdot_r...)``, 2r expressions in (q_r, p_r, t; p_c), with effects.
     cyclic_velocities : tuple[sympy.Expr, ...]
         qdot_c(q_r, p_r, t; p_c), to reconstruct the cyclic coordinates by quadrature.
+
+    The numeric functions of V_eff and H_red are made once per parameter values and kept
+    with the reduction, and pickled with it: a reduction made in a worker process comes
+    back with the functions it made there, and nothing is lambdified again.
     """
 
     mechanics: Mechanics
@@ -61,6 +65,7 @@ class Reduction:
     reduced_hamiltonian: sympy.Expr
     reduced_equations: tuple[sympy.Expr, ...]
     cyclic_velocities: tuple[sympy.Expr, ...]
+    _functions: dict = field(default_factory=dict, repr=False)
 
     @property
     def rest_symbols(self) -> tuple[sympy.Symbol, ...]:
@@ -100,8 +105,8 @@ class Reduction:
         return H_red
 
     def _numeric(self, name, exprs, args, parameters, with_t=False):
-        key = ("routhian", name, tuple(sorted((parameters or {}).items())))
-        cache = cache_for(self.mechanics)
+        key = (name, tuple(sorted((parameters or {}).items())))
+        cache = self._functions
         if key not in cache:
             exprs = [with_parameters(e, self.mechanics, parameters) for e in exprs]
             extra = [self.mechanics.t] if with_t else []

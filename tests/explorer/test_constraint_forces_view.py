@@ -181,6 +181,27 @@ def _standalone(qtbot, name: str):
     return view, compiled
 
 
+def test_the_analysis_is_made_in_a_worker_and_kept_for_the_derivation(qtbot):
+    """Without an analysis of its derivation, ``set_system`` has one made in a worker
+    process: its functions evaluate here, and it is filed under this derivation."""
+    mechanics = derive(load_scene("cartesian_pendulum"))
+    compiled = compile_system(mechanics, ())
+    view = ConstraintForcesView()
+    qtbot.addWidget(view)
+    view.set_system(compiled)
+    assert view.analysis is None and "Working out" in view.message.text()
+    qtbot.waitUntil(lambda: view.analysis is not None, timeout=30000)
+    assert view.analysis.computes and view.analysis.k == 1
+    assert cf.known(mechanics) is view.analysis
+    assert view.stack.currentWidget() is view.layout_widget
+    t = np.linspace(0.0, 1.0, 11)
+    view.update(t, np.tile(compiled.initial_state(), (len(t), 1)))
+    assert view._force_series[0].rows.data.shape == (len(t), 2)
+    view.set_system(compiled.with_parameters({"g": 1.0}))  # the same derivation: at once
+    assert view.analysis is cf.known(mechanics)
+    _settled(qtbot, view)
+
+
 def _settled(qtbot, view) -> None:
     view.shutdown()  # no timer left behind
     qtbot.waitUntil(lambda: not view.layout_widget._later.isActive(), timeout=5000)

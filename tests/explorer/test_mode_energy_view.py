@@ -6,10 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from explorer.panels.mode_energy_view import MAX_CURVES, PeakBuckets
+from explorer.panels.mode_energy_view import MAX_CURVES, ModeEnergyView, PeakBuckets
+from systems import processes
+from systems.compiled import compile_system
 from systems.families import fpu_chain
-from systems.scene import parse_scene
+from systems.mechanics import derive
+from systems.scene import load_scene, parse_scene
 from tests.explorer.conftest import wait_for_points
+from tests.slow_work import gone
+
+WAIT_MS = 30000
+"""How long a test waits at most for a worker (a busy machine; never a measurement)."""
 
 
 def _opened(qtbot, window, scene) -> None:
@@ -88,3 +95,24 @@ def test_peak_buckets_keep_two_points_per_column_and_every_extreme():
     assert len(x) == 2 * len(buckets) and np.all(np.diff(x) >= 0)
     assert y.max() == 5.0 and y.min() == pytest.approx(-1.0, abs=1e-6)
     assert x[-1] <= 1000.0
+
+
+def test_the_modes_come_from_a_worker_that_a_new_system_or_closing_ends(qtbot):
+    view = ModeEnergyView()
+    qtbot.addWidget(view)
+    pendulum = compile_system(derive(load_scene("double_pendulum")), ())
+    chain = compile_system(derive(parse_scene(fpu_chain(8))), ())
+    view.set_system(pendulum)
+    first = view._job.pid
+    view.set_system(chain)  # the first analysis is no longer wanted: its worker ends
+    qtbot.waitUntil(lambda: view.analysis is not None, timeout=WAIT_MS)
+    qtbot.waitUntil(lambda: gone(first), timeout=WAIT_MS)
+    assert view.analysis.applies and view.modes.n == 8
+    assert len(view._curves) == MAX_CURVES
+    view.set_system(pendulum)
+    pid = view._job.pid
+    view.shutdown()
+    qtbot.waitUntil(lambda: gone(pid), timeout=WAIT_MS)
+    assert pid not in {job.pid for job in processes.running()}
+    qtbot.wait(50)
+    assert view.analysis is None  # nothing is delivered after closing

@@ -2,8 +2,12 @@
 
 Each job takes a ``CompiledSystem`` (its ``.mechanics`` and its parameter values, sliders
 included) and returns a small frozen value that a tab draws as it is. The window runs
-the jobs in a task pool (``explorer.textbook.tasks``); long loops check a ``Cancel`` token
-so a superseded or shut-down job stops early, raising ``Cancelled``.
+each job in a worker process (``explorer.textbook.tasks`` through ``systems.processes``)
+and stops a superseded one by ending its process, so every job, its arguments and its
+value pickle: a job is a function of this package (never of a module that imports Qt),
+and its value is plain data, numeric functions included (``systems.lambdified``). Called
+in a process of its own, a job's long loops check a ``Cancel`` token (``NEVER`` by
+default) and stop early, raising ``Cancelled``.
 
 - ``equilibria`` -> ``EquilibriaResult``: ``search_equilibria`` at the current parameters.
 - ``principle`` -> ``PrincipleResult``: S(eps) and the second variation along the run;
@@ -11,9 +15,10 @@ so a superseded or shut-down job stops early, raising ``Cancelled``.
   shooting.
 - ``reduction_setup`` -> ``ReductionSetup`` (the symbolic Routhian reduction) and
   ``reduction_curves`` -> ``ReductionCurves`` (V_eff, turning points and the reduced
-  portrait for one value of the conserved momenta); ``level_curve`` draws a level set of
-  an H quadratic in p.
-- ``action_angle_reason`` and ``action_angle_data`` -> ``ActionAngleResult``: J(E), T(E).
+  portrait for one value of the conserved momenta; fast, numeric); ``reduction_with_curves``
+  does both, the tab's job; ``level_curve`` draws a level set of an H quadratic in p.
+- ``action_angle_reason`` and ``action_angle_data`` -> ``ActionAngleResult``: J(E), T(E);
+  ``action_angle_table`` finds the equilibria first, the tab's job.
 - ``energy`` -> ``EnergyResult``: the energy theorem along a run.
 - ``integrate`` -> ``Run``: the system from its initial state on a uniform grid (DOP853).
 """
@@ -22,17 +27,20 @@ from systems.textbook.jobs._action_angle import (
     ActionAngleResult,
     action_angle_data,
     action_angle_reason,
+    action_angle_table,
 )
 from systems.textbook.jobs._cancel import NEVER, Cancel, Cancelled
 from systems.textbook.jobs._energy import EnergyResult, energy
 from systems.textbook.jobs._equilibria import EquilibriaResult, equilibria
 from systems.textbook.jobs._principle import PrincipleResult, TwoPointResult, principle, two_point
 from systems.textbook.jobs._reduction import (
+    Quadratic,
     ReductionCurves,
     ReductionSetup,
     level_curve,
     reduction_curves,
     reduction_setup,
+    reduction_with_curves,
 )
 from systems.textbook.jobs._run import Run, integrate, names_of, parameters_of
 
@@ -44,12 +52,14 @@ __all__ = [
     "EnergyResult",
     "EquilibriaResult",
     "PrincipleResult",
+    "Quadratic",
     "ReductionCurves",
     "ReductionSetup",
     "Run",
     "TwoPointResult",
     "action_angle_data",
     "action_angle_reason",
+    "action_angle_table",
     "energy",
     "equilibria",
     "integrate",
@@ -59,5 +69,6 @@ __all__ = [
     "principle",
     "reduction_curves",
     "reduction_setup",
+    "reduction_with_curves",
     "two_point",
 ]

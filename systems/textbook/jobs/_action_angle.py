@@ -12,7 +12,7 @@ import sympy
 
 from systems.display import pretty_name
 from systems.textbook.action_angle import action_angle
-from systems.textbook.equilibria import EquilibriumSearch, equilibrium_potential
+from systems.textbook.equilibria import EquilibriumSearch, equilibrium_potential, search_equilibria
 from systems.textbook.jobs._cancel import NEVER, Cancel
 from systems.textbook.jobs._run import names_of, parameters_of
 
@@ -76,6 +76,26 @@ def action_angle_reason(compiled: CompiledSystem) -> str:
     if any(f != 0 for f in mechanics.generalized_forces):
         return "effects (dissipation or forces) are switched on: the motion is not on H = E"
     return ""
+
+
+def action_angle_table(compiled: CompiledSystem, cancel: Cancel = NEVER) -> ActionAngleResult:
+    """What the Action-angle tab shows, in one job: the equilibria (for the well and the
+    separatrix), then J and T over the energies (``action_angle_data``).
+
+    Raises
+    ------
+    ValueError
+        If the tab does not apply (``action_angle_reason``) or there is no stable
+        equilibrium.
+    Cancelled
+    """
+    reason = action_angle_reason(compiled)
+    if reason:
+        raise ValueError(reason)
+    cancel.check()
+    search = search_equilibria(compiled.mechanics, parameters=parameters_of(compiled))
+    cancel.check()
+    return action_angle_data(compiled, search, cancel=cancel)
 
 
 def action_angle_data(

@@ -1,5 +1,12 @@
-"""Cancelling a job whose result is no longer wanted (a newer one superseded it, or the
-window is closing)."""
+"""Stopping a job early, where it runs in the caller's own process.
+
+The window does not use this: it runs each job in a worker process and ends the process
+when the result is no longer wanted (``systems.processes``). A caller that runs a job
+itself can pass a ``Cancel`` and set it from elsewhere (another thread, a signal
+handler): the job's loops check it between steps. A job's symbolic parts are limited by
+``systems.cpu_limit``, which works only in a process's main thread: that is where a job
+runs.
+"""
 
 from __future__ import annotations
 
@@ -19,11 +26,6 @@ class Cancel:
     def set(self) -> None:
         """Ask the job to stop at its next ``check``."""
         self._event.set()
-
-    @property
-    def event(self) -> threading.Event:
-        """The flag itself, for ``systems.deadline.cancellable(stop=...)``."""
-        return self._event
 
     @property
     def is_set(self) -> bool:

@@ -3,7 +3,7 @@ phase portrait."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -11,6 +11,7 @@ import numpy as np
 import sympy
 
 from systems.display import for_display
+from systems.lambdified import Lambdified, lambdify
 from systems.report import one_line
 from systems.textbook._numeric import NeedsClosedForm
 from systems.textbook.jobs._cancel import NEVER, Cancel
@@ -42,11 +43,14 @@ class ReductionSetup:
         Plot ranges of the first remaining coordinate and its momentum.
     expression : str
         V_eff in textbook notation.
-    quadratic : callable or None
+    quadratic : Quadratic or None
         ``(q (K,), p_cyclic (c,)) -> (A, B, C)``, each (K,): H_red = A p² + B p + C in the
         first remaining momentum p (the other remaining coordinates and momenta at the
         state's values), so level sets are solved for p exactly; None if H_red is not
         quadratic in p.
+
+    A setup pickles (the window makes it in a worker process), its numeric functions as
+    their source (``systems.lambdified``).
     needs_closed_form : bool
         True when the system has cyclic coordinates but the reduction needs closed forms
         its derivation left to the numerical solver (a system in matrix form): ``reason``
@@ -62,7 +66,7 @@ class ReductionSetup:
     q_range: tuple[float, float] = (0.0, 1.0)
     p_range: tuple[float, float] = (-1.0, 1.0)
     expression: str = ""
-    quadratic: Callable | None = None
+    quadratic: Quadratic | None = None
     needs_closed_form: bool = False
 
 
@@ -105,6 +109,24 @@ def reduction_setup(compiled: CompiledSystem, cancel: Cancel = NEVER) -> Reducti
     )
 
 
+def reduction_with_curves(
+    compiled: CompiledSystem, cancel: Cancel = NEVER
+) -> tuple[ReductionSetup, ReductionCurves | None]:
+    """``reduction_setup`` and, where there is a reduction, ``reduction_curves`` at the
+    state's own conserved momenta: what the Reduction tab shows first, in one job.
+
+    The setup's reduction comes with the numeric V_eff and H_red at the compiled system's
+    parameter values made (``Reduction``), so that moving the tab's sliders evaluates
+    them without lambdifying anything.
+    """
+    setup = reduction_setup(compiled, cancel)
+    if setup.reduction is None:
+        return setup, None
+    cancel.check()
+    curves = reduction_curves(setup, parameters_of(compiled), setup.p_cyclic)
+    return setup, curves
+
+
 def _quadratic_in_momentum(compiled, reduction, state, rest_index):
     """H_red = A p² + B p + C in the first remaining momentum, as numeric functions."""
     mechanics = compiled.mechanics
@@ -126,17 +148,34 @@ def _quadratic_in_momentum(compiled, reduction, state, rest_index):
     if any(c.has(p_sym) for c in coefficients):
         return None
     args = [q_sym, *reduction.cyclic_momenta]
-    functions = [sympy.lambdify(args, c, modules="numpy") for c in coefficients]
+    return Quadratic(tuple(lambdify(args, c, modules="numpy") for c in coefficients))
 
-    def abc(q: np.ndarray, p_cyclic) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+class Quadratic:
+    """``(q (K,), p_cyclic (c,)) -> (A, B, C)``, each (K,): the coefficients of H_red in
+    the first remaining momentum (``ReductionSetup.quadratic``); picklable.
+
+    Parameters
+    ----------
+    functions : tuple of three Lambdified
+        A, B and C as functions of ``(q, *p_cyclic)``.
+    """
+
+    __slots__ = ("functions",)
+
+    def __init__(self, functions: tuple[Lambdified, Lambdified, Lambdified]):
+        self.functions = functions
+
+    def __call__(self, q: np.ndarray, p_cyclic) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         q = np.asarray(q, dtype=float)
         pc = np.asarray(p_cyclic, dtype=float).ravel()
         with np.errstate(all="ignore"):
             return tuple(
-                np.broadcast_to(np.asarray(f(q, *pc), dtype=float), q.shape) for f in functions
+                np.broadcast_to(np.asarray(f(q, *pc), dtype=float), q.shape) for f in self.functions
             )
 
-    return abc
+    def __reduce__(self):
+        return (Quadratic, (self.functions,))
 
 
 def level_curve(

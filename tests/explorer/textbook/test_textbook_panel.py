@@ -9,6 +9,7 @@ import pytest
 from PySide6.QtWidgets import QMainWindow
 
 from explorer.textbook import TextbookPanel, install
+from systems import processes
 
 
 def _wait_result(qtbot, view, attribute: str = "result", timeout: int = 60000) -> None:
@@ -17,8 +18,8 @@ def _wait_result(qtbot, view, attribute: str = "result", timeout: int = 60000) -
 
 def _close(qtbot, window, panel=None) -> None:
     window.close()
-    if panel is not None:  # closing the window waited for every textbook computation
-        assert panel.runner.pool.activeThreadCount() == 0
+    if panel is not None:  # closing the window ended every textbook computation's worker
+        assert panel.runner.running == 0
         assert panel.runner.pending == 0
     window.deleteLater()
     qtbot.wait(10)
@@ -150,8 +151,11 @@ def test_reduction_planetary_and_none_for_pendulum(qtbot, textbook):
     m, k = 1.0, 1.0
     assert view.minimum_position() == pytest.approx(p_theta**2 / (m * k), rel=1e-6)
     assert view.curves.turning == pytest.approx([1.0, 3.0], rel=1e-6)  # perihelion, aphelion
-    # another conserved momentum on the slider moves the minimum to p^2/(m k)
+    # another conserved momentum on the slider moves the minimum to p^2/(m k), drawn with
+    # the functions the worker made (nothing lambdified here)
+    made = set(view.setup.reduction._functions)
     view.set_momenta([1.0])
+    assert set(view.setup.reduction._functions) == made
     assert view.curves.p_cyclic[0] == pytest.approx(1.0, abs=2e-3)
     assert view.minimum_position() == pytest.approx(view.curves.p_cyclic[0] ** 2, rel=1e-6)
     # no cyclic coordinate in Cartesian Kepler; action-angle refuses two degrees of freedom
@@ -178,7 +182,7 @@ def test_bare_window_without_phase_view(qtbot):
     _wait_result(qtbot, panel.equilibria)
     assert panel.equilibria.result.search.equilibria[0].frequencies[0] == pytest.approx(1.0)
     window.close()
-    assert panel.runner.pool.activeThreadCount() == 0
+    assert panel.runner.running == 0
 
 
 def test_markers_follow_the_phase_pair(qtbot):
@@ -218,10 +222,12 @@ def test_closing_mid_computation_cancels_and_waits(qtbot):
     qtbot.waitUntil(lambda: window.compiled is not None, timeout=60000)
     panel.show_tab(panel.energy)
     panel.energy.duration.setValue(5000.0)  # a long run: still going when the window closes
-    qtbot.waitUntil(lambda: panel.runner.pool.activeThreadCount() > 0, timeout=5000)
-    # closing stops the run (no thread, nothing pending); how long it takes is a
+    qtbot.waitUntil(lambda: panel.runner.running > 0, timeout=30000)
+    pids = panel.runner.pids()
+    # closing ends the run's worker (nothing pending); how long it takes is a
     # benchmark's business, not a test's (a busy machine)
     _close(qtbot, window, panel)
+    assert not {job.pid for job in processes.running()} & set(pids)
 
 
 def test_closed_forms_are_read_back_through_the_whitelist_parser(qtbot, textbook):

@@ -1,5 +1,4 @@
 import math
-import time
 
 import numpy as np
 import pytest
@@ -130,12 +129,11 @@ def test_box_limits_the_search():
 
 
 def _slow():
-    time.sleep(30)
-    return 1
+    x = 0
+    while True:  # CPU time, which the bound counts
+        x += 1
 
 
-def test_bounded_run_gives_up_in_time():
-    start = time.perf_counter()
+def test_bounded_run_gives_up_past_its_cpu_time():
     assert run_bounded(_slow, (), 0.3) is None
-    assert time.perf_counter() - start < 3.0
     assert run_bounded(math.hypot, (3.0, 4.0), 5.0) == 5.0

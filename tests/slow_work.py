@@ -1,0 +1,54 @@
+"""Stand-ins for slow symbolic work, run in worker processes (``systems.processes``).
+
+A worker imports a function by its module and name, so a test's monkeypatch of the
+window's process does not reach it: tests put these in place of the real functions
+instead (``monkeypatch.setattr(explorer.builder, "derive_source", crawl_then_derive)``).
+This module imports neither Qt nor pytest, so workers stay light. ``gone(pid)`` tells
+whether a worker has ended.
+"""
+
+from __future__ import annotations
+
+import time
+
+CRAWL_SECONDS = 60.0
+
+
+def crawl(seconds: float = CRAWL_SECONDS) -> None:
+    """Pure Python for ``seconds`` of CPU time, as sympy is."""
+    end = time.process_time() + seconds
+    while time.process_time() < end:
+        sum(range(1000))
+
+
+def crawl_then_derive(source):
+    """``explorer.builder.derive_source`` after a long crawl."""
+    from explorer.builder import derive_source
+
+    crawl()
+    return derive_source(source)
+
+
+def crawl_if_three_coordinates(source):
+    """``derive_source``, crawling first for a scene of three coordinates."""
+    from explorer.builder import derive_source
+    from systems.scene import Scene
+
+    if isinstance(source, Scene) and len(source.coordinates) == 3 or "theta3" in str(source):
+        crawl()
+    return derive_source(source)
+
+
+def gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (a zombie not yet reaped counts as ended)."""
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().split(") ")[1].startswith("Z")
+    except OSError:
+        return True
