@@ -132,6 +132,11 @@ class Classification:
         No unilateral constraint.
     simple : bool
         Scleronomic, holonomic and conservative.
+    dissipative : tuple of str or None
+        H has no explicit t, no constraint moves, and the effects' power
+        ``sum Q_i qdot_i`` is provably never positive (damping): H can only decrease. The
+        names are the parameters that proof takes as positive (their values in the
+        scene are); None where H is conserved or may grow.
     """
 
     time_dependent: bool
@@ -144,6 +149,7 @@ class Classification:
     holonomic: bool
     bilateral: bool
     simple: bool
+    dissipative: tuple[str, ...] | None = None
 
     def as_dict(self) -> dict[str, bool | None]:
         """The answers by name, as ``derive --json`` prints them (None is null)."""
@@ -158,6 +164,7 @@ class Classification:
             "holonomic": self.holonomic,
             "bilateral": self.bilateral,
             "simple": self.simple,
+            "dissipative": self.dissipative is not None,
         }
 
     def describe(self) -> list[str]:
@@ -347,7 +354,39 @@ def classify(
         holonomic=holonomic,
         bilateral=bilateral,
         simple=bool(not rheonomic and holonomic and conservative),
+        dissipative=(
+            _dissipation(scene, forces, qdot)
+            if acting and not H_explicit_t and not moving and not inelastic
+            else None
+        ),
     )
+
+
+DISSIPATION_MAX_OPS = 400
+"""Largest effects' power (sympy's operation count) whose sign is looked at."""
+
+
+def _dissipation(scene: Scene, forces, qdot) -> tuple[str, ...] | None:
+    """The parameters (positive in the scene) under which ``sum Q_i qdot_i <= 0`` for
+    every state, as sympy proves it; None if it cannot."""
+    power = sum((as_expr(Q) * v for Q, v in zip(forces, qdot, strict=True)), sympy.S.Zero)
+    if sympy.count_ops(power) > DISSIPATION_MAX_OPS:
+        return None
+    values = scene.parameter_values
+    symbols = scene.symbols
+    positive = {
+        symbols[name]: sympy.Symbol(name, positive=True)
+        for name, value in values.items()
+        if value > 0 and name in symbols
+    }
+    try:
+        proved = (-power.xreplace(positive)).is_nonnegative
+    except (TypeError, ValueError, RecursionError):
+        return None
+    if proved is not True:
+        return None
+    used = {str(s) for s in power.free_symbols}
+    return tuple(name for name in values if name in used and values[name] > 0)
 
 
 # -- the questions ---------------------------------------------------------------------------

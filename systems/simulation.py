@@ -153,7 +153,9 @@ class Run:
         compiled loop then records every step and the crossings are found here.
     energy_tolerance : float or None
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
-        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8). None: never.
+        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8); where damping can only
+        take energy away (``Classification.dissipative``), when H rises above H(y0) by
+        more than this. None: never.
     compensated : bool
         Kahan-compensated summation of the state in the fixed-step and log-H loops, so
         round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
@@ -250,7 +252,17 @@ class Run:
         )  # fmt: skip
         c = compiled.mechanics.classification
         self.watch_energy = c.hamiltonian_conserved and "hamiltonian" in compiled.wanted
-        self.H0 = float(compiled.hamiltonian(t0, self.y0[None, :])[0]) if self.watch_energy else 0.0
+        # damping can only take energy away: H rising above its start is the method's
+        dissipative = getattr(c, "dissipative", None)
+        values = dict(zip(compiled.parameter_names, compiled.parameters, strict=True))
+        self.watch_rise = (
+            not self.watch_energy
+            and dissipative is not None
+            and "hamiltonian" in compiled.wanted
+            and all(values.get(name, 0.0) > 0 for name in dissipative)
+        )
+        watched = self.watch_energy or self.watch_rise
+        self.H0 = float(compiled.hamiltonian(t0, self.y0[None, :])[0]) if watched else 0.0
         self.H_scale = abs(self.H0) if abs(self.H0) > 1e-8 else 1.0
         self.f0 = max(self.f0, 1e-300)
 
@@ -373,6 +385,17 @@ class Run:
                     f"the energy error reached {worst:.3g} (tolerance "
                     f"{self.energy_tolerance:g}) by t = {t[-1]:.6g}; reduce the step or "
                     "tolerance, or raise the energy tolerance (--energy-tolerance, 'off')"
+                )
+        if self.watch_rise and status in ("running", "ok", "budget") and len(t):
+            H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
+            rise = float(np.max(H - self.H0)) / self.H_scale
+            if not rise <= self.energy_tolerance:
+                status = "energy_error"
+                message = (
+                    f"the energy rose by {rise:.3g} of its start (tolerance "
+                    f"{self.energy_tolerance:g}) by t = {t[-1]:.6g}, though the damping "
+                    f"can only take energy away: {self.method} is unstable or inaccurate "
+                    "at this step; reduce the step or tolerance"
                 )
         if status in PROBLEMS and status not in ("singular", "budget") and len(t):
             status, message = _diagnose(

@@ -220,3 +220,68 @@ def test_endless_runs_stream_until_the_caller_stops(pendulum, method):
     assert all(b.status == "running" and len(b.t) for b in blocks)
     t = np.concatenate([b.t for b in blocks])
     assert np.all(np.diff(t) > 0) and t[-1] > 0.1
+
+
+# -- a damped run whose energy rises is wrong, and says so ------------------------------------
+
+DAMPED_OSCILLATOR = """
+title = "damped oscillator"
+[system]
+coordinates = ["x"]
+parameters = { m = 1.0, k = 1.0, c = 0.2 }
+kinetic = "m*x_dot**2/2"
+potential = "k*x**2/2"
+[effects]
+forces = { x = "-c*x_dot" }
+[initial]
+x = 1.0
+"""
+
+
+def _damped(text: str = DAMPED_OSCILLATOR, **parameters):
+    from systems.scene import parse_scene
+
+    mechanics = derive(parse_scene(text, source="damped.toml"))
+    compiled = compile_system(mechanics, ("rhs", "hamiltonian"))
+    return compiled.with_parameters(parameters) if parameters else compiled
+
+
+def test_damping_is_proved_to_take_energy_away():
+    assert _damped().mechanics.classification.dissipative == ("c",)
+    assert derive(load_scene("damped_pendulum")).classification.dissipative is not None
+    for name in ("simple_pendulum", "driven_damped_pendulum", "bouncing_ball"):
+        assert derive(load_scene(name)).classification.dissipative is None, name
+    # a force that can push as well as brake proves nothing
+    pushing = DAMPED_OSCILLATOR.replace('"-c*x_dot"', '"-c*x_dot + x"')
+    assert _damped(pushing).mechanics.classification.dissipative is None
+
+
+@pytest.mark.parametrize(
+    "method, dt, make",
+    [
+        ("rk4", 3.0, lambda: _damped()),  # beyond RK4's stability bound: x grows to 1e6
+        ("rk4", 2.5, lambda: compile_system(derive(load_scene("damped_pendulum")))),
+        ("euler", 0.5, lambda: _damped()),
+    ],
+)
+def test_a_run_whose_damped_energy_rises_is_not_ok(method, dt, make):
+    blocks = list(stream(make(), method=method, dt=dt, t_end=100.0))
+    last = blocks[-1]
+    assert last.status == "energy_error", last.message
+    assert "damping can only take energy away" in last.message
+
+
+@pytest.mark.parametrize("method", ["rk4", "dop853", "implicit_midpoint"])
+def test_an_accurate_damped_run_is_ok(method):
+    compiled = compile_system(derive(load_scene("damped_pendulum")))
+    dt = {"rk4": 0.01, "implicit_midpoint": 0.01}.get(method)
+    options = {"dt": dt} if dt else {}
+    last = list(stream(compiled, method=method, t_end=30.0, **options))[-1]
+    assert last.status == "ok", last.message
+
+
+def test_negative_damping_is_not_watched():
+    """A slider that makes the 'damping' push invalidates the proof: no false alarm."""
+    compiled = _damped(c=-0.2)
+    last = list(stream(compiled, method="dop853", t_end=20.0))[-1]
+    assert last.status == "ok", last.message
