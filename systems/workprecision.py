@@ -5,7 +5,9 @@ tolerances (adaptive ones) to the same end time, and records the wall time of th
 integration (compilation excluded), the final-state error against a reference, and the
 maximum relative energy error. The reference is exact where one is known (linear
 systems through the matrix exponential; Kepler orbits after whole periods) and otherwise
-a converged DOP853 run; ``WorkPrecision.reference`` says which. Progress is reported
+a converged DOP853 run, checked against a second one: where the motion is chaotic they
+part, and the sweep ends where they still agree. ``WorkPrecision.reference`` says which
+reference, and why the horizon is shorter than asked when it is. Progress is reported
 through a callback and a sweep can be cancelled between blocks.
 """
 
@@ -179,7 +181,15 @@ def kepler_period(compiled, y0: np.ndarray) -> float | None:
 def reference_state(compiled, y0: np.ndarray, t_end: float) -> tuple[np.ndarray, float, str]:
     """(reference final state, possibly adjusted t_end, a sentence naming the reference).
 
-    For a Kepler scene ``t_end`` is rounded to a whole number of periods.
+    For a Kepler scene ``t_end`` is rounded to a whole number of periods. Without an
+    exact solution the reference is a DOP853 run at ``REFERENCE_TOL``, checked against
+    a second at ``CHECK_TOL`` at ``CHECKPOINTS`` times: where they part (chaos), the
+    horizon is cut to the last time they agree, and the sentence says why.
+
+    Raises
+    ------
+    ReferenceUnavailable
+        When the two runs disagree already at the first checkpoint.
     """
     period = kepler_period(compiled, y0)
     if period is not None:
@@ -192,15 +202,62 @@ def reference_state(compiled, y0: np.ndarray, t_end: float) -> tuple[np.ndarray,
     exact = linear_reference(compiled, y0, t_end)
     if exact is not None:
         return exact, t_end, "exact: matrix exponential of the linear equations"
-    last = None
     # with constraints, DOP853 alone would let them drift: its projected twin instead
     method = "dop853" if compiled.constraints() is None else "constrained_dop853"
-    for block in stream(compiled, method=method, y0=y0, t_end=t_end, tol=1e-14):
-        last = block
-    if last is None or last.status != "ok":
-        raise RuntimeError("the reference run did not reach t_end: " + (last.message or ""))
     label = "DOP853" if method == "dop853" else "constrained DOP853"
-    return last.y[-1].copy(), t_end, f"a converged {label} run (tol 1e-14)"
+    times = t_end * np.arange(1, CHECKPOINTS + 1) / CHECKPOINTS
+    reference = _states_at(compiled, method, y0, times, REFERENCE_TOL)
+    check = _states_at(compiled, method, y0, times, CHECK_TOL)
+    scale = np.maximum(1.0, np.max(np.abs(reference), axis=1))
+    apart = np.max(np.abs(reference - check), axis=1) / scale
+    agree = apart <= AGREEMENT
+    if agree.all():
+        return reference[-1].copy(), t_end, f"a converged {label} run (tol {REFERENCE_TOL:g})"
+    last = int(np.argmin(agree)) - 1  # the last checkpoint before the first disagreement
+    why = (
+        f"{label} runs at tol {REFERENCE_TOL:g} and {CHECK_TOL:g} differ by "
+        f"{apart[last + 1]:.2g} at t = {times[last + 1]:.4g} (chaotic or ill-conditioned "
+        "motion: no run tells the final state there)"
+    )
+    if last < 0:
+        raise ReferenceUnavailable(f"{why}; measure the energy error instead")
+    return (
+        reference[last].copy(),
+        float(times[last]),
+        f"a converged {label} run (tol {REFERENCE_TOL:g}) to t = {times[last]:.4g}, where a "
+        f"second run agrees to {AGREEMENT:g}; not to {t_end:g}: {why}",
+    )
+
+
+REFERENCE_TOL = 1e-14
+CHECK_TOL = 1e-12
+"""The reference run's tolerance, and that of the run it is checked against: where they
+differ by more than ``AGREEMENT`` (relative to the state's size, at least 1), the
+reference does not tell the true state either."""
+AGREEMENT = 1e-8
+CHECKPOINTS = 40
+"""Times, evenly spaced up to t_end, at which the two reference runs are compared."""
+
+
+class ReferenceUnavailable(RuntimeError):
+    """No reference run can be trusted at any time of the sweep."""
+
+
+def _states_at(compiled, method: str, y0: np.ndarray, times: np.ndarray, tol: float) -> np.ndarray:
+    """The states at ``times`` of a ``method`` run at ``tol``, each reached exactly (the
+    run restarts at every time), shape (len(times), 2n)."""
+    states = np.empty((len(times), len(y0)))
+    t, y = 0.0, np.asarray(y0, dtype=float)
+    for k, t_next in enumerate(times):
+        last = None
+        for block in stream(compiled, method=method, y0=y, t0=t, t_end=float(t_next), tol=tol):
+            last = block
+        if last is None or last.status != "ok":
+            message = "" if last is None else last.message
+            raise RuntimeError(f"the reference run did not reach t = {t_next:g}: {message}")
+        t, y = float(t_next), last.y[-1].copy()
+        states[k] = y
+    return states
 
 
 # -- the sweep ------------------------------------------------------------------------
@@ -273,7 +330,10 @@ def sweep(
             raise ValueError(refusal)
     runnable = [m for m in methods if STEPPERS[m].wants <= compiled.wanted]
     y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
-    y_ref, t_end, reference = reference_state(compiled, y0, t_end)
+    try:
+        y_ref, t_end, reference = reference_state(compiled, y0, t_end)
+    except ReferenceUnavailable as exc:  # the energy error still says something
+        y_ref, reference = None, f"none: {exc}; the final-state errors are not measured"
     watch = None
     if mech.classification.hamiltonian_conserved:
         H0 = float(compiled.hamiltonian(0.0, y0[None])[0])
@@ -294,7 +354,10 @@ def sweep(
                 last, wall, energy = _timed_run(
                     compiled, method, y0, t_end, setting, value, watch, cancelled
                 )
-                error = float(np.max(np.abs(last.y[-1] - y_ref))) if len(last.t) else math.inf
+                if y_ref is None:
+                    error = math.nan
+                else:
+                    error = float(np.max(np.abs(last.y[-1] - y_ref))) if len(last.t) else math.inf
                 points.append(
                     WorkPoint(
                         method,

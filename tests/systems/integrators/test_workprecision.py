@@ -77,3 +77,26 @@ def test_default_methods_fit_the_structure():
     assert "leapfrog" not in polar and "gauss_legendre4" in polar and "dop853" in polar
     driven = default_methods(derive(load_scene("driven_damped_pendulum")))
     assert driven[0] == "dop853"
+
+
+def test_a_chaotic_reference_is_cut_where_two_runs_still_agree():
+    """The double pendulum is chaotic by t = 30: two tight DOP853 runs part, so the sweep
+    measures errors at the last time they agree, and says why."""
+    from systems.workprecision import AGREEMENT, CHECK_TOL, REFERENCE_TOL, _states_at
+
+    compiled = compile_system(derive(load_scene("double_pendulum")), ("rhs", "hamiltonian"))
+    y0 = compiled.initial_state()
+    y_ref, t_end, reference = reference_state(compiled, y0, 30.0)
+    assert 0 < t_end < 30.0
+    assert "not to 30" in reference and "chaotic" in reference
+    # at the chosen time a third, independent run agrees with the reference
+    times = np.array([t_end])
+    for tol in (CHECK_TOL, REFERENCE_TOL * 10):
+        other = _states_at(compiled, "dop853", y0, times, tol)[0]
+        assert np.max(np.abs(other - y_ref)) <= AGREEMENT * max(1.0, np.max(np.abs(y_ref)))
+
+
+def test_a_regular_reference_keeps_the_whole_horizon():
+    compiled = compile_system(derive(load_scene("simple_pendulum")), ("rhs", "hamiltonian"))
+    _, t_end, reference = reference_state(compiled, compiled.initial_state(), 10.0)
+    assert t_end == 10.0 and "not to" not in reference
