@@ -5,7 +5,7 @@ VENV := .venv
 TEST_WORKERS ?= 2
 BIN := $(VENV)/bin
 
-.PHONY: run test lint bench clean
+.PHONY: run test test-quick test-under-load lint bench clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,14 @@ test: $(VENV)/.installed-test
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile --max-worker-restart 1 --durations=25
+
+# everyday work: the suite without its model-based, soak and slow tests
+test-quick: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow and not soak" -q
+
+# the whole suite beside two busy loops, as on a shared machine (run before a release)
+test-under-load: $(VENV)/.installed-test
+	$(BIN)/python tests/under_load.py --busy 2 -- $(MAKE) test
 
 bench: $(VENV)/.installed-test
 	$(BIN)/pip install -e ".[bench]"

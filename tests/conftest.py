@@ -81,8 +81,23 @@ compiles numba in a thread from a cold cache hung CI for 10 minutes: see the ses
 note before turning it on.)"""
 
 
+SOAK = frozenset(SLOW_FIRST) | {
+    "tests/explorer/test_scene_switches.py",
+    "tests/systems/integrators/test_brouwer.py",
+    "tests/systems/test_expressions_fuzz.py",
+    "tests/systems/test_large_systems.py",
+}
+"""Model-based, soak and property files marked ``soak``: ``make test-quick`` leaves them
+(and ``slow``) out for everyday work; ``make test``, what CI runs, takes everything."""
+
+
 def pytest_collection_modifyitems(session, config, items):
+    import pytest
+
     rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+    for item in items:
+        if item.nodeid.split("::", 1)[0] in SOAK:
+            item.add_marker(pytest.mark.soak)
 
     def key(item) -> int:
         path = item.nodeid.split("::", 1)[0]

@@ -66,9 +66,9 @@ def test_each_bad_scene_is_a_user_error(tmp_path, capsys, change, words):
     old, new = change
     assert old in HARMONIC
     path = write(tmp_path, HARMONIC.replace(old, new, 1))
-    start = time.perf_counter()
+    start = time.process_time()
     message = user_error(capsys, "run", path, "--t-end", "1")
-    assert time.perf_counter() - start < 30.0
+    assert time.process_time() - start < 30.0
     for word in words:
         assert word in message, message
 
@@ -105,9 +105,9 @@ def test_a_hamiltonian_with_a_quartic_kinetic_term_derives(tmp_path, capsys):
     ],
 )
 def test_run_options_checked_before_running(capsys, options, words):
-    start = time.perf_counter()
+    start = time.process_time()
     message = user_error(capsys, "run", "harmonic_oscillator", *options)
-    assert time.perf_counter() - start < 30.0
+    assert time.process_time() - start < 30.0
     for word in words:
         assert word in message, message
 
@@ -231,10 +231,10 @@ def test_random_scenes_derive_or_are_refused(tmp_path_factory, mutations, cut):
     if cut % 5 == 0:  # a file cut short, as an interrupted save would leave it
         text = text[: cut % max(len(text), 1)]
     path = write(tmp_path_factory.mktemp("fuzz"), text)
-    start = time.perf_counter()
+    start = time.process_time()
     code = main(["derive", path])
     assert code in (0, 2)
-    assert time.perf_counter() - start < 30.0
+    assert time.process_time() - start < 30.0
 
 
 NUMBERS = st.sampled_from(["0", "-1", "1e-300", "1e-15", "0.01", "0.5", "1", "1e300", "inf", "nan"])
@@ -281,10 +281,10 @@ def test_random_run_options_run_or_are_refused(tmp_path_factory, scene, options)
         argv += ["--t-end", "2"]
     if "--max-steps" not in argv:
         argv += ["--max-steps", "200000"]
-    start = time.perf_counter()
+    start = time.process_time()
     try:
         code = main(argv)
     except SystemExit as exc:  # argparse: a value that is not a number
         code = exc.code
     assert code in (0, 1, 2)
-    assert time.perf_counter() - start < 60.0
+    assert time.process_time() - start < 60.0

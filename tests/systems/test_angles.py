@@ -117,7 +117,7 @@ def test_detection_is_bounded_for_many_coordinates():
         " + ".join(f"{q}_dot**2/2" for q in names),
         " + ".join(f"k*({a} - {b})**2/2" for a, b in zip(names, names[1:], strict=False)),
     )
-    start = time.perf_counter()
+    start = time.process_time()
     assert detect_angles(chain) == ()
     rotors = _scene(
         names,
@@ -125,7 +125,7 @@ def test_detection_is_bounded_for_many_coordinates():
         " - ".join(f"cos({a} - {b})" for a, b in zip(names, names[1:], strict=False)),
     )
     assert detect_angles(rotors) == tuple(names)
-    assert time.perf_counter() - start < 5.0
+    assert time.process_time() - start < 5.0
 
 
 def test_wrap_and_branch():

@@ -292,9 +292,9 @@ def test_constraint_holds_over_ten_thousand_periods(compiled):
     T = _period()
     run = Run(compiled, method="constrained_dop853", t_end=1e4 * T, diagnostics=("H",))
     sampler = Sampler(run, np.linspace(0.0, 1e4 * T, 2001))
-    start = time.perf_counter()
+    start = time.process_time()
     rows = list(sampler)
-    seconds = time.perf_counter() - start
+    seconds = time.process_time() - start
     assert sampler.last.status == "ok", sampler.last.message
     assert rows[-1][0] == pytest.approx(1e4 * T)
     assert sampler.violation <= 1e-10

@@ -51,10 +51,10 @@ def test_arithmetic_and_functions():
     ],
 )
 def test_rejections_are_clear_and_fast(text, reason):
-    start = time.perf_counter()
+    start = time.process_time()
     with pytest.raises(ExpressionError) as info:
         parse_expression(text, NAMES, field="system.potential")
-    assert time.perf_counter() - start < 1.0
+    assert time.process_time() - start < 1.0
     assert reason in str(info.value)
     assert str(info.value).startswith("system.potential: ")
 
@@ -87,9 +87,9 @@ def test_long_flat_sums_and_products_are_not_deep():
     names = [f"q{i}" for i in range(301)]
     symbols = {name: sympy.Symbol(name, real=True) for name in names}
     text = " + ".join(f"(q{i + 1} - q{i})**2/2 - q{i}**4/4" for i in range(300))
-    start = time.perf_counter()
+    start = time.process_time()
     expr = parse_expression(text, symbols)
-    assert time.perf_counter() - start < 2.0
+    assert time.process_time() - start < 2.0
     assert len(expr.args) == 600
     product = parse_expression("*".join(names[:200]) + "/q0", symbols)
     assert product == sympy.Mul(*[symbols[n] for n in names[1:200]])
@@ -101,10 +101,10 @@ def test_deep_nesting_is_still_refused_quickly():
 
     x = {"x": sympy.Symbol("x", real=True)}
     for text in ("(" * 61 + "x" + ")" * 61, "-" * 5000 + "x", "x" + "**x" * 3000):
-        start = time.perf_counter()
+        start = time.process_time()
         with pytest.raises(ExpressionError, match="nested too deeply|too long"):
             parse_expression(text, x)
-        assert time.perf_counter() - start < 1.0
+        assert time.process_time() - start < 1.0
 
 
 def test_derived_values_are_converted_without_parsing_text():

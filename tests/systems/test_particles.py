@@ -385,7 +385,7 @@ def test_hostile_particle_tables_derive_or_are_refused_with_a_field(changes):
             document[table] = value
         else:
             document[table][key] = value
-    start = time.perf_counter()
+    start = time.process_time()
     try:
         s = scene_from_dict(document, source="fuzz.toml")
         derive(s)
@@ -393,7 +393,7 @@ def test_hostile_particle_tables_derive_or_are_refused_with_a_field(changes):
         assert exc.field, str(exc)
     except DerivationError:
         pass
-    assert time.perf_counter() - start < 20.0
+    assert time.process_time() - start < 20.0
 
 
 # -- the catalogue: the same T and V as written by hand ------------------------------------------
