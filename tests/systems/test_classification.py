@@ -109,7 +109,8 @@ def test_derive_json_has_the_new_keys_and_null(derived):
     from systems.report import derivation_json
 
     data = derivation_json(derive(_scene(TIME_DEPENDENT_L)))["classification"]
-    assert set(data) == set(KEYS)
+    assert set(data) == {*KEYS, "dissipative"}
+    assert data["dissipative"] is False
     assert '"hamiltonian_is_energy": null' in json.dumps(data)
     hoop = derived("bead_on_rotating_hoop").classification.as_dict()
     assert hoop["rheonomic"] is True and hoop["simple"] is False and hoop["holonomic"] is True

@@ -378,12 +378,13 @@ def test_hostile_particle_tables_derive_or_are_refused_with_a_field(changes):
     document = copy.deepcopy(BASE)
     for (table, key), value in changes:
         if table in ("bob", "tip"):
-            entry = document["particles"].get(table)
+            particles = document.get("particles")
+            entry = particles.get(table) if isinstance(particles, dict) else None
             if isinstance(entry, dict):
                 entry[key] = value
         elif key is None:
             document[table] = value
-        else:
+        elif isinstance(document.get(table), dict):  # an earlier change may have replaced it
             document[table][key] = value
     start = time.process_time()
     try:
