@@ -2,7 +2,8 @@
 
 Each command lives in its own module under ``explorer.commands`` exposing
 ``add_parser(subparsers)`` and ``run(args) -> int``. A user error exits with status 2
-and one message naming the file, the field and the position.
+and one message naming the file, the field and the position. Ctrl+C, SIGTERM and SIGHUP
+stop a command alike (``explorer.commands.stopping``), with status 128 + the signal.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from contextlib import nullcontext
 
 COMMANDS = ("list", "derive", "run", "bench", "methods", "open", "export", "warm")
 
@@ -48,12 +50,18 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"the command {command!r} is not available in this build")
     if args.command is None:
         args = parser.parse_args(["open"])
+    from explorer.commands import stopping
     from explorer.commands.errors import UserError
 
+    # the window's event loop runs no Python between events: a signal raised there would
+    # land in whatever slot ran next, so only the other commands stop on SIGTERM this way
+    signals = nullcontext() if command == "open" else stopping.stop_signals()
     try:
-        return int(module.run(args) or 0)
+        with signals:
+            return int(module.run(args) or 0)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        return 130
+        print(f"stopped ({stopping.cause()})", file=sys.stderr)
+        return stopping.status()

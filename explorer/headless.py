@@ -34,6 +34,12 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=No
     times; each sample is the state of the first step at or after its time) and keeps
     every section crossing, so memory does not grow with ``t_end``; the run has the
     command line's step budget.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        When Ctrl+C (or a signal handled as it) stopped the integration: the sampler
+        ends quietly, but a figure of part of the run is not the one asked for.
     """
     import dataclasses
 
@@ -62,6 +68,8 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=No
     )
     sampler = Sampler(run, times)
     samples = list(sampler)
+    if sampler.interrupted:
+        raise KeyboardInterrupt
     t = np.array([row[0] for row in samples])
     y = np.array([row[1] for row in samples])
     last = sampler.last if sampler.last is not None else run.stop("ok", "")

@@ -3,7 +3,12 @@
 Everything the caches keep (derivations, remembered facts, generated kernel modules,
 numba's machine code) is rebuilt from the scene and the code when missing, so a damaged
 entry is never an error: it is deleted, rebuilt, and reported in one line on stderr.
+Whatever has taken an entry's place (a folder, a named pipe, a link to one, a device) is
+damage too: it is removed, never read, so the entry is rebuilt and the next run finds
+a sound file.
 
+- ``read_entry`` / ``remove_entry``: an entry's bytes, read without ever blocking on a
+  pipe or a device; whatever is at an entry's path removed, a folder with its contents.
 - ``write_checked`` / ``read_checked``: a file whose first line holds the sha256 of the
   code version and the body that follow it; an entry that does not verify is deleted.
 - ``guard_numba_caches``: numba's per-function cache (an index ``.nbi`` and data files
@@ -22,11 +27,14 @@ import glob
 import hashlib
 import os
 import shutil
+import stat
 import sys
 import tempfile
 import threading
 from pathlib import Path
 from types import ModuleType
+
+from systems.files import kind
 
 MAGIC = b"phase-explorer-cache 1 sha256="
 """Start of the first line of a checksummed file; the hex digest follows."""
@@ -81,15 +89,11 @@ def read_checked(path: Path, version: str) -> bytes | None:
     """The body stored at ``path`` by ``write_checked`` with the same ``version``.
 
     Returns None if there is no such file. A file that cannot be read or does not verify
-    (cut, edited, random, written by other code) is deleted, reported on stderr, and
-    None returned, so the caller rebuilds it.
+    (cut, edited, random, written by other code), or anything else in its place, is
+    deleted, reported on stderr, and None returned, so the caller rebuilds it.
     """
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        return None
-    except OSError as exc:
-        discard(path, exc.strerror or type(exc).__name__)
+    data = read_entry(path)
+    if data is None:
         return None
     header, _, body = data.partition(b"\n")
     if header != MAGIC + _digest(version, body):
@@ -98,12 +102,66 @@ def read_checked(path: Path, version: str) -> bytes | None:
     return body
 
 
+class NotAFile(OSError):
+    """Raised by ``read_file`` for a folder, a pipe, a device or a socket."""
+
+
+def read_file(path: Path) -> bytes:
+    """The bytes of the regular file ``path`` (through links).
+
+    Opened without blocking, so a named pipe or a device in its place is never waited on
+    or read from.
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is nothing at ``path``.
+    NotAFile
+        If something other than a regular file is.
+    OSError
+        If it cannot be read.
+    """
+    handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    with os.fdopen(handle, "rb") as file:
+        mode = os.fstat(handle).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotAFile(f"{kind(mode)} in place of a file")
+        return file.read()
+
+
+def read_entry(path: Path) -> bytes | None:
+    """The bytes of the cache entry ``path``, or None if there is none.
+
+    Anything in its place that is not a readable regular file is discarded (removed and
+    reported on stderr) and None returned, so the caller rebuilds the entry.
+    """
+    try:
+        return read_file(path)
+    except FileNotFoundError:
+        return None
+    except NotAFile as exc:
+        discard(path, str(exc))
+    except OSError as exc:
+        discard(path, exc.strerror or type(exc).__name__)
+    return None
+
+
+def remove_entry(path: Path) -> None:
+    """Remove whatever is at ``path``: a file, a link (not what it points to), a pipe, or
+    a folder with its contents. Failures are ignored: the entry is then found damaged
+    again, and rejected again, next time."""
+    try:
+        if stat.S_ISDIR(os.lstat(path).st_mode):
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    except OSError:
+        pass
+
+
 def discard(path: Path, reason: str) -> None:
     """Delete the damaged cache entry ``path`` and say so in one line on stderr."""
-    try:
-        path.unlink(missing_ok=True)
-    except OSError:
-        pass  # left in place: it is verified, and rejected, again next time
+    remove_entry(path)
     report(f"cache entry {path} was damaged ({reason}); rebuilding it")
 
 
@@ -150,12 +208,14 @@ class HealingCache:
     def verify(self) -> str | None:
         """None if the entry is absent or matches its checksums, else why not ("" when it
         merely has no checksum file: written by an older version, or interrupted)."""
-        if not self._index.exists():
+        if not os.path.lexists(self._index):
             return None
         try:
-            recorded = self._sums.read_bytes()
+            recorded = read_file(self._sums)
         except FileNotFoundError:
             return ""
+        except NotAFile as exc:
+            return str(exc)
         except OSError as exc:
             return exc.strerror or type(exc).__name__
         return None if recorded == self._checksum() else "checksum mismatch"
@@ -163,10 +223,7 @@ class HealingCache:
     def discard(self, reason: str) -> None:
         """Delete the function's index, data and checksum files; report a non-empty reason."""
         for path in [self._index, self._sums, *self._data_files()]:
-            try:
-                path.unlink(missing_ok=True)
-            except OSError:
-                pass
+            remove_entry(path)
         if reason:
             report(f"cache entry {self._index} was damaged ({reason}); rebuilding it")
 
@@ -180,7 +237,7 @@ class HealingCache:
         for path in [self._index, *self._data_files()]:
             digest.update(f"{path.name}\n".encode())
             try:
-                digest.update(hashlib.sha256(path.read_bytes()).digest())
+                digest.update(hashlib.sha256(read_file(path)).digest())
             except OSError:
                 digest.update(b"missing")
         return digest.hexdigest().encode() + b"\n"

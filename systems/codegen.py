@@ -29,6 +29,7 @@ from systems.cache_integrity import (
     cache_root,
     fall_back,
     guard_numba_caches,
+    read_entry,
     report,
     usable_directory,
     write_atomic,
@@ -287,10 +288,7 @@ def _module_key(system_source: str, with_templates: bool) -> tuple[str, str]:
 def _import(source: str, data: bytes, key: str, prefix: str, drivers: bool) -> ModuleType:
     name = f"pe_{'drivers' if drivers else 'kernels'}_{key}"
     path = cache_dir() / f"{name}.py"
-    try:
-        on_disk = path.read_bytes()
-    except OSError:
-        on_disk = None
+    on_disk = read_entry(path)  # anything but a readable file is removed and reported
     if on_disk != data:
         if on_disk is not None:
             report(f"cache entry {path} was damaged (source hash mismatch); rebuilding it")

@@ -7,6 +7,9 @@ is the same layout scaled up (``explorer.export.figure_layout``). An SVG's curve
 simplified to its resolution. A CSV holds the states at ``--every DT`` of simulated time
 (as ``run --every``) or at ``--points N`` evenly spaced times (``run``'s default spacing
 otherwise).
+
+Ctrl+C (or SIGTERM) stops an export at any stage: nothing is written (an existing
+``--out`` is left as it was) and the status is 130 (143).
 """
 
 from __future__ import annotations
@@ -113,6 +116,16 @@ def check_args(args: argparse.Namespace, out: Path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _export(args)
+    except KeyboardInterrupt:
+        from explorer.commands.stopping import cause, status
+
+        print(f"stopped ({cause()}): {args.out} was not written", file=sys.stderr)
+        return status()
+
+
+def _export(args: argparse.Namespace) -> int:
     from explorer.headless import FIGURE_SIZE, ensure_qt_platform
 
     out = Path(args.out)

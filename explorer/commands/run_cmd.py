@@ -198,7 +198,11 @@ def run(args: argparse.Namespace) -> int:
         print(readable(scene, report))
     if report["status"] != "ok":
         print(f"stopped: {report['status']}: {report['message']}", file=sys.stderr)
-        return 130 if interrupted else 1
+        if interrupted:
+            from explorer.commands.stopping import status
+
+            return status()
+        return 1
     return 0
 
 
@@ -221,7 +225,8 @@ def check_output(args: argparse.Namespace, endless: bool) -> None:
 
 
 def collect(sampler) -> tuple[np.ndarray, np.ndarray]:
-    """All samples of ``sampler`` as arrays t (k,), y (k, 2n); Ctrl+C keeps those so far."""
+    """All samples of ``sampler`` as arrays t (k,), y (k, 2n); Ctrl+C (or SIGTERM, SIGHUP:
+    ``explorer.commands.stopping``) keeps those so far."""
     ts, ys = [], []
     try:
         for t, y in sampler:

@@ -9,6 +9,7 @@ tooltip; Help shows the scene format.
 from __future__ import annotations
 
 import math
+import stat
 
 import pytest
 from PySide6.QtWidgets import QAbstractButton, QComboBox, QLineEdit, QTextBrowser
@@ -120,6 +121,20 @@ def test_save_writes_what_the_editor_holds_even_when_it_does_not_build(qtbot, wi
     _type(window, "potential", "-m*g*l*cos(theta)")
     assert window.open_file(path)
     assert window.editor.document_text() == text
+
+
+def test_save_writes_through_a_link_and_keeps_the_files_mode(qtbot, window, tmp_path):
+    wait_for_points(qtbot, window, 3)
+    for name, save in (("scene.toml", window.save_scene), ("work.session", window.save_session)):
+        target = tmp_path / f"kept-{name}"
+        target.write_text("old")
+        target.chmod(0o640)
+        link = tmp_path / name
+        link.symlink_to(target.name)
+        assert save(link)
+        assert link.is_symlink() and target.read_text() != "old"
+        assert stat.S_IMODE(target.stat().st_mode) == 0o640
+    assert not list(tmp_path.glob(".*part*"))
 
 
 def test_replacing_typed_work_unsaved_keeps_it_in_a_file(qtbot, window):

@@ -215,6 +215,55 @@ def test_checked_files_reject_any_change_and_other_code(tmp_path, capsys):
     assert capsys.readouterr().err.count("phase-explorer: cache entry") == 2
 
 
+# -- something else in an entry's place ---------------------------------------------------
+
+
+def a_folder(path: Path) -> None:
+    path.unlink()
+    path.mkdir()
+    (path / "inside").write_text("kept by nobody")
+
+
+def a_named_pipe(path: Path) -> None:
+    path.unlink()
+    os.mkfifo(path)  # never opened: reading it would wait for a writer for ever
+
+
+def a_link_to_a_folder(path: Path) -> None:
+    elsewhere = path.parent.parent / f"elsewhere-{path.name}"
+    elsewhere.mkdir()
+    path.unlink()
+    path.symlink_to(elsewhere)
+
+
+def _entries(cache: Path) -> dict[str, Path]:
+    return {
+        "derivation": next((cache / "derivations").glob("*.pickle")),
+        "stored text": stored_text(cache, b"def grad_potential("),
+        "kernel module": next((cache / "kernels").glob("pe_kernels_*.py")),
+        "numba index": numba_file(cache, "compose_run", ".nbi"),
+        "numba data": numba_file(cache, "rhs", ".1.nbc"),
+        "numba checksums": numba_file(cache, "hamiltonian", ".nbsum"),
+    }
+
+
+@pytest.mark.parametrize("damage", [a_folder, a_named_pipe, a_link_to_a_folder])
+@pytest.mark.parametrize(
+    "entry",
+    ["derivation", "stored text", "kernel module", "numba index", "numba data", "numba checksums"],
+)
+def test_a_non_file_in_place_of_an_entry_is_removed_and_rebuilt(cache, capsys, entry, damage):
+    path = _entries(cache)[entry]
+    damage(path)
+    if damage is a_link_to_a_folder:
+        target = path.resolve()
+    named = path.name.split("-")[0] if entry.startswith("numba") else path.name
+    assert_healed(capsys, named)  # reported once, never again
+    assert path.is_file() and not path.is_symlink()
+    if damage is a_link_to_a_folder:
+        assert target.is_dir()  # the link is removed, never what it points to
+
+
 # -- unusable directories ---------------------------------------------------------------
 
 
