@@ -275,3 +275,34 @@ x = 1.0
     search = search_equilibria(derive(parse_scene(text)))
     (equilibrium,) = search.equilibria
     assert equilibrium.stable and equilibrium.frequencies == []
+
+
+RELATIVISTIC = """
+title = "Relativistic oscillator"
+[system]
+coordinates = ["x", "y"]
+parameters = { m = 1.0, c = 1.0, k = 1.0 }
+lagrangian = "-m*c**2*sqrt(1 - (x_dot**2 + y_dot**2)/c**2) - k*(x**2 + y**2)/2"
+[initial]
+x = 1.0
+y_dot = 0.3
+"""
+
+
+def test_a_derivation_on_a_saturated_machine_is_not_refused(monkeypatch):
+    """The limit counts the derivation's own CPU time: two busy loops beside it (a shared
+    machine) do not make a small relativistic Lagrangian fail, as they did with a
+    wall-clock limit (5 of 9 cold derives)."""
+    import subprocess
+    import sys
+
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
+    spin = "while True:\n    pass\n"
+    busy = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(2)]
+    try:
+        mechanics = derive(parse_scene(RELATIVISTIC, source="relativistic.toml"))
+    finally:
+        for process in busy:
+            process.kill()
+            process.wait()
+    assert mechanics.n == 2 and mechanics.classification.hamiltonian_conserved
