@@ -290,3 +290,35 @@ def test_ctrl_c_stops_a_run_and_writes_the_rows_so_far(tmp_path):
         rows = list(csv.DictReader(handle))
     assert len(rows) >= 2 and 0 < float(rows[-1]["t"]) < 1e5
     assert "interrupted" in stdout
+
+
+def test_ctrl_c_while_a_sweep_compiles_ends_it_with_a_message(tmp_path):
+    """An empty cache: the sweep compiles its methods' stepping loops first. Ctrl+C as
+    soon as it has started is never swallowed (no 'no compiled object yet' later)."""
+    import os
+    import signal
+
+    env = {**os.environ, "PHASE_EXPLORER_CACHE": str(tmp_path / "cache")}
+    process = subprocess.Popen(
+        [sys.executable, "main.py", "bench", "double_pendulum", "--levels", "2"],
+        cwd=Path(__file__).resolve().parents[2],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        # the kernels folder appears when the first compile begins
+        end = time.monotonic() + 300
+        while not (tmp_path / "cache" / "kernels").exists() and process.poll() is None:
+            assert time.monotonic() < end, "the sweep never started compiling"
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130, err[-2000:]
+    assert "stopped (Ctrl+C)" in err
+    assert "Traceback" not in err and "no compiled object" not in err
