@@ -29,12 +29,12 @@ import signal
 import threading
 import traceback
 from collections.abc import Callable
+from multiprocessing import spawn
 from multiprocessing.connection import wait as wait_for
 
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 
 PRELOAD = [
-    "__main__",  # imported once by the server, not again by every worker
     "sympy",
     "symengine",
     "numpy",
@@ -80,6 +80,27 @@ class RemoteError(Exception):
 
     def __str__(self) -> str:
         return self.message
+
+
+_WORKER_PREFIX = "phase-explorer: "
+
+
+def _preparation_data(name: str, _original=spawn.get_preparation_data) -> dict:
+    """What a new process is told to set up, without the main script for our workers.
+
+    ``multiprocessing`` runs the parent's main script again in every worker it does not
+    fork directly (``forkserver``, ``spawn``), to find functions defined there. Ours are
+    all in ``systems``; running the script again would open a second window from a
+    script without an ``if __name__ == "__main__"`` guard, and costs an import each time.
+    """
+    data = _original(name)
+    if name.startswith(_WORKER_PREFIX):
+        data.pop("init_main_from_path", None)
+        data.pop("init_main_from_name", None)
+    return data
+
+
+spawn.get_preparation_data = _preparation_data
 
 
 def _context():
@@ -155,7 +176,7 @@ class Job:
         self._process = ctx.Process(
             target=_work,
             args=(sender, function, args, kwargs or {}, cpu_seconds, self.what, environment),
-            name=f"phase-explorer: {self.what}",
+            name=f"{_WORKER_PREFIX}{self.what}",
             daemon=True,
         )
         with _lock:

@@ -150,3 +150,23 @@ def test_a_derivation_runs_in_a_worker_and_crosses_back(monkeypatch):
     point_there = {sympy.Symbol(str(s), **s.assumptions0): v for s, v in point.items()}
     for a, b in zip(there.hamilton_equations, here.hamilton_equations, strict=True):
         assert float(a.subs(point_there)) == pytest.approx(float(b.subs(point)), rel=1e-12)
+
+
+def test_a_script_without_a_main_guard_is_not_run_again_by_workers(tmp_path):
+    """Workers never run the caller's main script again (multiprocessing would, for
+    functions defined there): a script without ``if __name__ == "__main__"`` that opens
+    the window or submits a job does so once."""
+    import subprocess
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import os\n"
+        "from systems import processes\n"
+        "print('script ran', flush=True)\n"
+        "print('worker', processes.run(os.getpid, what='asking') != os.getpid(), flush=True)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.splitlines() == ["script ran", "worker True"]
