@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+SIGNAL_POLL_MS = 100
+"""How often a replaying window lets Python look for a signal (``run_session``)."""
 
 NO_DISPLAY_MESSAGE = (
     "Phase Explorer needs a display to open its window, and none was found "
@@ -86,8 +91,11 @@ def run_session(
         With ``exit_when_done``: 0 when the script ran through, 1 when the application
         raised an exception meanwhile (its traceback is on stderr), 2 for a script error
         (``source:line: reason`` on stderr). Otherwise the event loop's status, once the
-        user closes the window.
+        user closes the window. Ctrl+C, SIGTERM or SIGHUP close the window and give
+        128 + the signal (130 for Ctrl+C), with ``stopped (Ctrl+C) at source:line``.
     """
+    import signal
+
     from PySide6.QtCore import QTimer
 
     from explorer.session import Player
@@ -106,19 +114,77 @@ def run_session(
         print(message, file=sys.stderr)
 
     def on_finished(status: int) -> None:
+        if stopped:
+            return  # the window closed because of the signal: no failure of the script
         outcome.append(status)
         if player.message:
             print(player.message, file=sys.stderr)
         if exit_when_done:
             QTimer.singleShot(0, window, lambda: _close(app, window, status))
 
+    def on_signal(signum: int) -> None:
+        stopped.append(signum)
+        player.stop()
+        _close(app, window, 128 + signum)
+
+    stopped: list[int] = []
     player.noted.connect(on_noted)
     player.finished.connect(on_finished)
     player.start()
-    status = app.exec()
+    with _signals_close(window, on_signal):
+        status = app.exec()
+    if stopped:
+        command = player.command
+        where = f"{source}:{command.line}" if command is not None and command.line else source
+        name = "Ctrl+C" if stopped[0] == signal.SIGINT else signal.Signals(stopped[0]).name
+        print(f"stopped ({name}) at {where}", file=sys.stderr)
+        return 128 + stopped[0]
     if exit_when_done:
         return outcome[0] if outcome else 1
     return status
+
+
+@contextmanager
+def _signals_close(window, stop: Callable[[int], None]) -> Iterator[None]:
+    """Inside the block Ctrl+C, SIGTERM and SIGHUP call ``stop(signum)`` once, from the
+    event loop.
+
+    Python runs a signal handler only between bytecodes: left to the default, Ctrl+C
+    raised ``KeyboardInterrupt`` inside whatever slot ran next (the error reporter then
+    called it a failure of the application) and the loop ran on. Here the handler only
+    queues ``stop``, and a timer runs a little Python every ``SIGNAL_POLL_MS`` so that
+    the handler is not kept waiting while the loop is idle. A signal the process was
+    started with ignored stays ignored; outside the main thread nothing is changed.
+    """
+    import signal
+    import threading
+
+    from PySide6.QtCore import QTimer
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def handler(signum: int, _frame) -> None:
+        if not received:
+            received.append(signum)
+            QTimer.singleShot(0, window, lambda: stop(signum))
+
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, handler)
+    poll = QTimer(window)
+    poll.setInterval(SIGNAL_POLL_MS)
+    poll.timeout.connect(lambda: None)
+    poll.start()
+    try:
+        yield
+    finally:
+        poll.stop()
+        for signum, before in previous.items():
+            signal.signal(signum, signal.SIG_DFL if before is None else before)
 
 
 def _close(app, window, status: int) -> None:

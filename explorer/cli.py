@@ -4,12 +4,19 @@ Each command lives in its own module under ``explorer.commands`` exposing
 ``add_parser(subparsers)`` and ``run(args) -> int``. A user error exits with status 2
 and one message naming the file, the field and the position. Ctrl+C, SIGTERM and SIGHUP
 stop a command alike (``explorer.commands.stopping``), with status 128 + the signal.
+
+When the program reading the output closes it early (``derive simple_pendulum | head
+-1``), the command ends quietly with status 0, as most Unix tools seem to the shell:
+the reader has what it wanted. An output that cannot be written (standard output on a
+full disk) and any other error of the system (``OSError``) end with one message and
+status 1, never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from contextlib import nullcontext
 
@@ -41,6 +48,82 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run the command; return the process exit status."""
+    stdout = sys.stdout
+    sys.stdout = _Output(stdout)
+    try:
+        status = _main(argv)
+        sys.stdout.flush()  # here, so that a closed or full output is caught below
+        return status
+    except BrokenPipeError:
+        _discard_output(stdout)
+        return 0
+    except OutputError as exc:
+        _discard_output(stdout)
+        _say(f"error: could not write the output: {exc.strerror or exc}")
+        return 1
+    except OSError as exc:
+        where = f": {exc.filename}" if exc.filename else ""
+        _say(f"error: {exc.strerror or exc}{where}")
+        return 1
+    finally:
+        if isinstance(sys.stdout, _Output):
+            sys.stdout = stdout
+
+
+class OutputError(OSError):
+    """Standard output could not be written (a full disk, an I/O error)."""
+
+
+class _Output:
+    """Standard output while a command runs: a failed write raises ``OutputError``, so
+    that ``main`` tells it from the other errors of the system (a closed pipe stays a
+    ``BrokenPipeError``). Everything else is the stream's own."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise OutputError(exc.errno, exc.strerror) from exc
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise OutputError(exc.errno, exc.strerror) from exc
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def _discard_output(stdout) -> None:
+    """Point standard output at the null device, so that what is still buffered is
+    dropped quietly when the interpreter exits (instead of failing again there)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, stdout.fileno())
+        finally:
+            os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass  # not a file of the system (a test's capture): nothing will be flushed
+
+
+def _say(message: str) -> None:
+    """``message`` on stderr, unless stderr itself cannot be written."""
+    try:
+        print(message, file=sys.stderr)
+    except (OSError, ValueError):
+        pass
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     command = args.command or "open"
@@ -60,8 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         with signals:
             return int(module.run(args) or 0)
     except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        _say(f"error: {exc}")
         return 2
     except KeyboardInterrupt:
-        print(f"stopped ({stopping.cause()})", file=sys.stderr)
+        _say(f"stopped ({stopping.cause()})")
         return stopping.status()

@@ -19,6 +19,7 @@ integrates the scene to ``t_end`` and draws it.
 from __future__ import annotations
 
 import csv
+import errno
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -195,11 +196,32 @@ def export_widget(widget, path: str | Path, size: tuple[int, int] | None = None)
                     write_svg(widget, temporary, title=title, size=size)
             check_svg(temporary)
         elif size is None:
-            if not widget.grab().save(str(temporary)):
-                raise OSError(f"could not write {path}")
-        elif not render_image(widget, size).save(str(temporary), "PNG"):
-            raise OSError(f"could not write {path}")
+            save_png(widget.grab(), temporary)
+        else:
+            save_png(render_image(widget, size), temporary)
     return path
+
+
+def save_png(image, path: Path) -> None:
+    """Write a ``QImage`` or ``QPixmap`` to ``path`` as PNG.
+
+    Encoded in memory and written by Python: Qt's own file writing, on a full disk,
+    printed ``libpng error: Write Error`` and only returned False; here the ``OSError``
+    says why (``No space left on device``).
+    """
+    from PySide6.QtCore import QBuffer, QByteArray, QIODevice
+
+    data = QByteArray()
+    buffer = QBuffer(data)
+    buffer.open(QIODevice.OpenModeFlag.WriteOnly)
+    encoded = image.save(buffer, "PNG")
+    buffer.close()
+    if not encoded:
+        raise OSError(
+            f"the figure could not be encoded as PNG ({image.width()} x {image.height()})"
+        )
+    with open(path, "wb") as handle:
+        handle.write(data.data())
 
 
 def check_svg(path: Path) -> None:
@@ -207,7 +229,7 @@ def check_svg(path: Path) -> None:
     without Qt saying so)."""
     data = path.read_bytes()
     if not data.rstrip().endswith(b"</svg>"):
-        raise OSError(f"the SVG written to {path} is incomplete (is the disk full?)")
+        raise OSError(errno.ENOSPC, "the SVG came out incomplete (is the disk full?)", str(path))
 
 
 def csv_header(scene) -> list[str]:
@@ -288,16 +310,13 @@ def write_trajectories_csv(
     scene = compiled.mechanics.scene
     header = csv_header(scene)
     many = len(trajectories) > 1
-    from systems.files import atomic_path
+    from systems.files import atomic_path, write_rows
 
     with atomic_path(path) as temporary, temporary.open("w", newline="", encoding="utf-8") as out:
-        writer = csv.writer(out)
-        writer.writerow((["orbit"] if many else []) + header)
+        csv.writer(out).writerow((["orbit"] if many else []) + header)
         for number, trajectory in enumerate(trajectories, start=1):
             table = trajectory_table(compiled, trajectory, every, points)
-            for row in table:
-                values = [repr(float(v)) for v in row]
-                writer.writerow(([str(number)] if many else []) + values)
+            write_rows(out, table, f"{number}," if many else "")
     return path
 
 
@@ -315,15 +334,16 @@ def render_workprecision(
 
     app = application()
     view = WorkPrecisionView()
-    if image_size is not None:
-        size, _ = figure_layout(size, image_size)
-    view.resize(*size)
-    view.show_result(result)
-    view.show()
-    app.processEvents()
-    written = export_widget(view.export_target(), path, image_size)
-    view.shutdown()
-    view.close()
-    view.deleteLater()
-    app.processEvents()
-    return written
+    try:
+        if image_size is not None:
+            size, _ = figure_layout(size, image_size)
+        view.resize(*size)
+        view.show_result(result)
+        view.show()
+        app.processEvents()
+        return export_widget(view.export_target(), path, image_size)
+    finally:  # on a failed write too: a view left to the interpreter's exit crashed it
+        view.shutdown()
+        view.close()
+        view.deleteLater()
+        app.processEvents()

@@ -128,32 +128,32 @@ def render_panel(
     compiled = built.compiled
     t_end = float(t_end if t_end is not None else scene.view.get("t_end", 20.0))
     view = make_panel(panel)
-    view.resize(*size)
-    y0 = compiled.initial_state()
-    section = None
-    if panel == "phase":
-        view.set_system(compiled, y0)
-        if poincare:
-            view.set_mode("poincare")
-            if view.mode != "poincare":
-                raise ValueError(
-                    "a Poincaré section needs an autonomous conservative system "
-                    "of two degrees of freedom"
-                )
-            section = (view.section.coordinate, view.section.value, 1)
-    else:
-        view.set_system(compiled)
-    store = integrate(built, t_end, section=section)
-    view.show()
-    app.processEvents()
-    view.refresh(store)
-    app.processEvents()
-    written = export_widget(view.export_target(), out, image_size)
-    main = store.main
-    view.close()
-    view.deleteLater()
-    app.processEvents()
-    return written, main
+    try:
+        view.resize(*size)
+        y0 = compiled.initial_state()
+        section = None
+        if panel == "phase":
+            view.set_system(compiled, y0)
+            if poincare:
+                view.set_mode("poincare")
+                if view.mode != "poincare":
+                    raise ValueError(
+                        "a Poincaré section needs an autonomous conservative system "
+                        "of two degrees of freedom"
+                    )
+                section = (view.section.coordinate, view.section.value, 1)
+        else:
+            view.set_system(compiled)
+        store = integrate(built, t_end, section=section)
+        view.show()
+        app.processEvents()
+        view.refresh(store)
+        app.processEvents()
+        return export_widget(view.export_target(), out, image_size), store.main
+    finally:  # on a failed write or Ctrl+C too: a view left to the interpreter's exit crashed it
+        view.close()
+        view.deleteLater()
+        app.processEvents()
 
 
 def write_csv(scene, out: str | Path, t_end: float, times: np.ndarray) -> tuple[Path, object]:

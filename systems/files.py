@@ -12,8 +12,13 @@ sessions, preferences) goes through ``atomic_path``:
   for a dangling link) and the link stays;
 - a character device or a named pipe (``/dev/null``, a FIFO a reader waits on) is
   written to: the complete file is copied into it at the end, so a device that fails
-  (``/dev/full``) raises an ``OSError`` naming the reason;
+  (``/dev/full``) raises an ``OSError`` naming the reason, as does a named pipe that no
+  program reads from within ``PIPE_WAIT`` seconds (opening it would wait for ever);
 - a folder, a block device or a socket is refused with an ``OSError``.
+
+Files given to be read (scenes, session scripts) go through ``read_file``: anything but a
+regular file (a named pipe, ``/dev/zero``, a folder) and a file beyond a size limit are
+refused at once, before a byte is read. ``write_rows`` writes a table as CSV lines fast.
 
 Temporary files are hidden, named ``.NAME.RANDOM.phase-explorer-partial.SUFFIX`` beside
 the target (in the temporary folder for a device or pipe, whose own folder is not ours),
@@ -23,14 +28,19 @@ not create is ever deleted.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import shutil
 import stat
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
+
+import numpy as np
 
 PARTIAL = "phase-explorer-partial"
 """The mark in every temporary file's name."""
@@ -137,10 +147,38 @@ def _written_into(path: Path) -> Iterator[Path]:
     temporary = _create_temporary(Path(tempfile.gettempdir()), path.name)
     try:
         yield temporary
-        with temporary.open("rb") as source, path.open("wb") as sink:
+        with temporary.open("rb") as source, open(_open_sink(path), "wb") as sink:
             shutil.copyfileobj(source, sink)
     finally:
         temporary.unlink(missing_ok=True)
+
+
+PIPE_WAIT = 10.0
+"""Seconds ``atomic_path`` waits for a program to read from a named pipe written to."""
+
+
+def _open_sink(path: Path) -> int:
+    """A descriptor of the device or pipe ``path`` opened for writing.
+
+    Opening a named pipe nobody reads from would wait for a reader for ever: a reader
+    is waited for ``PIPE_WAIT`` seconds, then the pipe is refused (``OSError``, ENXIO).
+    Once open, the writes wait for the reader as usual.
+    """
+    waited = 0.0
+    while True:
+        try:
+            handle = os.open(path, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+            break
+        except OSError as exc:
+            if exc.errno != errno.ENXIO:
+                raise
+            if waited >= PIPE_WAIT:
+                reason = f"no program read from this named pipe within {PIPE_WAIT:g} s"
+                raise OSError(exc.errno, reason, str(path)) from None
+        time.sleep(0.05)
+        waited += 0.05
+    os.set_blocking(handle, True)
+    return handle
 
 
 def _keep_owner_and_mode(temporary: Path, status: os.stat_result) -> None:
@@ -189,3 +227,75 @@ def write_problem(path: str | Path) -> str | None:
     except OSError as exc:
         return f"cannot write in {folder}: {exc.strerror or exc}"
     return None
+
+
+class FileTooLarge(OSError):
+    """A file refused by ``read_file`` for its size; ``size`` is how large it is."""
+
+    def __init__(self, path: str | Path, size: int, limit: int):
+        super().__init__(
+            errno.EFBIG, f"the file is {size:,} bytes, more than the {limit:,} allowed", str(path)
+        )
+        self.size = size
+        self.limit = limit
+
+
+def read_file(path: str | Path, limit: int) -> bytes:
+    """The bytes of the regular file ``path``, refused at once if it is anything else.
+
+    A named pipe would make a plain read wait for a writer for ever, and ``/dev/zero``
+    or ``/dev/urandom`` would be read until memory runs out: the file is opened without
+    waiting (``O_NONBLOCK``), its kind and size are checked on the open file, and at most
+    ``limit`` bytes are read.
+
+    Raises
+    ------
+    FileTooLarge
+        When the file holds more than ``limit`` bytes.
+    OSError
+        When it cannot be opened (missing, not permitted, a loop of links) or is not a
+        regular file (a folder, a named pipe, a device, a socket); ``strerror`` says why
+        in words.
+    """
+    try:
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ENXIO:  # what opening a socket says
+            raise OSError(exc.errno, "it is a socket, not a file", str(path)) from None
+        raise
+    try:
+        status = os.fstat(handle)
+        if not stat.S_ISREG(status.st_mode):
+            raise OSError(errno.EINVAL, f"it is {kind(status.st_mode)}, not a file", str(path))
+        if status.st_size > limit:
+            raise FileTooLarge(path, status.st_size, limit)
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(handle, min(limit + 1 - size, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > limit:  # it grew while read, or /proc said 0 bytes
+            raise FileTooLarge(path, size, limit)
+        return b"".join(chunks)
+    finally:
+        os.close(handle)
+
+
+CSV_BLOCK = 4096
+"""Rows ``write_rows`` formats at a time."""
+
+
+def write_rows(handle: IO[str], table: np.ndarray, first: str = "") -> None:
+    """Write the rows of ``table`` (k, m) to the text ``handle`` as CSV lines.
+
+    Each number is written as ``repr`` writes it (the shortest text that reads back to
+    the same float: ``0.1``, ``nan``, ``inf``), with ``\\r\\n`` line ends, as
+    ``csv.writer`` writes ``[repr(v) for v in row]``, a block of rows at a time (a
+    300 000-row trajectory in about a second). ``first`` (with its comma) is put before
+    every row.
+    """
+    for start in range(0, len(table), CSV_BLOCK):
+        rows = np.asarray(table[start : start + CSV_BLOCK], dtype=float).tolist()
+        handle.write("".join(first + ",".join(map(repr, row)) + "\r\n" for row in rows))

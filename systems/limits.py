@@ -5,3 +5,7 @@ DEFAULT_MAX_STEPS = 10**8
 
 DEFAULT_ENERGY_TOLERANCE = 1e-2
 """A run whose relative energy error exceeds this stops with ``"energy_error"``."""
+
+MIN_T_END = 1e-300
+"""The shortest run: a tenth of it, the longest default step, is still a normal float
+(an end time of 5e-324 made a step of 0)."""

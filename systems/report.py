@@ -516,7 +516,9 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
             what = {1: "a curve", 2: "a surface"}.get(
                 eq.continuum.dimension, f"a {eq.continuum.dimension}-dimensional set"
             )
-            across = f"stable across it, \u03c9 = {omegas}" if eq.stable else "unstable across it"
+            across = "unstable across it"
+            if eq.stable:  # no frequency where nothing is across (a set as wide as the space)
+                across = f"stable across it, \u03c9 = {omegas}" if omegas else "stable across it"
             if not eq.stable and rates:
                 across += f" (growth rate {rates})"
             through = "" if "through" in eq.continuum.description else f" (through {where})"

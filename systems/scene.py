@@ -27,6 +27,8 @@ from typing import Any
 import sympy
 
 from systems.expressions import ExpressionError, check_name, parse_expression
+from systems.files import FileTooLarge, read_file
+from systems.limits import MIN_T_END
 from systems.particles import Particle, Transformation, depends_on_time, transformation
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "resources" / "scenes"
@@ -638,18 +640,19 @@ def read_scene_file(path: str | Path) -> str:
     Raises
     ------
     SceneError
-        If the file cannot be read, is too large, or is not UTF-8 text.
+        If the file cannot be read, is no regular file (a named pipe, ``/dev/zero``, a
+        folder: refused before anything is read, ``systems.files.read_file``), is too
+        large, or is not UTF-8 text.
     """
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > 4 * MAX_SCENE_CHARACTERS:
-            raise SceneError(
-                f"the file is {size:,} bytes; a scene is a text file of at most "
-                f"{MAX_SCENE_CHARACTERS:,} characters",
-                source=str(path),
-            )
-        raw = path.read_bytes()
+        raw = read_file(path, 4 * MAX_SCENE_CHARACTERS)
+    except FileTooLarge as exc:
+        raise SceneError(
+            f"the file is {exc.size:,} bytes; a scene is a text file of at most "
+            f"{MAX_SCENE_CHARACTERS:,} characters",
+            source=str(path),
+        ) from None
     except OSError as exc:
         reason = exc.strerror or str(exc)
         raise SceneError(f"cannot read the file: {reason}", source=str(path)) from None
@@ -948,6 +951,8 @@ def _validate_view(scene: Scene, fail) -> None:
         raise fail(f"view.{sorted(unknown)[0]}", f"unknown key (allowed: {allowed})")
     if "t_end" in view and not _positive_finite(view["t_end"]):
         raise fail("view.t_end", f"must be a positive finite time, not {view['t_end']!r}")
+    if "t_end" in view and view["t_end"] < MIN_T_END:
+        raise fail("view.t_end", f"must be at least {MIN_T_END:g}, not {view['t_end']!r}")
     names = {*scene.coordinates, *scene.momentum_names, *scene.velocity_names}
     if "phase" in view:
         pair = view["phase"]

@@ -135,6 +135,74 @@ def settings_for(compiled, method: str, y0: np.ndarray, t_end: float, levels: in
     return stepper.setting, [base * 2.0 ** (1 - j) for j in range(levels)]
 
 
+MAX_LEVELS = 12
+"""Points per curve at most: each level halves the step, so the last of 12 takes 1024
+times the steps of the default one."""
+MAX_SWEEP_STEPS = 2 * 10**7
+"""Steps the longest run of a sweep may take, as ``finest_step`` estimates them (the
+catalogue's scenes at their own end times and six levels take at most 10**7: implicit
+midpoint on the stiff spring pendulum; most under 10**6)."""
+ADAPTIVE_PER_PERIOD = 100
+"""Steps per fastest period assumed for DOP853 at the sweep's and the reference's
+tightest tolerances (1e-13, 1e-14)."""
+
+
+def finest_step(
+    compiled, methods: Sequence[str], *, t_end: float, levels: int, y0: np.ndarray | None = None
+) -> tuple[float, str]:
+    """(step, whose): an estimate of the shortest time step of a sweep's runs, and whose
+    run takes it (a method, or ``"the reference"`` for the DOP853 reference run).
+
+    From the same default steps the sweep starts from (a few milliseconds of probing):
+    the finest step of each fixed-step method (for a time-transformed one, the time step
+    its fictitious step starts with); for the adaptive ones and the reference, a fastest
+    period of the motion over ``ADAPTIVE_PER_PERIOD``. ``t_end`` over it is the most
+    steps one run takes: what a sweep to an absurd end time or with too many levels
+    would cost is known before it starts.
+    """
+    from systems.integrators.stepsize import default_step, time_transformed_step
+
+    y0 = compiled.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    adaptive = default_step(
+        compiled, STEPPERS["rk4"], 0.0, y0, t_end, per_period=ADAPTIVE_PER_PERIOD
+    )
+    finest = (adaptive, "the reference")
+    for method in methods:
+        stepper = get_stepper(method)
+        if stepper.setting == "tol":
+            continue  # as the reference
+        setting, values = settings_for(compiled, method, y0, t_end, levels)
+        step = values[-1]
+        if setting != "dt":
+            base = time_transformed_step(compiled, stepper, 0.0, y0, t_end)
+            step = base * values[-1] / (values[0] / 2.0)
+        finest = min(finest, (step, method))
+    return finest
+
+
+def sweep_problem(
+    compiled, methods: Sequence[str], *, t_end: float, levels: int, y0: np.ndarray | None = None
+) -> str | None:
+    """Why a sweep with these settings would not end in reasonable time, or None.
+
+    ``levels`` beyond ``MAX_LEVELS``, or a run estimated (``finest_step``) at more than
+    ``MAX_SWEEP_STEPS`` steps.
+    """
+    if not 2 <= levels <= MAX_LEVELS:
+        return f"the levels must be 2 to {MAX_LEVELS}, not {levels}"
+    step, whose = finest_step(compiled, methods, t_end=t_end, levels=levels, y0=y0)
+    steps = t_end / step if step > 0 else math.inf
+    if steps <= MAX_SWEEP_STEPS:
+        return None
+    whose = whose if whose == "the reference" else f"the finest run of {whose}"
+    count = f"about {steps:.2g}" if math.isfinite(steps) else "more than 1e308"
+    return (
+        f"a sweep to t = {t_end:.6g} with {levels} levels would take {count} steps "
+        f"in {whose}, more than the {MAX_SWEEP_STEPS:.0e} allowed (an end time of at most "
+        f"{MAX_SWEEP_STEPS * step:.3g} would do)"
+    )
+
+
 # -- references -----------------------------------------------------------------------
 
 

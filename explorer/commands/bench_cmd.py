@@ -19,7 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--methods", default=None, help="comma-separated stepper names (default: those that fit)"
     )
-    parser.add_argument("--levels", type=int, default=6, help="points per curve (default 6)")
+    parser.add_argument(
+        "--levels", type=int, default=6, help="points per curve (default 6, at most 12)"
+    )
     parser.add_argument("--out", default=None, help="draw the diagram to FILE.png or FILE.svg")
     parser.add_argument("--csv", default=None, help="write the measurements to FILE.csv")
 
@@ -43,15 +45,30 @@ def render(result, path: str) -> Path:
         return fallback(result, path)
 
 
-def run(args: argparse.Namespace) -> int:
-    from explorer.commands.run_cmd import check_method, prepare
-    from systems.integrators import STEPPERS
-    from systems.workprecision import default_methods, sweep
+def check_outputs(args: argparse.Namespace) -> None:
+    """``UserError`` for a ``--out`` or ``--csv`` that cannot be written, before the sweep
+    (a missing folder, a folder in the file's place)."""
+    from systems.files import write_problem
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".png", ".svg"):
         raise UserError(f"--out must end in .png or .svg, not {args.out!r}")
-    if args.levels < 2:
-        raise UserError("--levels must be at least 2")
+    for option, path in (("--out", args.out), ("--csv", args.csv)):
+        if path is not None:
+            problem = write_problem(path)
+            if problem:
+                raise UserError(f"{option}: {problem}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from explorer.commands.run_cmd import check_method, check_t_end, prepare
+    from systems.integrators import STEPPERS
+    from systems.workprecision import MAX_LEVELS, default_methods, sweep, sweep_problem
+
+    check_outputs(args)
+    if not 2 <= args.levels <= MAX_LEVELS:
+        raise UserError(f"--levels must be 2 to {MAX_LEVELS}, not {args.levels}")
+    if args.t_end is not None:
+        check_t_end(args.t_end)
     scene, mechanics, _, _, compiled = prepare(args.scene, None, extra_wants=())
     if args.methods:
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -67,8 +84,9 @@ def run(args: argparse.Namespace) -> int:
 
         compiled = compile_system(mechanics, compiled.wanted | wants)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
-    if not t_end > 0:
-        raise UserError("--t-end must be positive")
+    problem = sweep_problem(compiled, methods, t_end=t_end, levels=args.levels)
+    if problem:
+        raise UserError(f"{problem}: lower --t-end or --levels")
     result = sweep(compiled, methods, t_end=t_end, levels=args.levels, progress=_progress)
     print(f"{result.title}: t_end = {result.t_end:.6g}; reference: {result.reference}")
     print(f"{'method':<18} {'setting':>12} {'wall s':>9} {'steps':>9} {'error':>9} {'energy':>9}")
@@ -80,10 +98,17 @@ def run(args: argparse.Namespace) -> int:
             f"{p.method:<18} {p.setting + '=' + format(p.value, '.3g'):>12} {p.wall_s:9.2e} "
             f"{p.steps:9d} {error} {energy:>9}{status}"
         )
-    if args.csv:
-        result.write_csv(args.csv)
-        print(f"wrote {args.csv}")
-    if args.out:
-        render(result, args.out)
-        print(f"wrote {args.out}")
+    sys.stdout.flush()  # the table is kept even if a file below cannot be written
+    failed = []
+    for path, write in ((args.csv, result.write_csv), (args.out, lambda p: render(result, p))):
+        if not path:
+            continue
+        try:
+            write(path)
+        except OSError as exc:
+            failed.append(f"could not write {path}: {exc.strerror or exc}")
+        else:
+            print(f"wrote {path}")
+    if failed:
+        raise UserError("; ".join(failed))
     return 0

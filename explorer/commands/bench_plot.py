@@ -70,27 +70,29 @@ def render(result, path: str | Path, size=(1100, 520)) -> Path:
         plots.append(plot)
     widget.show()
     app.processEvents()
-    from explorer.export import check_svg
+    from explorer.export import check_svg, save_png
     from systems.files import atomic_path
 
-    with atomic_path(path) as temporary:
-        if suffix == ".svg":
-            from PySide6.QtSvg import QSvgGenerator
+    try:
+        with atomic_path(path) as temporary:
+            if suffix == ".svg":
+                from PySide6.QtSvg import QSvgGenerator
 
-            generator = QSvgGenerator()
-            generator.setFileName(str(temporary))
-            generator.setSize(QSize(*size))
-            generator.setViewBox(QRect(0, 0, *size))
-            generator.setTitle(f"{result.title}: work-precision")
-            painter = QPainter(generator)
-            try:
-                widget.render(painter)
-            finally:
-                painter.end()
-            check_svg(temporary)
-        elif not widget.grab().save(str(temporary)):
-            raise OSError(f"could not write {path}")
-    widget.close()
-    widget.deleteLater()
-    app.processEvents()
+                generator = QSvgGenerator()
+                generator.setFileName(str(temporary))
+                generator.setSize(QSize(*size))
+                generator.setViewBox(QRect(0, 0, *size))
+                generator.setTitle(f"{result.title}: work-precision")
+                painter = QPainter(generator)
+                try:
+                    widget.render(painter)
+                finally:
+                    painter.end()
+                check_svg(temporary)
+            else:
+                save_png(widget.grab(), temporary)
+    finally:  # on a failed write too: a widget left to the interpreter's exit crashed it
+        widget.close()
+        widget.deleteLater()
+        app.processEvents()
     return path

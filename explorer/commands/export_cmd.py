@@ -17,6 +17,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from explorer.commands.errors import UserError, user_errors
@@ -111,8 +113,10 @@ def check_args(args: argparse.Namespace, out: Path) -> None:
         raise UserError(f"--every must be a positive time, not {args.every:g}")
     if args.points is not None and not 2 <= args.points <= 10**7:
         raise UserError(f"--points must be between 2 and 10000000, not {args.points}")
-    if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
-        raise UserError(f"--t-end must be a positive finite time, not {args.t_end:g}")
+    if args.t_end is not None:
+        from explorer.commands.run_cmd import check_t_end
+
+        check_t_end(args.t_end)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -139,7 +143,7 @@ def _export(args: argparse.Namespace) -> int:
     ensure_qt_platform()
     from systems.scene import load_scene
 
-    with user_errors():
+    with user_errors(), write_errors(args.out):
         scene = load_scene(args.scene)
         if args.panel == "workprecision":
             return _workprecision(scene, args, out, size)
@@ -168,11 +172,24 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextmanager
+def write_errors(out: str) -> Iterator[None]:
+    """``UserError`` (exit 2) for an ``OSError`` in the block: ``out`` could not be
+    written (a full disk, a device that refuses, a folder removed meanwhile)."""
+    try:
+        yield
+    except OSError as exc:
+        raise UserError(f"could not write {out}: {exc.strerror or exc}") from None
+
+
 def _workprecision(scene, args, out: Path, size: tuple[int, int] | None) -> int:
     from explorer.export import render_workprecision
     from explorer.panels.workprecision_view import run_workprecision
 
-    result = run_workprecision(scene, t_end=args.t_end)
+    try:
+        result = run_workprecision(scene, t_end=args.t_end)
+    except ValueError as exc:
+        raise UserError(f"{exc}: lower --t-end") from None
     written = render_workprecision(result, out, image_size=size)
     print(f"wrote {written}")
     return 0

@@ -9,12 +9,14 @@ import json
 import math
 import sys
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
 from explorer.commands.errors import UserError, user_errors
-from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS
+from explorer.commands.stopping import deferred, status
+from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS, MIN_T_END
 
 DEFAULT_SAMPLES = 10_000
 """Rows ``run --out`` writes by default: the states at this many evenly spaced times."""
@@ -122,9 +124,9 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
-    if not endless and not (math.isfinite(t_end) and t_end > 0):
+    if not endless:
         given = "--t-end" if args.t_end is not None else f"the scene's [view] t_end of {t_end}"
-        raise UserError(f"{given} must be a positive finite time (or inf, with --out and --every)")
+        check_t_end(t_end, given, " (or inf, with --out and --every)")
     options = integration_options(args, method, t_end)
     y0 = compiled.initial_state()
     # the system's functions were compiled (or loaded) with it; the method's driver,
@@ -144,29 +146,33 @@ def run(args: argparse.Namespace) -> int:
         t, y, qdot, H = stream_trajectory(args.out, scene, compiled, sampler)
     else:
         t, y = collect(sampler)
-        with np.errstate(all="ignore"):
-            H = compiled.hamiltonian(t, y)
-            qdot = compiled.velocities(t, y)
-    last, interrupted = sampler.last, sampler.interrupted
-    constraints = compiled.constraints()
-    violation = None
-    if constraints is not None:  # every block's states, and the rows (endless: first, last)
-        violation = max(sampler.violation or 0.0, constraints.violation(t, y))
-    if last is None:
-        last = run_.stop("interrupted", "")
-    wall_s = time.perf_counter() - start
-    n = compiled.n
-    conserved = mechanics.classification.hamiltonian_conserved
-    max_rel = None
-    if conserved:
-        scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
-        max_rel = max(float(np.max(np.abs(H - H[0])) / scale), sampler.worst / scale)
-    if args.out and not endless:
-        try:
-            multipliers = None if constraints is None else constraints.multipliers(t, y)
-            write_trajectory(args.out, scene, t, y, qdot, H, n, multipliers)
-        except OSError as exc:
-            raise UserError(f"could not write {args.out}: {exc.strerror or exc}") from None
+    # the run is over (finished, or stopped and kept): a signal now waits for its file
+    keep = deferred(f"writing {args.out}") if args.out and not endless else nullcontext()
+    with keep:
+        if not endless:
+            with np.errstate(all="ignore"):
+                H = compiled.hamiltonian(t, y)
+                qdot = compiled.velocities(t, y)
+        last, interrupted = sampler.last, sampler.interrupted
+        constraints = compiled.constraints()
+        violation = None
+        if constraints is not None:  # every block's states, and the rows (endless: first, last)
+            violation = max(sampler.violation or 0.0, constraints.violation(t, y))
+        if last is None:
+            last = run_.stop("interrupted", "")
+        wall_s = time.perf_counter() - start
+        n = compiled.n
+        conserved = mechanics.classification.hamiltonian_conserved
+        max_rel = None
+        if conserved:
+            scale = abs(H[0]) if abs(H[0]) > 1e-8 else 1.0
+            max_rel = max(float(np.max(np.abs(H - H[0])) / scale), sampler.worst / scale)
+        if args.out and not endless:
+            try:
+                multipliers = None if constraints is None else constraints.multipliers(t, y)
+                write_trajectory(args.out, scene, t, y, qdot, H, n, multipliers)
+            except OSError as exc:
+                raise UserError(f"could not write {args.out}: {exc.strerror or exc}") from None
     report = {
         "method": method,
         "why": why,
@@ -199,11 +205,24 @@ def run(args: argparse.Namespace) -> int:
     if report["status"] != "ok":
         print(f"stopped: {report['status']}: {report['message']}", file=sys.stderr)
         if interrupted:
-            from explorer.commands.stopping import status
-
             return status()
         return 1
     return 0
+
+
+def check_t_end(t_end: float, given: str = "--t-end", alternative: str = "") -> None:
+    """``UserError`` unless ``t_end`` is a finite time of at least ``MIN_T_END``.
+
+    ``given`` names where the time came from; ``alternative`` is added to the message
+    (" (or inf, with --out and --every)").
+    """
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise UserError(f"{given} must be a positive finite time{alternative}, not {t_end:g}")
+    if t_end < MIN_T_END:
+        raise UserError(
+            f"{given} must be at least {MIN_T_END:g}, not {t_end:g}: a shorter time cannot "
+            "be divided into steps"
+        )
 
 
 def check_output(args: argparse.Namespace, endless: bool) -> None:
@@ -307,7 +326,7 @@ def write_trajectory(path: str, scene, t, y, qdot, H, n: int, multipliers=None) 
     Written whole or not at all (``systems.files.atomic_path``).
     """
     from systems.constraints import multiplier_names
-    from systems.files import atomic_path
+    from systems.files import atomic_path, write_rows
 
     header = ["t", *scene.coordinates, *scene.velocity_names, *scene.momentum_names, "H"]
     columns = [t, y[:, :n], qdot, y[:, n:], H]
@@ -316,7 +335,6 @@ def write_trajectory(path: str, scene, t, y, qdot, H, n: int, multipliers=None) 
         header += multiplier_names(scene)
         columns.append(multipliers)
         extra["lambda"] = multipliers
-    table = np.column_stack(columns)
     with atomic_path(path) as temporary:
         if Path(path).suffix.lower() == ".npz":
             np.savez(
@@ -325,10 +343,8 @@ def write_trajectory(path: str, scene, t, y, qdot, H, n: int, multipliers=None) 
             )  # fmt: skip
             return
         with open(temporary, "w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(header)
-            for row in table:
-                writer.writerow([repr(float(v)) for v in row])
+            csv.writer(handle).writerow(header)
+            write_rows(handle, np.column_stack(columns))
 
 
 def readable(scene, report: dict) -> str:

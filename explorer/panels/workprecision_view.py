@@ -31,14 +31,22 @@ COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e
 
 
 def run_workprecision(scene, t_end: float | None = None, progress=None, cancelled=None):
-    """Build ``scene`` and sweep its default methods (synchronously); returns the result."""
+    """Build ``scene`` and sweep its default methods (synchronously); returns the result.
+
+    Raises ``ValueError`` (``systems.workprecision.sweep_problem``) for an end time the
+    sweep would take far too long to reach.
+    """
     from explorer.builder import build
-    from systems.workprecision import sweep
+    from systems.workprecision import default_methods, sweep, sweep_problem
 
     built = build(scene)
     if t_end is None:
         t_end = float(scene.view.get("t_end", 20.0))
-    return sweep(built.compiled, t_end=t_end, progress=progress, cancelled=cancelled)
+    methods = default_methods(built.compiled.mechanics)
+    problem = sweep_problem(built.compiled, methods, t_end=t_end, levels=6)
+    if problem:
+        raise ValueError(problem)
+    return sweep(built.compiled, methods, t_end=t_end, progress=progress, cancelled=cancelled)
 
 
 class _SweepWorker(QObject):

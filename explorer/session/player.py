@@ -28,7 +28,7 @@ import numpy as np
 from PySide6.QtCore import QEvent, QObject, QTimer, Signal
 from PySide6.QtGui import QValidator
 
-from explorer.session.script import Command, ScriptError
+from explorer.session.script import MAX_WAIT, Command, ScriptError
 
 POLL_MS = 20
 SETTLE_SECONDS = 120.0
@@ -493,6 +493,12 @@ class _RunUntil:
             self.allowed = self.timeout or RUN_UNTIL_SECONDS + (
                 2.0 * (self.t - reached) / speed if math.isfinite(speed) else 0.0
             )
+            if self.allowed > RUN_UNTIL_SECONDS + MAX_WAIT:
+                raise self.player._error(
+                    f"run-until {self.t:g} would wait more than an hour ({MAX_WAIT:g} s) at "
+                    f"speed {speed:g}, from t = {reached:.6g}: choose a higher speed or a "
+                    "smaller T"
+                )
             self.deadline = now + self.allowed
         if main is None or main.status == "running":
             self.stopped = None

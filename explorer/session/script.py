@@ -36,6 +36,13 @@ EDIT_FIELDS = (
 KINDS = ("energies", "lagrangian", "hamiltonian", "particles")
 """The values of ``edit given-by``: T and V, a Lagrangian, a Hamiltonian, particles and V."""
 SHOWN_CHARACTERS = 40
+MAX_COMMANDS = 10_000
+"""Commands a script may hold: each waits for the window to be idle, at least a poll of
+the player (20 ms) and often a build, so 10 000 already replay for minutes."""
+MAX_SCRIPT_BYTES = 8 * 2**20
+"""Bytes a script file may hold (its ``edit`` lines carry scene texts)."""
+MAX_WAIT = 3600.0
+"""The longest ``wait`` and ``run-until ... timeout=``, in seconds of wall time."""
 _ESCAPES = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "r": "\r"}
 
 
@@ -340,16 +347,24 @@ def _read_delete(args):
     return key
 
 
+def _seconds(value: float, what: str) -> float:
+    if value > MAX_WAIT:
+        raise _Refused(f"{what} must be at most {MAX_WAIT:g} seconds (an hour), not {value:g}")
+    return value
+
+
 def _read_run_until(args):
     usage = "run-until T [timeout=SECONDS]"
     _count(args, usage, 1, 2)
     t = _float(args[0], "the time T")
+    if t < 0:
+        raise _Refused(f"the time T must not be negative, not {_shown(args[0])}")
     timeout = None
     if len(args) == 2:
         name, equals, value = args[1].partition("=")
         if name != "timeout" or not equals:
             raise _Refused(f"usage: {usage}")
-        timeout = _positive(value, "the timeout")
+        timeout = _seconds(_positive(value, "the timeout"), "the timeout")
     return t, timeout
 
 
@@ -358,7 +373,7 @@ def _read_wait(args):
     seconds = _float(args[0], "the wait")
     if seconds < 0:
         raise _Refused("the wait must not be negative")
-    return seconds
+    return _seconds(seconds, "the wait")
 
 
 def _read_tab(args):
@@ -417,7 +432,7 @@ def parse(text: str, source: str = "<session>") -> list[Command]:
     checked: the verb, the number and form of its arguments, numbers where numbers
     belong. Never raises anything but ``ScriptError``.
     """
-    commands = []
+    commands: list[Command] = []
     for number_, raw in enumerate(text.split("\n"), start=1):
         if raw.endswith("\r"):
             raw = raw[:-1]
@@ -435,6 +450,13 @@ def parse(text: str, source: str = "<session>") -> list[Command]:
             value = reader(args)
         except _Refused as exc:
             raise ScriptError(str(exc), number_, source) from None
+        if len(commands) == MAX_COMMANDS:
+            raise ScriptError(
+                f"more than {MAX_COMMANDS:,} commands, the most a script may hold (each "
+                "waits for the window: split it into several sessions)",
+                number_,
+                source,
+            )
         commands.append(Command(verb, args, number_, value))
     return commands
 
@@ -446,10 +468,22 @@ def _unknown_verb(word: str) -> str:
 
 
 def load(path: str | Path, source: str | None = None) -> list[Command]:
-    """Read and parse a script file; a file that cannot be read is a ``ScriptError`` too."""
+    """Read and parse a script file; a file that cannot be read is a ``ScriptError`` too.
+
+    A named pipe, a device or a folder is refused before anything is read, as is a file
+    of more than ``MAX_SCRIPT_BYTES`` (``systems.files.read_file``).
+    """
+    from systems.files import FileTooLarge, read_file
+
     source = str(path) if source is None else source
     try:
-        raw = Path(path).read_bytes()
+        raw = read_file(path, MAX_SCRIPT_BYTES)
+    except FileTooLarge as exc:
+        raise ScriptError(
+            f"the file is {exc.size:,} bytes; a session script has at most {MAX_SCRIPT_BYTES:,}",
+            0,
+            source,
+        ) from None
     except OSError as exc:
         raise ScriptError(f"cannot read the file: {exc.strerror or exc}", 0, source) from None
     try:

@@ -78,8 +78,11 @@ def vectorize(
     """Lambdify a list of expressions into ``f(*arrays) -> ndarray (len(exprs), *shape)``.
 
     The arrays are broadcast together; constant expressions are broadcast to their shape.
+    ``DiracDelta`` (the second derivative of ``Abs``, which numpy cannot evaluate) is 0:
+    its value everywhere but at the kink, where no derivative is defined anyway.
     """
     exprs = [as_expr(e) for e in exprs]
+    exprs = [e.replace(sympy.DiracDelta, lambda *_: sympy.S.Zero) for e in exprs]
     return Vectorized(lambdify(list(args), exprs, modules="numpy", cse=lambdify_cse), len(exprs))
 
 

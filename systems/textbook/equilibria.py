@@ -1223,7 +1223,10 @@ class _Problem:
         """One ``Equilibrium`` per isolated point and one per set of them (``continuum``)."""
         equilibria: list[Equilibrium] = []
         sets: list[dict] = []
+        flat_minima: list[np.ndarray] = []  # traces through flat points that are no sets
         for point, exact in found:
+            if any(self.distance(point, trace).min() <= self.trace_step for trace in flat_minima):
+                continue  # the same flat point, found again where U is numerically flat
             member = self._member(point, sets)
             if member is not None:
                 member["found"] += 1
@@ -1232,6 +1235,22 @@ class _Problem:
             equilibrium, flat = self.equilibrium(point, exact)
             if flat == 1:
                 curve, closed = self.trace(point)
+                decided = self._not_an_interval(point, curve) if len(curve) >= 3 else None
+                if decided is not None:
+                    verdict, order = decided
+                    equilibrium = replace(
+                        equilibrium,
+                        stable=verdict.startswith("stable"),
+                        verdict=verdict,
+                        order=order,
+                        frequencies=[],
+                        decided_by=_VERDICTS[verdict].format(
+                            zeros=_zeros(1), s="", order=f" as the power {order} of the distance"
+                        ),
+                    )
+                    equilibria.append(equilibrium)
+                    flat_minima.append(curve)
+                    continue
                 if len(curve) >= 3:
                     sets.append(
                         {
@@ -1266,6 +1285,47 @@ class _Problem:
                 )
             equilibria.append(equilibrium)
         return equilibria + [self._set_equilibrium(record) for record in sets]
+
+    def _not_an_interval(self, x: np.ndarray, curve: np.ndarray) -> tuple[str, int] | None:
+        """For one searched coordinate: ``(verdict, order)`` when the "curve" traced
+        through ``x`` is no interval of equilibria, None when it is (or for more
+        coordinates).
+
+        On a line a set of equilibria is an interval where U is constant. A flat minimum
+        (``x**8``, ``k*x**10``) has a gradient below the search's noise floor (set by the
+        largest gradient in the box) over a whole interval, which the trace follows; but
+        U itself is not constant there: it grows as a power of the distance, whose sign
+        on each side and exponent decide the verdict.
+        """
+        if self.mq != 1 or curve.shape[1] != 1:
+            return None
+        with np.errstate(all="ignore"):
+            level = float(self.U(*x)[0])
+            values = np.array([float(self.U(*p)[0]) for p in curve])
+        change = values - level
+        scale = np.maximum(np.abs(values), abs(level))
+        if not np.all(np.isfinite(change)) or np.all(np.abs(change) <= 1e-9 * scale):
+            return None
+        offset = curve[:, 0] - x[0]
+        sides = []
+        for side in (offset > 0, offset < 0):
+            moved = change[side]
+            moved = moved[np.abs(moved) > 1e-9 * scale[side]]
+            sides.append(0 if not moved.size else int(np.sign(moved[np.argmax(np.abs(moved))])))
+        if 0 in sides:
+            return None
+        if sides[0] == sides[1]:
+            verdict = "stable: rises" if sides[0] > 0 else "unstable: falls"
+        else:
+            verdict = "unstable: odd"
+        order = 0
+        useful = (np.abs(offset) > 0) & (np.abs(change) > 1e-9 * scale)
+        if np.count_nonzero(useful) >= 2:
+            slope = np.polyfit(np.log(np.abs(offset[useful])), np.log(np.abs(change[useful])), 1)
+            order = int(round(float(slope[0])))
+        if order < 3:  # a quadratic term would have shown in K
+            return None
+        return verdict, order
 
     def _member(self, x: np.ndarray, sets: list[dict]) -> dict | None:
         for record in sets:
@@ -1707,7 +1767,7 @@ def _describe(points, through, names, periodic, closed: bool, dimension: int, eq
             if np.max(off) <= 1e-7 * r:
                 u, v = (names[i] for i in moving)
                 return f"the circle {_square(u, a)} + {_square(v, c)} = {_short(r2)}{at}"
-    if dimension == 1 and len(points) >= 3 and moving.size:
+    if dimension == 1 and len(points) >= 3 and moving.size and points.shape[1] >= 2:
         centred = points - points.mean(axis=0)
         singular = np.linalg.svd(centred, compute_uv=False)
         if singular[1] <= 1e-9 * singular[0]:
