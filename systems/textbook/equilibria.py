@@ -1576,11 +1576,11 @@ class _ConstrainedProblem(_Problem):
             for _ in range(30):
                 c = self._values(*Q.T).T.reshape(len(Q), k)
                 J = self._jacobian(*Q.T).T.reshape(len(Q), k, mq)
-                Q = Q - (np.linalg.pinv(J) @ c[..., None])[..., 0]
+                Q = Q - (_pseudo_inverse(J) @ c[..., None])[..., 0]
             c = self._values(*Q.T).T.reshape(len(Q), k)
             J = self._jacobian(*Q.T).T.reshape(len(Q), k, mq)
             f = self._force(*Q.T).T.reshape(len(Q), mq)
-            lam = -(np.linalg.pinv(np.swapaxes(J, 1, 2)) @ f[..., None])[..., 0]
+            lam = -(_pseudo_inverse(np.swapaxes(J, 1, 2)) @ f[..., None])[..., 0]
         X = np.concatenate([Q, lam], axis=1)
         on = np.all(np.isfinite(X), axis=1) & (
             np.linalg.norm(c, axis=1) <= 1e-9 * (1.0 + np.linalg.norm(Q, axis=1))
@@ -1967,3 +1967,14 @@ def _typical(values: np.ndarray) -> float:
 def _clean(value: float) -> float:
     value = float(value)
     return 0.0 if abs(value) < 1e-12 else value
+
+
+def _pseudo_inverse(J: np.ndarray) -> np.ndarray:
+    """``np.linalg.pinv`` of a stack of matrices, shape (s, a, b) -> (s, b, a), NaN for
+    a matrix with a non-finite entry (a start where a constraint's gradient is 0/0, as
+    sqrt(x**2 + z**2) has at the origin): such a start is dropped, not the search."""
+    result = np.full((J.shape[0], J.shape[2], J.shape[1]), np.nan)
+    finite = np.all(np.isfinite(J), axis=(1, 2))
+    if finite.any():
+        result[finite] = np.linalg.pinv(J[finite])
+    return result

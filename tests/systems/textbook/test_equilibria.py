@@ -137,3 +137,28 @@ def _slow():
 def test_bounded_run_gives_up_past_its_cpu_time():
     assert run_bounded(_slow, (), 0.3) is None
     assert run_bounded(math.hypot, (3.0, 4.0), 5.0) == 5.0
+
+
+def test_a_constraint_whose_gradient_is_0_over_0_somewhere_does_not_stop_the_search():
+    """sqrt(X**2 + Z**2) - l has no gradient at the origin, where the scan's grid starts:
+    those starts are dropped (the search ended in 'SVD did not converge')."""
+    from systems.scene import parse_scene
+
+    text = """
+title = "pendulum in its own Cartesian coordinates"
+[system]
+coordinates = ["X", "Z"]
+parameters = { m = 1.0, g = 9.81, l = 1.0 }
+kinetic = "m*(X_dot**2 + Z_dot**2)/2"
+potential = "m*g*Z"
+[constraints]
+holonomic = ["sqrt(X**2 + Z**2) - l"]
+[initial]
+X = 0.5
+"""
+    found = search_equilibria(derive(parse_scene(text, source="xz.toml")))
+    points = sorted((round(e.q["X"], 9) + 0.0, round(e.q["Z"], 9)) for e in found.equilibria)
+    assert points == [(0.0, -1.0), (0.0, 1.0)]
+    (stable,) = [e for e in found.equilibria if e.stable]
+    assert stable.q["Z"] == pytest.approx(-1.0)
+    assert stable.frequencies[0] == pytest.approx(math.sqrt(9.81), rel=1e-9)
