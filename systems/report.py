@@ -522,6 +522,12 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
             if not eq.stable and rates:
                 across += f" (growth rate {rates})"
             through = "" if "through" in eq.continuum.description else f" (through {where})"
+            if eq.continuum.dimension >= mechanics.n:  # no direction is across it
+                lines.append(
+                    "every configuration is an equilibrium (U is constant): neutral, a "
+                    "body at rest stays at rest anywhere"
+                )
+                continue
             lines.append(
                 f"{eq.continuum.description}{through}: {what} of equilibria, neutral along it; "
                 f"{across}"

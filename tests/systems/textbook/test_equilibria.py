@@ -162,3 +162,26 @@ X = 0.5
     (stable,) = [e for e in found.equilibria if e.stable]
     assert stable.q["Z"] == pytest.approx(-1.0)
     assert stable.frequencies[0] == pytest.approx(math.sqrt(9.81), rel=1e-9)
+
+
+def test_a_constant_potential_in_one_coordinate_is_not_a_curve_with_an_across():
+    """Atwood's machine with equal masses: every x is an equilibrium (the derive command
+    once ended in an IndexError here, the window in 'equilibria not found')."""
+    from systems.report import equilibria_sentences
+    from systems.scene import parse_scene
+
+    text = """
+title = "Atwood machine, equal masses"
+[system]
+coordinates = ["x"]
+parameters = { m1 = 1.0, m2 = 1.0, I = 0.1, R = 0.2, g = 9.81 }
+kinetic = "(m1 + m2)/2*x_dot**2 + I/2*(x_dot/R)**2"
+potential = "(m2 - m1)*g*x"
+[initial]
+x_dot = 0.1
+"""
+    lines, _ = equilibria_sentences(derive(parse_scene(text, source="atwood.toml")))
+    assert lines == [
+        "every configuration is an equilibrium (U is constant): neutral, a body at rest "
+        "stays at rest anywhere"
+    ]
