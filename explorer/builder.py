@@ -24,6 +24,9 @@ from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from explorer.worker import keep_until_finished
 from systems import processes
+from systems.report import derivation_text as describe
+from systems.report import equilibria_lines
+from systems.sources import derive_source
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -61,30 +64,6 @@ def wants_for(mechanics) -> tuple[str, ...]:
     if mechanics.classification.separable and mechanics.separable_parts is not None:
         wants.append("separable")
     return tuple(wants)
-
-
-def derive_source(source):
-    """Read (TOML text, the editor's tables or a ``Scene``) and derive; raises the core's
-    errors. Runs in a worker process for the window, in the caller's for ``build``.
-
-    A ``Scene`` is derived as it is and TOML text is read strictly (``parse_scene``). A
-    dict is the editor's document: it is read with ``drop_unfit=True``, so a drawing or
-    ``[view]`` setting that does not fit the system is left out and listed in
-    ``mechanics.scene.warnings`` instead of failing the build.
-    """
-    from systems.integrators import choose_method
-    from systems.mechanics import derive
-    from systems.scene import Scene, parse_scene, scene_from_dict
-
-    if isinstance(source, Scene):
-        scene = source
-    elif isinstance(source, dict):  # the editor's document: what does not fit is left out
-        scene = scene_from_dict(source, source="<editor>", drop_unfit=True)
-    else:
-        scene = parse_scene(source, source="<editor>")
-    mechanics = derive(scene)
-    choose_method(mechanics)  # whatever symbolic work the choice does, done here
-    return mechanics
 
 
 def compile_built(mechanics, request: int = 0, start: float | None = None) -> Built:
@@ -137,23 +116,6 @@ def failure_from(exc: Exception, request: int) -> BuildFailure:
         position=getattr(exc, "position", None),
         reason=getattr(exc, "reason", str(exc)),
     )
-
-
-def describe(mechanics) -> str:
-    """The derivation laid out for a person (as ``derive`` prints it)."""
-    from systems.report import readable
-
-    return readable(mechanics, equilibria=False)  # they arrive apart (equilibria_found)
-
-
-def equilibria_lines(mechanics) -> list[str]:
-    """One sentence per equilibrium (virtual work), or why there are none."""
-    from systems.report import equilibria_sentences
-
-    lines, note = equilibria_sentences(mechanics, digits=4)
-    if not lines:
-        return [f"no equilibrium: {note}" if note else "no equilibrium found"]
-    return lines
 
 
 class _Layout:

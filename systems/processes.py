@@ -40,6 +40,7 @@ PRELOAD = [
     "numpy",
     "systems.scene",
     "systems.mechanics",
+    "systems.sources",
     "systems.report",
     "systems.textbook.equilibria",
 ]

@@ -474,6 +474,20 @@ def _subscript(i: int, n: int) -> str:
     return str(i + 1).translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
 
 
+def derivation_text(mechanics: Mechanics) -> str:
+    """The derivation laid out for a person without the equilibria (the window shows
+    them apart, when their search has finished: ``equilibria_lines``)."""
+    return readable(mechanics, equilibria=False)
+
+
+def equilibria_lines(mechanics: Mechanics) -> list[str]:
+    """One sentence per equilibrium (virtual work), or why there are none."""
+    lines, note = equilibria_sentences(mechanics, digits=4)
+    if not lines:
+        return [f"no equilibrium: {note}" if note else "no equilibrium found"]
+    return lines
+
+
 def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[str], str]:
     """One sentence per equilibrium (virtual work, small oscillations), and the search's note.
 

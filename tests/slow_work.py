@@ -22,8 +22,8 @@ def crawl(seconds: float = CRAWL_SECONDS) -> None:
 
 
 def crawl_then_derive(source):
-    """``explorer.builder.derive_source`` after a long crawl."""
-    from explorer.builder import derive_source
+    """``systems.sources.derive_source`` after a long crawl."""
+    from systems.sources import derive_source
 
     crawl()
     return derive_source(source)
@@ -31,8 +31,8 @@ def crawl_then_derive(source):
 
 def crawl_if_three_coordinates(source):
     """``derive_source``, crawling first for a scene of three coordinates."""
-    from explorer.builder import derive_source
     from systems.scene import Scene
+    from systems.sources import derive_source
 
     if isinstance(source, Scene) and len(source.coordinates) == 3 or "theta3" in str(source):
         crawl()

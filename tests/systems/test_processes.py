@@ -170,3 +170,14 @@ def test_a_script_without_a_main_guard_is_not_run_again_by_workers(tmp_path):
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.splitlines() == ["script ran", "worker True"]
+
+
+def test_the_builders_jobs_never_load_qt_in_a_worker():
+    """What the window sends to workers lives in ``systems``: a worker unpickling it
+    imports no Qt (it did, through explorer.builder, for 0.1 s a job)."""
+    import pickle
+
+    from explorer import builder
+
+    for function in (builder.derive_source, builder.describe, builder.equilibria_lines):
+        assert pickle.loads(pickle.dumps(function)).__module__.startswith("systems.")
