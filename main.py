@@ -2,7 +2,10 @@
 
 import sys
 
-from explorer.cli import main
-
 if __name__ == "__main__":
+    try:
+        from explorer.cli import main
+    except KeyboardInterrupt:  # Ctrl+C while the program was still being loaded
+        print("stopped (Ctrl+C)", file=sys.stderr)
+        sys.exit(130)
     sys.exit(main())

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from contextlib import nullcontext
 
@@ -65,6 +66,9 @@ def main(argv: list[str] | None = None) -> int:
         where = f": {exc.filename}" if exc.filename else ""
         _say(f"error: {exc.strerror or exc}{where}")
         return 1
+    except KeyboardInterrupt:  # while the parser was built (imports), before any command
+        _say("stopped (Ctrl+C)")
+        return 128 + signal.SIGINT
     finally:
         if isinstance(sys.stdout, _Output):
             sys.stdout = stdout
