@@ -85,7 +85,6 @@ trajectory's rows wait (a closed orbit of the default step is drawn a few turns 
 time)."""
 STOP_SECONDS = 5.0
 """How long ``WorkerThread.stop`` waits by default (closing the window passes less)."""
-PROBLEM_STATUSES = ("non_finite", "singular", "energy_error", "stalled", "budget")
 DIAGNOSTIC_FUNCTIONS = {"H": "hamiltonian", "qdot": "velocities", "points": "drawing"}
 
 
@@ -742,7 +741,7 @@ class SimulationWorker(QObject):
         if len(block.t):
             track.t = float(block.t[-1])
             track.y = np.array(block.y[-1], dtype=float)
-        if block.status in PROBLEM_STATUSES:
+        if block.status not in ("running", "ok"):  # one of simulation.PROBLEMS
             track.done = True
 
 

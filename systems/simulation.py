@@ -30,7 +30,7 @@ from systems.integrators.registry import Stepper, make_runner
 from systems.integrators.stepsize import drawing_step
 from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
-PROBLEMS = ("non_finite", "singular", "energy_error", "stalled", "budget")
+PROBLEMS = ("non_finite", "singular", "energy_error", "stalled", "budget", "unstable")
 STATUS_WORDS = {
     Status.NON_FINITE: "non_finite",
     Status.NOT_CONVERGED: "stalled",
@@ -246,6 +246,11 @@ class Run:
             start = (t0, self.y0) if probe_start is None else probe_start
             max_step = drawing_step(compiled, float(start[0]), np.asarray(start[1], float), t_end)
         self.max_step = float(max_step)
+        self.unstable = (
+            _unstable_step(compiled, stepper, t0, self.y0, self.setting_value, t_end)
+            if dt is not None and stepper.family.name == "runge_kutta"
+            else None
+        )
         self.runner = make_runner(
             compiled, stepper, self.y0, t0, t_end, self.setting_value, sec, compensated,
             max_step=self.max_step,
@@ -397,7 +402,9 @@ class Run:
                     f"can only take energy away: {self.method} is unstable or inaccurate "
                     "at this step; reduce the step or tolerance"
                 )
-        if status in PROBLEMS and status not in ("singular", "budget") and len(t):
+        if status == "ok" and self.unstable is not None:
+            status, message = "unstable", self.unstable
+        if status in PROBLEMS and status not in ("singular", "budget", "unstable") and len(t):
             status, message = _diagnose(
                 self.compiled, self.runner, t[-1], y[-1], self.f0, status, message
             )
@@ -414,6 +421,68 @@ class Run:
             target = seconds / max(rate, 1e-12)
             self.nsteps = int(min(max(target, self.nsteps / 4, 1), self.nsteps * 8, 1e9))
         return block
+
+
+AMPLIFICATION_LIMIT = 2.0
+"""A fixed step whose method would multiply a mode the motion does not amplify by more
+than this over the run (at most ``AMPLIFICATION_PERIODS`` of it) makes the run end
+``"unstable"``, not ok."""
+AMPLIFICATION_PERIODS = 100
+
+
+def _unstable_step(compiled, stepper, t0: float, y0: np.ndarray, dt: float, t_end: float):
+    """Why a fixed step ``dt`` of an explicit Runge-Kutta method is unstable for the
+    motion near ``y0`` (None if it is not, or cannot be told).
+
+    The method multiplies each mode of the linearised motion, ``exp(dt lambda)`` exactly,
+    by the polynomial ``R(dt lambda)`` (Euler 1 + z, RK4 the exponential's series to
+    z**4). Where ``|R| > 1`` on a mode that does not grow (Re lambda <= 0: an
+    oscillation, a damped one), the numbers grow while the motion does not.
+    """
+    from systems.integrators.stepsize import jacobian
+
+    J = jacobian(lambda y: compiled.rhs(t0, y), np.asarray(y0, dtype=float))
+    if J is None:
+        return None
+    eigenvalues = np.linalg.eigvals(J)
+    z = dt * eigenvalues[eigenvalues.real <= 1e-12 * np.abs(eigenvalues).max(initial=0.0)]
+    if not len(z):
+        return None
+    R = sum(z**k / math.factorial(k) for k in range(stepper.order + 1))
+    growth = np.abs(R)
+    worst = int(np.argmax(growth))
+    if not growth[worst] > 1.0:
+        return None
+    rate = float(np.abs(eigenvalues).max())
+    span = AMPLIFICATION_PERIODS * 2 * math.pi / rate if rate > 0 else math.inf
+    steps = min(t_end - t0, span) / dt
+    amplification = math.exp(min(steps * math.log(growth[worst]), 700.0))
+    if not amplification > AMPLIFICATION_LIMIT:
+        return None
+    return (
+        f"dt = {dt:.3g} is beyond {stepper.name}'s stability for this motion: a mode of "
+        f"frequency {abs(z[worst].imag) / dt:.3g} (damping {-z[worst].real / dt:.3g}) is "
+        f"multiplied by {growth[worst]:.4g} a step, {amplification:.3g} over the run, where "
+        f"the motion does not grow; take dt below {_stable_step(stepper.order, z[worst] / dt):.3g}"
+    )
+
+
+def _stable_step(order: int, eigenvalue: complex) -> float:
+    """The largest step at which the Runge-Kutta polynomial of ``order`` does not grow
+    on ``eigenvalue`` (bisection from below; 0 where none does, as Euler on an
+    undamped oscillation)."""
+
+    def grows(h: float) -> bool:
+        z = h * eigenvalue
+        return abs(sum(z**k / math.factorial(k) for k in range(order + 1))) > 1.0
+
+    lo, hi = 0.0, 1.0 / max(abs(eigenvalue), 1e-300)
+    while not grows(hi) and hi < 1e6 / max(abs(eigenvalue), 1e-300):
+        lo, hi = hi, 2 * hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if grows(mid) else (mid, hi)
+    return lo
 
 
 def _section_period(compiled, section) -> float | None:

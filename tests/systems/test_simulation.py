@@ -285,3 +285,25 @@ def test_negative_damping_is_not_watched():
     compiled = _damped(c=-0.2)
     last = list(stream(compiled, method="dop853", t_end=20.0))[-1]
     assert last.status == "ok", last.message
+
+
+def test_a_fixed_step_beyond_the_methods_stability_is_not_ok():
+    """The driven damped pendulum neither conserves nor provably loses energy: the
+    linearised motion tells that rk4 at dt = 3 multiplies a damped oscillation by 1.17 a
+    step, so the run ends 'unstable' with the largest stable step, not ok."""
+    compiled = compile_system(derive(load_scene("driven_damped_pendulum")))
+    last = list(stream(compiled, method="rk4", dt=3.0, t_end=100.0))[-1]
+    assert last.status == "unstable", last.message
+    assert "take dt below 2.9" in last.message
+    last = list(stream(compiled, method="rk4", dt=2.0, t_end=100.0))[-1]
+    assert last.status == "ok", last.message
+
+
+@pytest.mark.parametrize(
+    "order, eigenvalue, bound",
+    [(4, 1j, 2 * math.sqrt(2)), (1, -1.0, 2.0), (1, 1j, 0.0), (4, -1.0, 2.785293563)],
+)
+def test_the_largest_stable_step_of_the_runge_kutta_polynomials(order, eigenvalue, bound):
+    from systems.simulation import _stable_step
+
+    assert _stable_step(order, eigenvalue) == pytest.approx(bound, abs=1e-6)
