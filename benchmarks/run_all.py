@@ -22,6 +22,7 @@ SCRIPTS = (
     "max_speed",
     "large_systems",
     "scene_switches",
+    "worker_latency",
 )
 
 
