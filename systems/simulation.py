@@ -155,7 +155,8 @@ class Run:
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
         this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8); where damping can only
         take energy away (``Classification.dissipative``), when H rises above H(y0) by
-        more than this. None: never.
+        more than this. None: never, and no ``"unstable"`` either (a demonstration of
+        a method's growth).
     compensated : bool
         Kahan-compensated summation of the state in the fixed-step and log-H loops, so
         round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
@@ -248,7 +249,9 @@ class Run:
         self.max_step = float(max_step)
         self.unstable = (
             _unstable_step(compiled, stepper, t0, self.y0, self.setting_value, t_end)
-            if dt is not None and stepper.family.name == "runge_kutta"
+            if dt is not None
+            and stepper.family.name == "runge_kutta"
+            and energy_tolerance is not None  # the guard off: growth is what is shown
             else None
         )
         self.runner = make_runner(
