@@ -625,5 +625,7 @@ def test_a_paced_plot_leaves_the_gap_free_after_each_paint_and_paints_the_last_c
     timer.stop()
     qtbot.waitUntil(lambda: paints and paints[-1][2] == changes[0] + 1, timeout=2000)
     assert len(paints) >= 3 and changes[0] > 2 * len(paints)  # changes were gathered
+    # a busy machine only delays a paint; Qt's coarse timers may fire up to 5 % early,
+    # and the end is stamped after the paint armed the next one
     for (_, end, _), (start, _, _) in zip(paints[:-1], paints[1:], strict=True):
-        assert start - end >= gap - 0.003
+        assert start - end >= 0.9 * gap
