@@ -537,9 +537,9 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
                 across += f" (growth rate {rates})"
             through = "" if "through" in eq.continuum.description else f" (through {where})"
             if eq.continuum.dimension >= mechanics.n:  # no direction is across it
-                lines.append(
-                    "every configuration is an equilibrium (U is constant): neutral, a "
-                    "body at rest stays at rest anywhere"
+                lines.append(  # U may be constant on a part of the space only
+                    f"U is constant around {where}: every configuration there is an "
+                    "equilibrium, neutral (a body at rest stays at rest)"
                 )
                 continue
             lines.append(

@@ -181,7 +181,7 @@ potential = "(m2 - m1)*g*x"
 x_dot = 0.1
 """
     lines, _ = equilibria_sentences(derive(parse_scene(text, source="atwood.toml")))
-    assert lines == [
-        "every configuration is an equilibrium (U is constant): neutral, a body at rest "
-        "stays at rest anywhere"
-    ]
+    assert len(lines) == 1 and lines[0].startswith("U is constant around x = ")
+    assert lines[0].endswith(
+        "every configuration there is an equilibrium, neutral (a body at rest stays at rest)"
+    )
