@@ -182,7 +182,10 @@ def _signals_close(window, stop: Callable[[int], None]) -> Iterator[None]:
     try:
         yield
     finally:
-        poll.stop()
+        try:
+            poll.stop()
+        except RuntimeError:  # deleted with the window
+            pass
         for signum, before in previous.items():
             signal.signal(signum, signal.SIG_DFL if before is None else before)
 

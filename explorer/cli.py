@@ -145,10 +145,19 @@ def _main(argv: list[str] | None) -> int:
     signals = nullcontext() if command == "open" else stopping.stop_signals()
     try:
         with signals:
-            return int(module.run(args) or 0)
+            status = int(module.run(args) or 0)
+            if status < 128:  # not stopped and said so: was a signal's exception swallowed?
+                stopping.check()
+            return status
     except UserError as exc:
         _say(f"error: {exc}")
         return 2
     except KeyboardInterrupt:
+        _say(f"stopped ({stopping.cause()})")
+        return stopping.status()
+    except Exception:
+        if not stopping.requested():
+            raise
+        # the signal's exception was swallowed in code it interrupted, which then failed
         _say(f"stopped ({stopping.cause()})")
         return stopping.status()

@@ -164,6 +164,46 @@ def render_image(widget, size: tuple[int, int]):
     return image
 
 
+@contextmanager
+def signals_held() -> Iterator[None]:
+    """Ctrl+C, SIGTERM and SIGHUP wait for the end of the block, then act as they would.
+
+    Drawing runs Python inside Qt's calls (the paint methods of pyqtgraph's items), where
+    the ``KeyboardInterrupt`` of a Ctrl+C was caught and printed as a traceback
+    (pyqtgraph's ``warnOnException``) and the drawing went on. Inside the block a signal
+    is only noted; when the block ends, outside Qt, it goes to the handler that was in
+    place before (the CLI's raise ``KeyboardInterrupt``; the default one ends the
+    process). Main thread only; a signal ignored stays ignored.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+
+    def hold(signum: int, _frame) -> None:
+        held.append(signum)
+
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        handler = signal.getsignal(signum)
+        if handler is not None and handler is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, hold)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if held:
+            handler = previous[held[0]]
+            if callable(handler):
+                handler(held[0], None)
+            else:
+                signal.raise_signal(held[0])
+
+
 def export_widget(widget, path: str | Path, size: tuple[int, int] | None = None) -> Path:
     """Render ``widget`` to ``path``: PNG or SVG by its suffix. Returns the path.
 
@@ -183,7 +223,9 @@ def export_widget(widget, path: str | Path, size: tuple[int, int] | None = None)
             raise ValueError(f"a figure's sides must be 1 to {MAX_PIXELS} pixels, not {size}")
     from systems.files import atomic_path
 
-    with atomic_path(path) as temporary:
+    # a signal while Qt draws stops the export once the drawing is done, before the
+    # temporary file becomes ``path``
+    with atomic_path(path) as temporary, signals_held():
         if suffix == ".svg":
             from explorer.svg import write_svg
 
@@ -337,13 +379,15 @@ def render_workprecision(
     try:
         if image_size is not None:
             size, _ = figure_layout(size, image_size)
-        view.resize(*size)
-        view.show_result(result)
-        view.show()
-        app.processEvents()
+        with signals_held():
+            view.resize(*size)
+            view.show_result(result)
+            view.show()
+            app.processEvents()
         return export_widget(view.export_target(), path, image_size)
     finally:  # on a failed write too: a view left to the interpreter's exit crashed it
-        view.shutdown()
-        view.close()
-        view.deleteLater()
-        app.processEvents()
+        with signals_held():
+            view.shutdown()
+            view.close()
+            view.deleteLater()
+            app.processEvents()

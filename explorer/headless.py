@@ -121,7 +121,7 @@ def render_panel(
     ensure_qt_platform()
     from explorer.app import application
     from explorer.builder import build
-    from explorer.export import export_widget
+    from explorer.export import export_widget, signals_held
 
     app = application()
     built = build(scene)
@@ -145,15 +145,17 @@ def render_panel(
         else:
             view.set_system(compiled)
         store = integrate(built, t_end, section=section)
-        view.show()
-        app.processEvents()
-        view.refresh(store)
-        app.processEvents()
+        with signals_held():  # Qt draws: a signal waits for it (explorer.export)
+            view.show()
+            app.processEvents()
+            view.refresh(store)
+            app.processEvents()
         return export_widget(view.export_target(), out, image_size), store.main
     finally:  # on a failed write or Ctrl+C too: a view left to the interpreter's exit crashed it
-        view.close()
-        view.deleteLater()
-        app.processEvents()
+        with signals_held():
+            view.close()
+            view.deleteLater()
+            app.processEvents()
 
 
 def write_csv(scene, out: str | Path, t_end: float, times: np.ndarray) -> tuple[Path, object]:

@@ -30,8 +30,10 @@ class Preferences:
     def __init__(self, path: Path | None = None):
         self.path = path or config_dir() / "preferences.json"
         self._data: dict = {}
-        try:
-            data = json.loads(self.path.read_text(encoding="utf-8"))
+        from systems.files import read_file
+
+        try:  # a pipe or a device in its place is ignored, not waited on (read_file)
+            data = json.loads(read_file(self.path, 2**20).decode("utf-8"))
             if isinstance(data, dict):
                 self._data = data
         except (OSError, ValueError):

@@ -28,8 +28,43 @@ def render(result, path: str | Path, size=(1100, 520)) -> Path:
     suffix = path.suffix.lower()
     if suffix not in (".png", ".svg"):
         raise ValueError(f"cannot draw a figure as {suffix or 'a file without suffix'}")
+    from explorer.export import check_svg, save_png, signals_held
+    from systems.files import atomic_path
+
     app = QApplication.instance() or QApplication([])
     pg.setConfigOptions(antialias=True, foreground="#222222", background="w")
+    with signals_held():  # Qt draws: a signal waits for it (explorer.export)
+        widget = _drawn(result, size, app)
+    try:
+        with atomic_path(path) as temporary, signals_held():
+            if suffix == ".svg":
+                from PySide6.QtSvg import QSvgGenerator
+
+                generator = QSvgGenerator()
+                generator.setFileName(str(temporary))
+                generator.setSize(QSize(*size))
+                generator.setViewBox(QRect(0, 0, *size))
+                generator.setTitle(f"{result.title}: work-precision")
+                painter = QPainter(generator)
+                try:
+                    widget.render(painter)
+                finally:
+                    painter.end()
+                check_svg(temporary)
+            else:
+                save_png(widget.grab(), temporary)
+    finally:  # on a failed write too: a widget left to the interpreter's exit crashed it
+        with signals_held():
+            widget.close()
+            widget.deleteLater()
+            app.processEvents()
+    return path
+
+
+def _drawn(result, size: tuple[int, int], app):
+    """The figure's widget, laid out and shown (offscreen)."""
+    import pyqtgraph as pg
+
     widget = pg.GraphicsLayoutWidget()
     widget.resize(*size)
     widget.addLabel(
@@ -70,29 +105,4 @@ def render(result, path: str | Path, size=(1100, 520)) -> Path:
         plots.append(plot)
     widget.show()
     app.processEvents()
-    from explorer.export import check_svg, save_png
-    from systems.files import atomic_path
-
-    try:
-        with atomic_path(path) as temporary:
-            if suffix == ".svg":
-                from PySide6.QtSvg import QSvgGenerator
-
-                generator = QSvgGenerator()
-                generator.setFileName(str(temporary))
-                generator.setSize(QSize(*size))
-                generator.setViewBox(QRect(0, 0, *size))
-                generator.setTitle(f"{result.title}: work-precision")
-                painter = QPainter(generator)
-                try:
-                    widget.render(painter)
-                finally:
-                    painter.end()
-                check_svg(temporary)
-            else:
-                save_png(widget.grab(), temporary)
-    finally:  # on a failed write too: a widget left to the interpreter's exit crashed it
-        widget.close()
-        widget.deleteLater()
-        app.processEvents()
-    return path
+    return widget

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from explorer.commands.errors import UserError, user_errors
-from explorer.commands.stopping import deferred, status
+from explorer.commands.stopping import check, deferred, requested, status
 from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS, MIN_T_END
 
 DEFAULT_SAMPLES = 10_000
@@ -251,8 +251,13 @@ def collect(sampler) -> tuple[np.ndarray, np.ndarray]:
         for t, y in sampler:
             ts.append(t)
             ys.append(y)
+            check()
     except KeyboardInterrupt:
         sampler.interrupted = True
+    except Exception:
+        if not requested():
+            raise
+        sampler.interrupted = True  # the signal's exception was lost (``stopping``)
     sampler.count = len(ts)
     return np.array(ts), np.array(ys)
 
@@ -291,8 +296,13 @@ def stream_trajectory(path: str, scene, compiled, sampler):
                     writer.writerow([repr(float(v)) for v in row])
                     sampler.count += 1
                     kept = [*kept[:1], (t, y, qdot, H)]
+                    check()
             except KeyboardInterrupt:
                 sampler.interrupted = True
+            except Exception:
+                if not requested():
+                    raise
+                sampler.interrupted = True  # the signal's exception was lost (``stopping``)
     except OSError as exc:
         raise UserError(f"could not write {path}: {exc.strerror or exc}") from None
     t, y, qdot, H = (np.array(column) for column in zip(*kept, strict=True))

@@ -1,11 +1,20 @@
-"""Signals that stop a command: SIGTERM and SIGHUP handled as Ctrl+C.
+"""Signals that stop a command: Ctrl+C, SIGTERM and SIGHUP alike.
 
 A logout, ``kill`` or a service manager stopping the program sends SIGTERM (a closed
 terminal, SIGHUP); left to their default they end the process at once, losing what a
 command would keep on Ctrl+C (the rows a ``run --out`` has integrated) and leaving its
-temporary files. Inside ``stop_signals()`` they raise ``KeyboardInterrupt`` in the main
-thread as SIGINT does, so every command stops the same way for all three; ``status()``
-then gives the exit status that names the signal (128 + its number, 130 for Ctrl+C).
+temporary files. Inside ``stop_signals()`` all three raise ``KeyboardInterrupt`` in the
+main thread and are remembered, so every command stops the same way for all three;
+``status()`` then gives the exit status that names the signal (128 + its number, 130
+for Ctrl+C).
+
+An exception raised by a signal handler can be lost: C code that calls Python and
+clears whatever error comes back (numba's dispatcher, typing an argument of a compiled
+function) swallows the ``KeyboardInterrupt``, then fails with a confused ``TypeError``
+(``_get_jit_address() missing 1 required positional argument``) or goes on: an endless
+run went on for ever after SIGTERM. So loops ask ``requested()`` at each step
+(``check()`` raises for them) and take any error after a signal for the stop, and a
+command that ends, or fails, after a signal is reported as stopped by it.
 ``deferred(what)`` holds a first signal while a short piece of work that should not be
 cut (a finished run's file being written) ends, then stops.
 """
@@ -18,7 +27,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-HANDLED = (signal.SIGTERM, signal.SIGHUP)
+HANDLED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 _received: list[int] = []
 
@@ -30,11 +39,12 @@ def _raise(signum: int, frame) -> None:
 
 @contextmanager
 def stop_signals() -> Iterator[None]:
-    """Inside the block, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` like Ctrl+C.
+    """Inside the block, Ctrl+C, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` and are
+    remembered (``requested``, ``cause``, ``status``).
 
-    A signal the process was started with ignored (``nohup``) stays ignored. The previous
-    handlers come back when the block ends. Outside the main thread (where Python cannot
-    set handlers) this does nothing.
+    A signal the process was started with ignored (``nohup``; SIGINT of a job started in
+    the background) stays ignored. The previous handlers come back when the block ends.
+    Outside the main thread (where Python cannot set handlers) this does nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -52,9 +62,21 @@ def stop_signals() -> Iterator[None]:
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
 
 
+def requested() -> bool:
+    """Whether a stop signal has come since ``stop_signals()`` began."""
+    return bool(_received)
+
+
+def check() -> None:
+    """Raise ``KeyboardInterrupt`` if a stop signal has come (its exception may have
+    been swallowed on the way: see the module's description)."""
+    if _received:
+        raise KeyboardInterrupt
+
+
 def cause() -> str:
     """What stopped the command: "Ctrl+C", "SIGTERM" or "SIGHUP"."""
-    return signal.Signals(_received[0]).name if _received else "Ctrl+C"
+    return name(_received[0]) if _received else "Ctrl+C"
 
 
 def status() -> int:
@@ -86,13 +108,12 @@ def deferred(what: str) -> Iterator[None]:
         if held:
             raise KeyboardInterrupt
         held.append(signum)
-        if signum != signal.SIGINT:
-            _received.append(signum)
+        _received.append(signum)
         again = "Ctrl+C again" if signum == signal.SIGINT else "a second signal"
         _say(f"{name(signum)}: finishing {what} first ({again} abandons it)")
 
     previous = {}
-    for signum in (signal.SIGINT, *HANDLED):
+    for signum in HANDLED:
         handler = signal.getsignal(signum)
         if handler is not signal.SIG_IGN:
             previous[signum] = signal.signal(signum, hold)

@@ -35,6 +35,9 @@ SETTLE_SECONDS = 120.0
 """How long a command may keep the window busy (derivation, compilation) before it is an error."""
 RUN_UNTIL_SECONDS = 60.0
 """Wall time ``run-until`` allows beyond twice the simulated time over the speed."""
+PROJECT_SECONDS = 10.0
+"""How long ``run-until`` watches the run advance before it judges whether ``T`` can be
+reached in the time allowed."""
 STOP_SECONDS = 0.5
 """How long a run must stay stopped before ``run-until`` gives up on it: Play continues a
 Poincaré run that reached its end, and the first new block takes a moment to arrive."""
@@ -475,6 +478,7 @@ class _RunUntil:
         self.player, self.t, self.timeout = player, t, timeout
         self.deadline: float | None = None
         self.allowed = 0.0
+        self.start = (0.0, 0.0)  # (when, at which t) the wait began
         self.stopped: tuple[float, float] | None = None  # (since when, at which t)
 
     def poll(self, now: float) -> bool:
@@ -490,16 +494,13 @@ class _RunUntil:
                     "would wait for ever (add `play` before it)"
                 )
             speed = window.controls.speed
-            self.allowed = self.timeout or RUN_UNTIL_SECONDS + (
-                2.0 * (self.t - reached) / speed if math.isfinite(speed) else 0.0
+            self.allowed = self.timeout or min(
+                RUN_UNTIL_SECONDS + MAX_WAIT,
+                RUN_UNTIL_SECONDS
+                + (2.0 * (self.t - reached) / speed if math.isfinite(speed) else 0.0),
             )
-            if self.allowed > RUN_UNTIL_SECONDS + MAX_WAIT:
-                raise self.player._error(
-                    f"run-until {self.t:g} would wait more than an hour ({MAX_WAIT:g} s) at "
-                    f"speed {speed:g}, from t = {reached:.6g}: choose a higher speed or a "
-                    "smaller T"
-                )
             self.deadline = now + self.allowed
+            self.start = (now, reached)
         if main is None or main.status == "running":
             self.stopped = None
         elif self.stopped is None or self.stopped[1] != reached:
@@ -509,12 +510,30 @@ class _RunUntil:
             raise self.player._error(
                 f"the run stopped at t = {reached:.6g}, before t = {self.t:g}: {why}"
             )
+        self._project(now, reached)
         if now > self.deadline:
             raise self.player._error(
                 f"t = {reached:.6g} after waiting {self.allowed:.3g} s for t = {self.t:g} "
                 "(give run-until a longer timeout=SECONDS, or a higher speed)"
             )
         return False
+
+    def _project(self, now: float, reached: float) -> None:
+        """A script error now if, at the rate the run has advanced for
+        ``PROJECT_SECONDS``, ``t`` would come only after the time allowed (``run-until
+        1e308`` would otherwise wait the whole hour)."""
+        since, start = self.start
+        if now - since < PROJECT_SECONDS or reached <= start:
+            return
+        rate = (reached - start) / (now - since)
+        needed = (self.t - reached) / rate
+        if needed > self.deadline - now:
+            raise self.player._error(
+                f"the run advances about {rate:.3g} time units a second (t = {reached:.6g} "
+                f"now): t = {self.t:g} would take about {needed:.3g} s more, beyond the "
+                f"{self.allowed:.3g} s allowed (a higher speed, a smaller T, or a longer "
+                "timeout=SECONDS)"
+            )
 
 
 class _Pause:
