@@ -347,8 +347,8 @@ def test_absurd_session_times_are_refused_or_bounded(verb, value):
     except ScriptError as exc:
         assert exc.line == 1
         return
-    seconds = command.value if verb == "wait" else command.value[verb == "run-until-timeout"]
-    assert 0 <= seconds and (verb == "run-until" or seconds <= MAX_WAIT)
+    parsed = command.value if verb == "wait" else command.value[verb == "run-until-timeout"]
+    assert 0 <= parsed and (verb == "run-until" or parsed <= MAX_WAIT)
 
 
 # -- Ctrl+C while a finished run's file is written ---------------------------------------------
