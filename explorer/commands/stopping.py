@@ -50,16 +50,8 @@ def stop_signals() -> Iterator[None]:
         yield
         return
     _received.clear()
-    previous = {}
-    for signum in HANDLED:
-        handler = signal.getsignal(signum)
-        if handler is not signal.SIG_IGN:
-            previous[signum] = signal.signal(signum, _raise)
-    try:
+    with _handled_by(_raise):
         yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
 
 
 def requested() -> bool:
@@ -112,16 +104,8 @@ def deferred(what: str) -> Iterator[None]:
         again = "Ctrl+C again" if signum == signal.SIGINT else "a second signal"
         _say(f"{name(signum)}: finishing {what} first ({again} abandons it)")
 
-    previous = {}
-    for signum in HANDLED:
-        handler = signal.getsignal(signum)
-        if handler is not signal.SIG_IGN:
-            previous[signum] = signal.signal(signum, hold)
-    try:
+    with _handled_by(hold):
         yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     if held:
         _say(f"finished {what}")
         raise KeyboardInterrupt
@@ -132,3 +116,18 @@ def _say(message: str) -> None:
         print(message, file=sys.stderr)
     except (OSError, RuntimeError, ValueError):
         pass  # stderr closed, or busy when a signal came: the stop happens all the same
+
+
+@contextmanager
+def _handled_by(handler) -> Iterator[None]:
+    """``handler`` for every signal of ``HANDLED`` the process does not ignore, the
+    previous handlers back afterwards."""
+    previous = {}
+    for signum in HANDLED:
+        if signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, handler)
+    try:
+        yield
+    finally:
+        for signum, before in previous.items():
+            signal.signal(signum, signal.SIG_DFL if before is None else before)
