@@ -1,12 +1,12 @@
 """Derivation and compilation off the GUI thread.
 
 The editor (or the catalogue) sends a scene, as TOML text or as a ``Scene``. A worker
-process (``systems.processes``) reads it and derives the mechanics, limited in CPU time;
-the builder thread (a ``QThread`` that only waits for it) then compiles the system's
-functions, a fraction of a second of LLVM, and sends back a ``Built`` value or a
-``BuildFailure`` with the field and position of the problem. Requests are numbered: a
-request overtaken by a newer one is skipped, and only the newest result is delivered, so
-typing fast never shows a stale system.
+process (``systems.processes``) reads it, derives the mechanics and writes the system's
+functions as LLVM IR, limited in CPU time; the builder thread (a ``QThread`` that only
+waits for it) then turns that IR into machine code, milliseconds of LLVM, and sends
+back a ``Built`` value or a ``BuildFailure`` with the field and position of the problem.
+Requests are numbered: a request overtaken by a newer one is skipped, and only the
+newest result is delivered, so typing fast never shows a stale system.
 
 The derivation's layout (the readable equations and the equilibrium search) runs in
 worker processes too, after the window has drawn the new system's first frame. A newer
@@ -26,7 +26,7 @@ from explorer.worker import keep_until_finished
 from systems import processes
 from systems.report import derivation_text as describe
 from systems.report import equilibria_lines
-from systems.sources import derive_source
+from systems.sources import build_code, derive_source, wants_for
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -55,25 +55,15 @@ class BuildFailure:
     reason: str = ""
 
 
-def wants_for(mechanics) -> tuple[str, ...]:
-    """What the GUI needs compiled: the right-hand side, H, velocities, drawing, T/V parts."""
-    wants = ["rhs", "hamiltonian", "velocities"]
-    scene = mechanics.scene
-    if scene.drawing is not None and scene.drawing.points:
-        wants.append("drawing")
-    if mechanics.classification.separable and mechanics.separable_parts is not None:
-        wants.append("separable")
-    return tuple(wants)
-
-
-def compile_built(mechanics, request: int = 0, start: float | None = None) -> Built:
+def compile_built(mechanics, request: int = 0, start: float | None = None, code=None) -> Built:
     """Compile a derived system for the window and choose its method.
 
-    The system's functions are compiled here, a fraction of a second, and so is the
-    chosen method's driver loaded (compiled once per installation, ``python main.py
-    warm``), so the first block comes in machine code.
+    The system's functions become machine code here, in milliseconds (from ``code``,
+    ``systems.sources.build_code``'s, written in a worker; written here when None), and
+    the chosen method's driver is loaded (compiled once per installation, ``python
+    main.py warm``), so the first block comes in machine code.
     """
-    from systems.compiled import compile_system
+    from systems.compiled import load_system, system_code
     from systems.integrators import choose_method
     from systems.simulation import DIAGNOSTICS, precompile
     from systems.start_check import check_start
@@ -81,7 +71,9 @@ def compile_built(mechanics, request: int = 0, start: float | None = None) -> Bu
     start = time.perf_counter() if start is None else start
     method, reason = choose_method(mechanics)
     wants = wants_for(mechanics)
-    compiled = compile_system(mechanics, wants)
+    if code is None:
+        code = system_code(mechanics, wants)
+    compiled = load_system(mechanics, code)
     check_start(compiled)
     diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
     precompile(compiled, method, diagnostics=diagnostics)
@@ -162,7 +154,7 @@ class _BuildWorker(QObject):
         self.stop_layouts()
         start = time.perf_counter()
         try:
-            mechanics = self._derive(source)
+            mechanics, code = self._derive(source)
         except processes.Cancelled:
             return  # the window closed: nobody waits for this build any more
         except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
@@ -171,7 +163,7 @@ class _BuildWorker(QObject):
         if request < self.latest or self.stopped:
             return
         try:
-            result = compile_built(mechanics, request, start)
+            result = compile_built(mechanics, request, start, code)
         except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
             self.build_failed.emit(failure_from(exc, request))
             return
@@ -190,11 +182,11 @@ class _BuildWorker(QObject):
         from systems.cpu_limit import limit_seconds
 
         job = processes.Job(
-            derive_source,
+            build_code,
             (source,),
-            # derive's own limit (limit_seconds) reports an overrun; this one is its
-            # backstop, and bounds reading the scene too
-            cpu_seconds=2 * limit_seconds() + 5.0,
+            # the derivation's and the writing's own limits (limit_seconds) report an
+            # overrun; this one is their backstop, and bounds reading the scene too
+            cpu_seconds=3 * limit_seconds() + 5.0,
             what="reading and deriving the scene",
         )
         with self._lock:

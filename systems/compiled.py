@@ -290,13 +290,41 @@ def _compiled_again(mechanics: Mechanics, wanted: tuple[str, ...], parameters) -
     return compile_system(mechanics, wanted).with_parameters(parameters)
 
 
-def compile_system(
+@dataclass(frozen=True)
+class SystemCode:
+    """A system's functions as code, before machine code: the symbolic part of a build.
+
+    ``system_code`` writes it (in a worker process, under the build's CPU-time limit,
+    or from the disk cache); ``load_system`` turns it into machine code in the process
+    that runs the scene.
+
+    Attributes
+    ----------
+    wanted : frozenset of str
+    backend : {"llvm", "numba"}
+        LLVM IR text (``systems.llvm_kernels.write_ir``) or the Python source numba
+        compiles (``systems.codegen.build_module``).
+    text : str
+    names : tuple of str
+        The functions in ``text`` (LLVM) that the drivers take.
+    seconds : float
+        Time spent writing ``text`` (or reading it from the cache).
+    """
+
+    wanted: frozenset[str]
+    backend: str
+    text: str
+    names: tuple[str, ...] = ()
+    seconds: float = 0.0
+
+
+def system_code(
     mechanics: Mechanics,
     wanted: Iterable[str] = ("rhs", "hamiltonian"),
     *,
     backend: str | None = None,
-) -> CompiledSystem:
-    """Print and load kernels for the wanted functions of ``mechanics``.
+) -> SystemCode:
+    """Write the code of the wanted functions of ``mechanics`` (remembered on disk).
 
     Parameters
     ----------
@@ -315,7 +343,7 @@ def compile_system(
 
     Returns
     -------
-    CompiledSystem
+    SystemCode
     """
     start = time.perf_counter()
     wanted = frozenset(wanted)
@@ -325,39 +353,71 @@ def compile_system(
     backend = default_backend() if backend is None else backend
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
-    module = None
     if backend != "numba":
         writer = _KernelWriter(mechanics)
+        specs = writer.specs(wanted)
         try:
-            module = llvm_kernels.LLVMKernels(writer.specs(wanted), writer.rename)
+            text = _remembered(
+                mechanics, "llvm", wanted, lambda: llvm_kernels.write_ir(specs, writer.rename)
+            )
         except llvm_kernels.Unsupported:
             if backend == "llvm":
                 raise
-    if module is None:
-        module = build_module(_printed_source(mechanics, wanted))
+        else:
+            names = tuple(spec.name for spec in specs)
+            return SystemCode(wanted, "llvm", text, names, time.perf_counter() - start)
+    text = _remembered(
+        mechanics, "kernel source", wanted, lambda: _KernelWriter(mechanics).source(wanted)
+    )
+    return SystemCode(wanted, "numba", text, seconds=time.perf_counter() - start)
+
+
+def load_system(mechanics: Mechanics, code: SystemCode) -> CompiledSystem:
+    """Machine code of ``code`` (written by ``system_code`` for this ``mechanics``)."""
+    start = time.perf_counter()
+    if code.backend == "llvm":
+        module = llvm_kernels.LLVMKernels(code.text, code.names)
+    else:
+        module = build_module(code.text)
     scene = mechanics.scene
     return CompiledSystem(
         mechanics=mechanics,
         kernels=module,
         parameter_names=tuple(name for name, _ in scene.parameters),
         parameters=np.array([value for _, value in scene.parameters], dtype=float),
-        wanted=wanted,
+        wanted=code.wanted,
         point_names=scene.drawing.point_names if scene.drawing else (),
-        build_seconds=time.perf_counter() - start,
+        build_seconds=code.seconds + time.perf_counter() - start,
     )
 
 
-def _printed_source(mechanics: Mechanics, wanted: frozenset[str]) -> str:
-    """The system functions for ``wanted``, printed once per scene (remembered on disk)."""
+def compile_system(
+    mechanics: Mechanics,
+    wanted: Iterable[str] = ("rhs", "hamiltonian"),
+    *,
+    backend: str | None = None,
+) -> CompiledSystem:
+    """Write and load the wanted functions of ``mechanics`` in this process: ``system_code``
+    then ``load_system`` (which see)."""
+    return load_system(mechanics, system_code(mechanics, wanted, backend=backend))
+
+
+def _remembered(mechanics: Mechanics, kind: str, wanted: frozenset[str], compute) -> str:
+    """``compute()``, the code of the system functions ``wanted``, remembered on disk per
+    scene; the tag names every module and version the text depends on."""
     import sys
+
+    import llvmlite
+    import numba
 
     from systems import derivation_cache
 
-    code = derivation_cache.code_hash(sys.modules[__name__], constraints)
-    tag = f"kernel source {code} {sorted(wanted)}"
-    return derivation_cache.remembered(
-        mechanics.scene, tag, lambda: _KernelWriter(mechanics).source(wanted)
+    code = derivation_cache.code_hash(
+        sys.modules[__name__], constraints, llvm_kernels, calculus, matrix_solve
     )
+    versions = f"numba {numba.__version__} llvmlite {llvmlite.__version__}"
+    tag = f"{kind} {code} {versions} {sorted(wanted)}"
+    return derivation_cache.remembered(mechanics.scene, tag, compute)
 
 
 class _KernelWriter:

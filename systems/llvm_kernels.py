@@ -251,11 +251,13 @@ class _Writer:
         return after
 
     def _call_solver(self, W, n: int) -> None:
-        """``solve_augmented(W, n)`` through the C wrapper of the drivers' copy: its
-        arguments are numba's value types, the array as its structure by value."""
+        """``solve_augmented(W, n)`` through the C wrapper of the drivers' copy, an
+        external symbol (``SOLVER_SYMBOL``) that ``LLVMKernels`` binds to its address in
+        the process that loads the code: its arguments are numba's value types, the array
+        as its structure by value."""
         ir, b = self.ir, self.b
         i64, i8p = ir.IntType(64), ir.IntType(8).as_pointer()
-        address, argument_types, result_type = _solver()
+        argument_types, result_type = _solver_types()
         structure = argument_types[0]
         value = ir.Constant(structure, ir.Undefined)
         parts = [
@@ -269,8 +271,10 @@ class _Writer:
         ]
         for k, part in enumerate(parts):
             value = b.insert_value(value, part, k)
-        pointer_type = ir.FunctionType(result_type, argument_types).as_pointer()
-        function = b.inttoptr(ir.Constant(i64, address), pointer_type)
+        function = self.module.globals.get(SOLVER_SYMBOL)
+        if function is None:
+            function_type = ir.FunctionType(result_type, argument_types)
+            function = ir.Function(self.module, function_type, name=SOLVER_SYMBOL)
         b.call(function, [value, ir.Constant(i64, n)])
 
     # -- expressions ----------------------------------------------------------------------
@@ -367,10 +371,22 @@ class _Writer:
 
 
 SOLVER_SIGNATURE = "void(float64[:, ::1], int64)"
+SOLVER_SYMBOL = "pe_solve_augmented"
+"""The name under which the written IR calls the drivers' ``solve_augmented``: the IR
+text holds no address, so it can be written in a worker process and kept on disk."""
 
 
-def _solver() -> tuple[int, list, object]:
-    """(address, LLVM argument types, LLVM result type) of the C wrapper of the drivers'
+def _solver_types() -> tuple[list, object]:
+    """(LLVM argument types, LLVM result type) of the C wrapper of ``solve_augmented``."""
+    from numba.core import sigutils
+
+    args, result = sigutils.normalize_signature(SOLVER_SIGNATURE)
+    return [_value_type(a) for a in args], _value_type(result)
+
+
+@functools.cache
+def _bind_solver() -> None:
+    """Bind ``SOLVER_SYMBOL`` in this process to the C wrapper of the drivers'
     ``solve_augmented`` (compiled once per installation, loaded from numba's cache)."""
     from numba.core import sigutils
 
@@ -380,49 +396,104 @@ def _solver() -> tuple[int, list, object]:
     if dispatcher is None:
         raise Unsupported("the drivers have no solve_augmented")
     dispatcher.compile(SOLVER_SIGNATURE)
-    args, result = sigutils.normalize_signature(SOLVER_SIGNATURE)
+    args, _ = sigutils.normalize_signature(SOLVER_SIGNATURE)
     compiled = dispatcher.overloads[tuple(args)]
     address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_cfunc_wrapper_name)
-    return address, [_value_type(a) for a in args], _value_type(result)
+    _llvm().add_symbol(SOLVER_SYMBOL, address)
+
+
+def write_ir(specs: Sequence[FunctionSpec], rename: dict) -> str:
+    """The LLVM IR of the system functions ``specs``, as text (no address in it).
+
+    This is the symbolic part of compiling a system (symengine's common-subexpression
+    elimination, then the IR builder): it may run in a worker process, and its text can
+    be kept on disk. ``LLVMKernels`` turns it into machine code.
+
+    Raises
+    ------
+    Unsupported
+        An expression this writer does not take.
+    """
+    if symengine is None:
+        raise Unsupported("symengine is not installed")
+    from llvmlite import ir
+
+    module = ir.Module(name="pe_system")
+    for spec in specs:
+        _Writer(module, spec, rename).write()
+    return str(module)
 
 
 _compile_lock = threading.Lock()
 
 
+class _ObjectFile:
+    """The machine code of one IR text on disk (LLVM's object cache for MCJIT), so that
+    a scene opened again loads its functions instead of optimising and compiling them
+    (80 ms for a ten-link chain). Keyed by the text and by what the code is for (LLVM's
+    version, this CPU and its features); checked like every cache file
+    (``systems.cache_integrity``), and off with the derivation cache."""
+
+    def __init__(self, ir_text: str):
+        import hashlib
+
+        from systems import derivation_cache
+        from systems.cache_integrity import cache_root, read_checked, usable_directory
+
+        self.path = None
+        self.code: bytes | None = None
+        if not derivation_cache.enabled():
+            return
+        llvm = _llvm()
+        self.version = " ".join(
+            ("llvm object", str(llvm.llvm_version_info), llvm.get_process_triple(),
+             llvm.get_host_cpu_name(), llvm.get_host_cpu_features().flatten())
+        )  # fmt: skip
+        key = hashlib.sha256(f"{self.version}\n{ir_text}".encode()).hexdigest()[:32]
+        self.path = usable_directory(cache_root() / "machine-code") / f"{key}.o"
+        self.code = read_checked(self.path, self.version)
+
+    def give(self, module) -> bytes | None:
+        return self.code
+
+    def keep(self, module, code: bytes) -> None:
+        from systems.cache_integrity import write_checked
+
+        if self.path is not None and self.code is None:
+            write_checked(self.path, bytes(code), self.version)
+
+
 class LLVMKernels:
-    """A scene's system functions compiled from LLVM IR.
+    """A scene's system functions compiled from LLVM IR (``write_ir``'s text; ``names``
+    the functions in it): optimised and turned into machine code by LLVM alone.
 
     ``functions[name]`` are the values the drivers take; attribute access gives a
     function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
     (through a small caller compiled once among the drivers).
     """
 
-    def __init__(self, specs: Sequence[FunctionSpec], rename: dict):
-        if symengine is None:
-            raise Unsupported("symengine is not installed")
-        from llvmlite import ir
-
+    def __init__(self, ir_text: str, names: Sequence[str]):
         llvm = _llvm()
-        module = ir.Module(name="pe_system")
-        module.triple = llvm.get_process_triple()
-        for spec in specs:
-            _Writer(module, spec, rename).write()
+        if SOLVER_SYMBOL in ir_text:
+            _bind_solver()
+        stored = _ObjectFile(ir_text)
         with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
-            parsed = llvm.parse_assembly(str(module))
+            parsed = llvm.parse_assembly(ir_text)
+            parsed.triple = llvm.get_process_triple()
             parsed.verify()
             machine = _target_machine()
-            options = llvm.create_pipeline_tuning_options(speed_level=3)
-            builder = llvm.create_pass_builder(machine, options)
-            builder.getModulePassManager().run(parsed, builder)
+            if stored.code is None:  # optimised only where machine code is made of it
+                options = llvm.create_pipeline_tuning_options(speed_level=3)
+                builder = llvm.create_pass_builder(machine, options)
+                builder.getModulePassManager().run(parsed, builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)
+            self._engine.set_object_cache(stored.keep, stored.give)
             self._engine.finalize_object()
         from systems.codegen import function_value
 
         self.functions = {
-            spec.name: function_value(
-                self._engine.get_function_address(spec.name), _signature(spec.name), self
-            )
-            for spec in specs
+            name: function_value(self._engine.get_function_address(name), _signature(name), self)
+            for name in names
         }
         self._callers: dict[str, object] = {}
 

@@ -40,6 +40,8 @@ PRELOAD = [
     "numpy",
     "systems.scene",
     "systems.mechanics",
+    "systems.compiled",
+    "numba.core.datamodel",
     "systems.sources",
     "systems.report",
     "systems.textbook.equilibria",

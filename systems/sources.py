@@ -1,8 +1,11 @@
-"""A scene as the window sends it (TOML text, the editor's tables or a ``Scene``), read
-and derived: the work of a build that runs in a worker process (``systems.processes``)."""
+"""A scene as the window sends it (TOML text, the editor's tables or a ``Scene``), read,
+derived and its system functions written: the symbolic work of a build, which runs in a
+worker process (``systems.processes``)."""
 
 from __future__ import annotations
 
+from systems.compiled import SystemCode, system_code
+from systems.cpu_limit import cpu_limit, limit_seconds
 from systems.mechanics import Mechanics, derive
 from systems.scene import Scene, parse_scene, scene_from_dict
 
@@ -22,3 +25,25 @@ def derive_source(source: str | dict | Scene) -> Mechanics:
     else:
         scene = parse_scene(source, source="<editor>")
     return derive(scene)
+
+
+def wants_for(mechanics: Mechanics) -> tuple[str, ...]:
+    """The system functions the window compiles for ``mechanics``: its motion, energy and
+    velocities, and the drawing and separable parts where the scene has them."""
+    wants = ["rhs", "hamiltonian", "velocities"]
+    scene = mechanics.scene
+    if scene.drawing is not None and scene.drawing.points:
+        wants.append("drawing")
+    if mechanics.classification.separable and mechanics.separable_parts is not None:
+        wants.append("separable")
+    return tuple(wants)
+
+
+def build_code(source: str | dict | Scene) -> tuple[Mechanics, SystemCode]:
+    """``derive_source``, then the code of the window's system functions (``wants_for``),
+    each step within the derivation's CPU-time limit (``systems.cpu_limit``): all of a
+    build but turning that code into machine code, which the window's process does."""
+    mechanics = derive_source(source)
+    with cpu_limit(limit_seconds(), "writing the system's functions"):
+        code = system_code(mechanics, wants_for(mechanics))
+    return mechanics, code

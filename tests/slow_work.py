@@ -2,7 +2,7 @@
 
 A worker imports a function by its module and name, so a test's monkeypatch of the
 window's process does not reach it: tests put these in place of the real functions
-instead (``monkeypatch.setattr(explorer.builder, "derive_source", crawl_then_derive)``).
+instead (``monkeypatch.setattr(explorer.builder, "build_code", crawl_then_derive)``).
 This module imports neither Qt nor pytest, so workers stay light. ``gone(pid)`` tells
 whether a worker has ended.
 """
@@ -22,21 +22,21 @@ def crawl(seconds: float = CRAWL_SECONDS) -> None:
 
 
 def crawl_then_derive(source):
-    """``systems.sources.derive_source`` after a long crawl."""
-    from systems.sources import derive_source
+    """``systems.sources.build_code`` after a long crawl."""
+    from systems.sources import build_code
 
     crawl()
-    return derive_source(source)
+    return build_code(source)
 
 
 def crawl_if_three_coordinates(source):
-    """``derive_source``, crawling first for a scene of three coordinates."""
+    """``build_code``, crawling first for a scene of three coordinates."""
     from systems.scene import Scene
-    from systems.sources import derive_source
+    from systems.sources import build_code
 
     if isinstance(source, Scene) and len(source.coordinates) == 3 or "theta3" in str(source):
         crawl()
-    return derive_source(source)
+    return build_code(source)
 
 
 def gone(pid: int) -> bool:

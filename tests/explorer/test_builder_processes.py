@@ -48,7 +48,7 @@ def test_a_derivation_past_its_cpu_time_fails_naming_it(qtbot, service, monkeypa
     import explorer.builder
 
     monkeypatch.setenv("PHASE_EXPLORER_DERIVE_SECONDS", "0.2")
-    monkeypatch.setattr(explorer.builder, "derive_source", crawl_then_derive)
+    monkeypatch.setattr(explorer.builder, "build_code", crawl_then_derive)
     failures = []
     service.build_failed.connect(failures.append)
     service.request(_text("simple_pendulum"))
@@ -61,7 +61,7 @@ def test_a_derivation_past_its_cpu_time_fails_naming_it(qtbot, service, monkeypa
 def test_stopping_during_a_derivation_leaves_no_worker(qtbot, service, monkeypatch):
     import explorer.builder
 
-    monkeypatch.setattr(explorer.builder, "derive_source", crawl_then_derive)
+    monkeypatch.setattr(explorer.builder, "build_code", crawl_then_derive)
     service.request(_text("simple_pendulum"))
     qtbot.waitUntil(lambda: service.deriving, timeout=WAIT_MS)
     job = service._worker._job

@@ -330,7 +330,7 @@ def test_close_during_a_derivation_ends_its_process(qtbot, monkeypatch, tmp_path
 
     # sympy derives a triple pendulum in well under a second once warm: a stand-in
     # crawls first (pure Python, as sympy is) so that closing surely meets it running
-    monkeypatch.setattr(explorer.builder, "derive_source", crawl_if_three_coordinates)
+    monkeypatch.setattr(explorer.builder, "build_code", crawl_if_three_coordinates)
     before = {t.ident for t in threading.enumerate()}
     win = open_window()
     # the builder is done with the pendulum (its equilibria, the last thing it sends)
@@ -357,7 +357,7 @@ def test_close_during_the_first_build_ends_it(qtbot, monkeypatch, open_window):
     import explorer.builder
     from tests.slow_work import crawl_then_derive
 
-    monkeypatch.setattr(explorer.builder, "derive_source", crawl_then_derive)
+    monkeypatch.setattr(explorer.builder, "build_code", crawl_then_derive)
     before = {t.ident for t in threading.enumerate()}
     win = open_window()
     qtbot.waitUntil(lambda: win.builder.deriving, timeout=30000)

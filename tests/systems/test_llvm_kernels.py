@@ -155,3 +155,75 @@ def test_a_system_in_matrix_form_solves_for_its_velocities_as_numba_does():
 def test_an_unknown_backend_is_refused():
     with pytest.raises(ValueError, match="backend must be one of"):
         compile_system(derive(load_scene("simple_pendulum")), ("rhs",), backend="gcc")
+
+
+@pytest.mark.parametrize("name", ["double_pendulum", "rolling_disk", "chain"])
+def test_code_written_in_a_worker_is_machine_code_here(name):
+    """The symbolic half of a build (``systems.sources.build_code``) runs in a worker
+    process; its IR names the drivers' solver instead of holding an address of that
+    process, and loads here into functions equal to an in-process compile's."""
+    from systems import processes
+    from systems.compiled import load_system
+    from systems.families import pendulum_chain
+    from systems.sources import build_code, wants_for
+
+    source = parse_scene(pendulum_chain(3)) if name == "chain" else load_scene(name)
+    mechanics, code = processes.run(build_code, source, cpu_seconds=120.0)
+    assert code.backend == "llvm"
+    assert "inttoptr" not in code.text
+    assert (llvm_kernels.SOLVER_SYMBOL in code.text) == (mechanics.matrix_form is not None)
+    here = compile_system(mechanics, wants_for(mechanics), backend="numba")
+    there = load_system(mechanics, code)
+    Y = _states(here, count=10)
+    ts = np.linspace(0.0, 1.0, len(Y))
+    for t, y in zip(ts, Y, strict=True):
+        _same(there.rhs(t, y), here.rhs(t, y))
+    _same(there.hamiltonian(ts, Y), here.hamiltonian(ts, Y))
+
+
+def test_the_written_code_is_remembered_per_scene(monkeypatch):
+    """A scene opened again skips the writing: its IR comes from the disk cache."""
+    from systems.compiled import system_code
+
+    mechanics = derive(load_scene("double_pendulum"))
+    first = system_code(mechanics, ("rhs", "hamiltonian"))
+
+    def refuse(*args):
+        raise AssertionError("written again")
+
+    monkeypatch.setattr(llvm_kernels, "write_ir", refuse)
+    again = system_code(mechanics, ("rhs", "hamiltonian"))
+    assert again.text == first.text and again.names == first.names
+    with pytest.raises(AssertionError, match="written again"):
+        system_code(mechanics, ("rhs", "hamiltonian", "velocities"))
+
+
+def test_machine_code_is_kept_and_loaded_again(monkeypatch, capfd):
+    """A scene opened again loads its functions' machine code from disk; a damaged file
+    is reported, compiled anew and replaced."""
+    from systems.compiled import load_system, system_code
+    from systems.families import pendulum_chain
+
+    mechanics = derive(parse_scene(pendulum_chain(4)))
+    code = system_code(mechanics, ("rhs", "hamiltonian"))
+    kept = []
+    keep = llvm_kernels._ObjectFile.keep
+    monkeypatch.setattr(
+        llvm_kernels._ObjectFile, "keep", lambda self, m, c: (kept.append(c), keep(self, m, c))
+    )
+    first = load_system(mechanics, code)
+    path = llvm_kernels._ObjectFile(code.text).path
+    assert path.exists()
+    kept.clear()
+    again = load_system(mechanics, code)
+    assert kept == []  # loaded, not compiled
+    Y = _states(first, count=8)
+    ts = np.linspace(0.0, 1.0, len(Y))
+    _same(again.hamiltonian(ts, Y), first.hamiltonian(ts, Y))
+    path.write_bytes(path.read_bytes()[:-40] + b"\0" * 40)
+    capfd.readouterr()
+    repaired = load_system(mechanics, code)
+    assert len(kept) == 1 and "machine-code" in capfd.readouterr().err
+    _same(repaired.hamiltonian(ts, Y), first.hamiltonian(ts, Y))
+    for t, y in zip(ts, Y, strict=True):
+        _same(repaired.rhs(t, y), first.rhs(t, y))

@@ -179,5 +179,5 @@ def test_the_builders_jobs_never_load_qt_in_a_worker():
 
     from explorer import builder
 
-    for function in (builder.derive_source, builder.describe, builder.equilibria_lines):
+    for function in (builder.build_code, builder.describe, builder.equilibria_lines):
         assert pickle.loads(pickle.dumps(function)).__module__.startswith("systems.")
