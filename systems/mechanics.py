@@ -23,7 +23,7 @@ from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
 from systems.expressions import as_expr
 from systems.scene import Scene
-from systems.symmetries import conserved_charges
+from systems.symmetries import conserved_charges, pushes_along
 
 ZERO_TOLERANCE = 1e-9
 SYMBOLIC_INVERSE_LIMIT = 4
@@ -556,12 +556,13 @@ class _Context:
         natural,
         matrix_form=None,
     ) -> Mechanics:
-        from systems.constraints import constrains, declared
+        from systems.constraints import declared
 
         q, qd, p, t = self.q, self.qd, self.p, self.t
-        # a constraint's force acts on every coordinate it contains: none of those is
-        # cyclic (the Cartesian pendulum's L has no x, but its string pulls along x)
-        cyclic = tuple(name for name in cyclic if not constrains(self.scene, name))
+        # a coordinate along which a constraint's force acts is not cyclic (the Cartesian
+        # pendulum's L has no x, but its string pulls along x); one that a constraint
+        # contains only elsewhere in its row is (the rolling disk's heading)
+        cyclic = tuple(name for name in cyclic if not pushes_along(self.scene, name))
         # in matrix form M depends on q (needs_matrix_form), so H cannot split
         separable = matrix_form is None and self.splits(H)
         separable_parts = None

@@ -279,6 +279,42 @@ def _cartesian_generators(scene: Scene) -> list[Generator]:
     return found
 
 
+# -- constraint forces ---------------------------------------------------------------------
+
+
+def constraint_rows(scene: Scene) -> list[tuple[str, sympy.Expr]]:
+    """Each declared constraint as (kind, its expression): ``holonomic`` and
+    ``unilateral`` f(q, t), ``nonholonomic`` a(q, t) . qdot + b(q, t)."""
+    return [
+        (kind, scene.expression(f"constraints.{kind}[{k}]"))
+        for kind in ("holonomic", "unilateral", "nonholonomic")
+        for k in range(len(getattr(scene, f"{kind}_constraints", ())))
+    ]
+
+
+def pushes_along(scene: Scene, coordinate: str) -> bool:
+    """True if a constraint's force may have a component along ``coordinate``.
+
+    The force of every constraint is -A^T lambda, A its row: grad f of a holonomic or
+    unilateral f(q, t), the velocity coefficients a of a nonholonomic a . qdot + b. The
+    force has no component along q_k exactly when column k of every row vanishes
+    identically, decided symbolically (``sympy.simplify``): a coordinate that appears in a
+    row only through other columns (the heading phi of a rolling disk, in
+    cos(phi) psi_dot) feels no force, and its momentum is conserved when L does not
+    depend on it and no effect acts on it.
+    """
+    position = scene.symbols[coordinate]
+    velocity = scene.symbols[f"{coordinate}_dot"]
+    for kind, f in constraint_rows(scene):
+        by = velocity if kind == "nonholonomic" else position
+        if not f.has(by):
+            continue
+        column = sympy.diff(f, by)
+        if column != 0 and sympy.simplify(column) != 0:
+            return True
+    return False
+
+
 # -- the test ------------------------------------------------------------------------------
 
 
@@ -341,9 +377,8 @@ def conserved_charges(
     # the directions each constraint's force acts along: grad f of a holonomic or
     # unilateral f(q, t), the velocity coefficients a of a nonholonomic a . qdot + b
     constraints = [
-        [sympy.diff(scene.expression(f"constraints.{kind}[{k}]"), x) for x in by]
-        for kind, by in (("holonomic", q), ("unilateral", q), ("nonholonomic", qdot))
-        for k in range(len(getattr(scene, f"{kind}_constraints", ())))
+        [sympy.diff(f, x) for x in (qdot if kind == "nonholonomic" else q)]
+        for kind, f in constraint_rows(scene)
     ]
     charges = []
     for generator in candidates:

@@ -102,10 +102,11 @@ def test_derivation_counts_both_degrees_of_freedom_and_shows_the_constraints():
     c = mechanics.classification
     assert not c.holonomic and c.bilateral and not c.rheonomic and not c.simple
     assert c.hamiltonian_conserved and "H" in mechanics.conserved
-    # the ground pushes along x and y: neither the free momenta nor Noether's translations
-    # are conserved, and no coordinate is offered for a Routhian reduction
-    assert mechanics.cyclic == ()
-    assert set(mechanics.conserved) == {"H"}
+    # the ground pushes along x and y (and rolls psi): neither their momenta nor Noether's
+    # translations are conserved; the heading phi appears in the rows only through
+    # cos(phi) and sin(phi), its column is zero, so p_phi is conserved
+    assert mechanics.cyclic == ("phi",)
+    assert set(mechanics.conserved) == {"H", "p_phi"}
     assert constraints.multiplier_names(mechanics.scene) == ["lambda_1", "lambda_2"]
 
 
