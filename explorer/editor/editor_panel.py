@@ -838,6 +838,36 @@ class SystemEditorPanel(QWidget):
         """The same as ``document`` (the name the window used first)."""
         return self.document()
 
+    def follow_coordinates(self) -> None:
+        """Bring the initial-state rows, force rows and symmetries in line with the
+        coordinates typed, as the next debounced edit would (a session replays lines
+        typed after that)."""
+        self._sync_rows(split_names(self.coordinates.text()))
+
+    def replace_table(self, key: str, value: Any) -> None:
+        """Replace a part of the document as one edit, as typing it all would (a
+        session's ``edit`` line).
+
+        ``key`` is ``particles``, ``constraints``, ``symmetries``, ``drawing`` or
+        ``view`` (``value``: the table, None for none) or ``gravity`` (its text).
+        """
+        self.follow_coordinates()
+        if key == "particles":
+            self.particles.set_particles(value, self.particles.gravity_value())
+        elif key == "gravity":
+            self.particles.gravity.set_text(value or "")
+        elif key == "constraints":
+            self.constraints.set_constraints(value)
+        elif key == "symmetries":
+            self.symmetries.set_symmetries(value, self._synced)
+        elif key == "drawing":
+            self.drawing.set_drawing(value)
+        elif key == "view":
+            self._data = {**self._data, "view": dict(value or {})}
+        else:
+            raise KeyError(f"no table {key!r} in the editor")
+        self._on_field_edited()
+
     def snapshot(self) -> dict:
         """``document``, the sliders' ranges and the text of the fields the chosen kind
         hides: one step of the undo history."""

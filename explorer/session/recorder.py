@@ -17,6 +17,11 @@ Two kinds of line are not a signal's:
 
 Lines that follow each other and set the same thing (a dragged slider, a field typed
 letter by letter) are kept as the last one only.
+
+A build that fails is marked: ``did-not-build REASON`` goes right after the line that asked
+for it (``open``, ``new``, an edit...), even if other lines were written while it was
+being derived. A replay then knows which builds must fail, and that every other one
+must succeed.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from explorer.session.edits import edit_lines, form
-from explorer.session.script import line, number, time_mark
+from explorer.session.script import BUILDING_VERBS, line, number, time_mark
 
 TIME_MARK_SECONDS = 1.0
 HEADER = "# Phase Explorer session: replay with `python main.py open --session FILE`"
@@ -63,6 +68,7 @@ class Recorder(QObject):
         self._values: dict[str, float] = {}
         self._step = window.controls.step_value
         self._form: dict | None = None
+        self._asked: int | None = None  # the index of the last line that may ask for a build
         self._reset_form()
         controls = window.controls
         controls.method_changed.connect(self._on_method_changed)
@@ -80,6 +86,7 @@ class Recorder(QObject):
         editor.parameters_changed.connect(self._on_parameters_changed)
         editor.scene_edited.connect(self._on_scene_edited)
         window.builder.build_failed.connect(self._on_build_failed)
+        window.builder.built.connect(self._on_built)
         window.system_started.connect(self._on_system_started)
         acted = getattr(window, "acted", None)
         if acted is not None:
@@ -105,6 +112,8 @@ class Recorder(QObject):
             self.lines[-1] = text
         else:
             self.lines.append(text)
+        if text.split(" ", 1)[0] in BUILDING_VERBS and not text.startswith("set "):
+            self._asked = len(self.lines) - 1  # (a `set` asks only to retry a failed build)
         self._key = key
         self._last_wall = time.monotonic()
         self.recorded.emit(text)
@@ -154,12 +163,22 @@ class Recorder(QObject):
         for key, text in edit_lines(before, after):
             self.record(text, key)
 
-    def _on_build_failed(self, _failure) -> None:
+    def _on_build_failed(self, failure) -> None:
         # an opened file that did not build puts the editor back as it was; an edit that
         # did not build leaves it as typed: either way what it shows is the state now
         debounce = getattr(self.window.editor, "debounce", None)
         if debounce is None or not debounce.isActive():
             self._reset_form()
+        if self._asked is None:
+            return  # a build no line asked for (the scene a replay starts on)
+        at, self._asked = self._asked + 1, None
+        self.lines.insert(at, line("did-not-build", failure.message))
+        if at == len(self.lines) - 1:
+            self._key = None  # the next edit of the same field is a line of its own
+        self.recorded.emit(self.lines[at])
+
+    def _on_built(self, _built) -> None:
+        self._asked = None
 
     # -- window and widget signals --------------------------------------------------------------
 
@@ -229,3 +248,5 @@ class Recorder(QObject):
             if self._values.get(name) != value:
                 self._values[name] = float(value)
                 self.record(line("set", name, float(value)), key=("set", name))
+                if self.window.editor.build_status == "failed":
+                    self._asked = len(self.lines) - 1  # the editor builds it again

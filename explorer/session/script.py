@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from decimal import ROUND_FLOOR, Decimal, localcontext
 from pathlib import Path
@@ -31,8 +31,15 @@ EDIT_FIELDS = (
     "lagrangian",
     "hamiltonian",
     "dissipation",
+    "gravity",
 )
-"""What ``edit`` changes, besides ``forces.<q>`` (the generalized force on ``q``)."""
+"""What ``edit`` types as text, besides ``forces.<q>`` (the generalized force on ``q``)."""
+TABLE_FIELDS = ("particles", "constraints", "symmetries", "drawing", "view")
+"""What ``edit`` sets as a whole table of the scene file, written as a TOML inline table
+(``{ bob = { mass = "m", position = ["l*sin(theta)", "-l*cos(theta)"] } }``); an empty
+text removes the table."""
+BUILDING_VERBS = ("open", "new", "set", "parameters", "initial", "edit", "effect")
+"""Verbs whose line may ask for a build: ``did-not-build`` may follow only one of them."""
 KINDS = ("energies", "lagrangian", "hamiltonian", "particles")
 """The values of ``edit given-by``: T and V, a Lagrangian, a Hamiltonian, particles and V."""
 SHOWN_CHARACTERS = 40
@@ -231,15 +238,18 @@ def _switch(word: str, usage: str) -> bool:
     raise _Refused(f"usage: {usage} (on or off, not {_shown(word)})")
 
 
-def _assignments(args: tuple[str, ...], usage: str) -> tuple[tuple[str, str], ...]:
-    """``NAME=VALUE`` words as ``(name, value text)``; each name once."""
+def _assignments(
+    args: tuple[str, ...], usage: str, blank: bool = False
+) -> tuple[tuple[str, str], ...]:
+    """``NAME=VALUE`` words as ``(name, value text)``; each name once; ``blank``: the value
+    may be empty (``NAME=``)."""
     if not args:
         raise _Refused(f"usage: {usage}")
     pairs: dict[str, str] = {}
     for word in args:
         name, equals, value = word.partition("=")
         name, value = name.strip(), value.strip()
-        if not equals or not name or not value:
+        if not equals or not name or not (value or blank):
             raise _Refused(f"{_shown(word)} is not NAME=VALUE (usage: {usage})")
         if name in pairs:
             raise _Refused(f"{name} is given twice")
@@ -254,11 +264,18 @@ def _no_arguments(verb: str) -> Callable[[tuple[str, ...]], None]:
     return read
 
 
+def _path(word: str, what: str) -> str:
+    """A path as written, refused if no file can have it."""
+    if not word.strip():
+        raise _Refused(what)
+    if "\0" in word:
+        raise _Refused(f"{_shown(word)} cannot be a path: it holds a NUL byte (\\0)")
+    return word
+
+
 def _read_open(args):
     _count(args, "open SCENE (a catalogue name or a .toml file)", 1)
-    if not args[0].strip():
-        raise _Refused("open needs a scene: a catalogue name or a .toml file")
-    return args[0]
+    return _path(args[0], "open needs a scene: a catalogue name or a .toml file")
 
 
 def _read_set(args):
@@ -267,7 +284,8 @@ def _read_set(args):
 
 
 def _read_initial(args):
-    return _assignments(args, "initial NAME=VALUE ... (q, q_dot or p_q)")
+    usage = "initial NAME=VALUE ... (q, and q_dot or p_q; NAME= leaves the value blank)"
+    return _assignments(args, usage, blank=True)
 
 
 def _read_parameters(args):
@@ -276,14 +294,53 @@ def _read_parameters(args):
 
 
 def _read_edit(args):
-    usage = f"edit FIELD TEXT (FIELD: {', '.join(EDIT_FIELDS)} or forces.<q>)"
+    fields = ", ".join([*EDIT_FIELDS, *TABLE_FIELDS])
+    usage = f"edit FIELD TEXT (FIELD: {fields} or forces.<q>)"
     _count(args, usage, 2)
     field, text = args
+    if field in TABLE_FIELDS:
+        return field, _read_table(text, f"edit {field}")
     if field not in EDIT_FIELDS and not (field.startswith("forces.") and field[7:]):
         raise _Refused(f"unknown field {_shown(field)}; {usage}")
     if field == "given-by" and text not in KINDS:
         raise _Refused(f"edit given-by takes {', '.join(KINDS)}, not {_shown(text)}")
     return field, text
+
+
+def _read_table(text: str, what: str) -> dict | None:
+    """A TOML inline table (``{ key = value, ... }``) as a dict; None for an empty text."""
+    import tomllib
+
+    if not text.strip():
+        return None
+    example = '{ key = "value" } (or "" for none)'
+    try:
+        document = tomllib.loads(f"table = {text}")
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
+        raise _Refused(f"{what} takes a TOML inline table such as {example}: {exc}") from None
+    table = document.get("table")
+    if set(document) != {"table"} or not isinstance(table, dict):
+        raise _Refused(f"{what} takes one TOML inline table such as {example}, not {_shown(text)}")
+    return table
+
+
+def table_text(table: Mapping[str, Any] | None) -> str:
+    """``table`` as a one-line TOML inline table that ``edit`` reads back ("" for None).
+
+    Raises
+    ------
+    TypeError
+        For a value TOML cannot hold (None, an object).
+    """
+    from systems.scene import document_toml
+
+    if table is None:
+        return ""
+    if not table:
+        return "{}"
+    # document_toml writes a table's keys one a line, each value inline, under "[table]"
+    lines = document_toml({"table": dict(table)}).splitlines()
+    return "{ " + ", ".join(lines[1:]) + " }"
 
 
 def _read_effect(args):
@@ -332,7 +389,7 @@ def _read_pair(args):
 
 
 def _read_launch(args):
-    pairs = _assignments(args, "launch NAME=VALUE ... (q and p_q)")
+    pairs = _assignments(args, "launch NAME=VALUE ... (q, and q_dot or p_q)")
     return tuple((name, _float(value, name)) for name, value in pairs)
 
 
@@ -383,16 +440,17 @@ def _read_tab(args):
 
 def _read_export(args):
     _count(args, "export PANEL PATH (PANEL: phase, configuration, conserved, ... or csv)", 2)
-    if not args[1].strip():
-        raise _Refused("export needs a file to write")
-    return args[0], args[1]
+    return args[0], _path(args[1], "export needs a file to write")
 
 
 def _read_save(args):
     _count(args, "save PATH", 1)
-    if not args[0].strip():
-        raise _Refused("save needs a file to write")
-    return args[0]
+    return _path(args[0], "save needs a file to write")
+
+
+def _read_did_not_build(args):
+    _count(args, "did-not-build [REASON] (after the line whose build failed)", 0, 1)
+    return args[0] if args else ""
 
 
 GRAMMAR: dict[str, Callable[[tuple[str, ...]], Any]] = {
@@ -421,6 +479,7 @@ GRAMMAR: dict[str, Callable[[tuple[str, ...]], Any]] = {
     "tab": _read_tab,
     "export": _read_export,
     "save": _read_save,
+    "did-not-build": _read_did_not_build,
 }
 """Verb -> the reader of its arguments (returns ``Command.value``, raises ``_Refused``)."""
 
@@ -450,6 +509,14 @@ def parse(text: str, source: str = "<session>") -> list[Command]:
             value = reader(args)
         except _Refused as exc:
             raise ScriptError(str(exc), number_, source) from None
+        if verb == "did-not-build" and (not commands or commands[-1].verb not in BUILDING_VERBS):
+            after = f"`{commands[-1].verb}`" if commands else "nothing"
+            raise ScriptError(
+                f"did-not-build follows the line whose build failed ({', '.join(BUILDING_VERBS)}"
+                f"), not {after}",
+                number_,
+                source,
+            )
         if len(commands) == MAX_COMMANDS:
             raise ScriptError(
                 f"more than {MAX_COMMANDS:,} commands, the most a script may hold (each "
