@@ -11,11 +11,19 @@ Every command goes through the widget or window method a user's action goes thro
 (the method combo's index, the parameter table's cell, ``window.open_scene``...), so a
 replay exercises the real paths and a ``Recorder`` records the same lines again.
 
+Consecutive edit lines (``edit``, ``parameters``, ``effect``, ``initial``) are typed in
+one go, as a user types several fields before the editor rebuilds, and built once. Every
+build a line asks for (``open``, ``new``, edits, a ``set`` that retries a failed build)
+must succeed unless the next line is ``did-not-build`` (the recorder writes it after a
+build that failed): a build that fails otherwise stops the replay there, so that
+nothing after it (a ``save``, an ``export``) acts on the wrong system.
+
 The outcome is ``status`` (emitted as ``finished``): ``OK`` when the script ran through,
 ``FAILED`` when the application raised an exception meanwhile (reported by the window's
-``ErrorReporter``; its traceback went to stderr), ``SCRIPT_ERROR`` for a line that does
-not apply to the window's state (``demo.session:4: unknown parameter 'k' (parameters: m,
-g, l)``); ``message`` says which.
+``ErrorReporter``; its traceback went to stderr) or when the replay could not do what
+the script says (a build that failed where the session expects it to build),
+``SCRIPT_ERROR`` for a line that does not apply to the window's state
+(``demo.session:4: unknown parameter 'k' (parameters: m, g, l)``); ``message`` says which.
 """
 
 from __future__ import annotations
@@ -28,7 +36,13 @@ import numpy as np
 from PySide6.QtCore import QEvent, QObject, QTimer, Signal
 from PySide6.QtGui import QValidator
 
-from explorer.session.script import MAX_WAIT, Command, ScriptError
+from explorer.session.script import (
+    BUILDING_VERBS,
+    MAX_WAIT,
+    TABLE_FIELDS,
+    Command,
+    ScriptError,
+)
 
 POLL_MS = 20
 SETTLE_SECONDS = 120.0
@@ -42,6 +56,8 @@ STOP_SECONDS = 0.5
 """How long a run must stay stopped before ``run-until`` gives up on it: Play continues a
 Poincaré run that reached its end, and the first new block takes a moment to arrive."""
 OK, FAILED, SCRIPT_ERROR = 0, 1, 2
+TYPED_TOGETHER = ("edit", "parameters", "effect", "initial")
+"""Verbs whose consecutive lines are applied together, then built once."""
 
 
 class Player(QObject):
@@ -93,6 +109,8 @@ class Player(QObject):
         self._started = False
         self._wait: _RunUntil | _Pause | None = None
         self._settle_deadline = math.inf
+        self._asked: tuple[Command, Command] | None = None  # lines whose build to check
+        self._outcome: tuple[str, str] | None = None  # ("built"|"failed", message) since
         busy_bar = getattr(window, "busy_bar", None)
         self._busy = busy_bar is not None and not busy_bar.isHidden()
         self._timer = QTimer(self)
@@ -100,6 +118,7 @@ class Player(QObject):
         self._timer.timeout.connect(self._on_timer_timeout)
         window.builder.busy_changed.connect(self._on_builder_busy_changed)
         window.builder.build_failed.connect(self._on_builder_build_failed)
+        window.builder.built.connect(self._on_builder_built)
         window.error_reporter.reported.connect(self._on_error_reported)
         window.installEventFilter(self)
 
@@ -165,14 +184,64 @@ class Player(QObject):
             if not self._wait.poll(now):
                 return
             self._wait = None
+        if self._asked is not None:
+            self._check_build()
+            if self.status is not None:
+                return
         if self._index >= len(self.commands):
             self._finish(OK)
             return
+        first = command = self._next()
+        self._settle_deadline = now + SETTLE_SECONDS
+        self._outcome = None
+        self._run(command)
+        while command.verb in TYPED_TOGETHER and self._following() in TYPED_TOGETHER:
+            command = self._next()
+            self.window.editor.follow_coordinates()  # the rows of new coordinates
+            self._run(command)
+        if first.verb in BUILDING_VERBS:
+            self._asked = (first, command)
+
+    def _next(self) -> Command:
         command = self.commands[self._index]
         self._index += 1
         self.command = command
-        self._settle_deadline = now + SETTLE_SECONDS
+        return command
+
+    def _following(self) -> str | None:
+        """The verb of the next command, or None at the end."""
+        return self.commands[self._index].verb if self._index < len(self.commands) else None
+
+    def _run(self, command: Command) -> None:
         getattr(self, "_do_" + command.verb.replace("-", "_"))(command)
+
+    def _check_build(self) -> None:
+        """The lines just run asked for a build, which has ended (or none was needed):
+        it must have succeeded, unless the next line says it did not."""
+        first, last = self._asked
+        self._asked = None
+        expected = self._following() == "did-not-build"
+        lines = f"line {first.line}" if first is last else f"lines {first.line}-{last.line}"
+        if self._outcome is None:  # nothing new to build: the document was built before
+            failed = self.window.editor.build_status == "failed"
+            self._outcome = ("failed", self.window.editor.build_problem) if failed else None
+        if self._outcome is None:
+            return
+        state, message = self._outcome
+        if state == "failed" and expected:
+            self.noted.emit(f"{self._where()}: note: did not build, as recorded: {message}")
+        elif state == "failed":
+            self._finish(
+                FAILED,
+                f"{self._where()}: did not build: {message} (the session expects {lines} to "
+                "build: no `did-not-build` line follows; the replay stops here and runs, "
+                "saves and exports nothing after it)",
+            )
+        elif expected:
+            self.noted.emit(
+                f"{self.source}:{self.commands[self._index].line}: note: {lines} built in this "
+                "replay, though the build failed when the session was recorded"
+            )
 
     def _idle(self) -> bool:
         window = self.window
@@ -190,8 +259,10 @@ class Player(QObject):
         self._busy = busy
 
     def _on_builder_build_failed(self, failure) -> None:
-        if self.running:
-            self.noted.emit(f"{self._where()}: note: did not build: {failure.message}")
+        self._outcome = ("failed", failure.message)
+
+    def _on_builder_built(self, _built) -> None:
+        self._outcome = ("built", "")
 
     def _on_error_reported(self, summary: str, _details: str) -> None:
         if self.running:
@@ -208,7 +279,10 @@ class Player(QObject):
     # -- helpers -----------------------------------------------------------------------------------
 
     def _path(self, text: str) -> str:
-        path = Path(text).expanduser()
+        try:
+            path = Path(text).expanduser()
+        except RuntimeError as exc:  # ~user of no user
+            raise self._error(f"{text!r} cannot be a path: {exc}") from None
         if not path.is_absolute() and self.folder is not None:
             path = self.folder / path
         return str(path)
@@ -279,13 +353,24 @@ class Player(QObject):
 
     def _do_initial(self, command: Command) -> None:
         table = self.window.editor.initial_table
-        rows = self._rows(table)
-        for name, _ in command.value:
-            if name not in rows or table.item(rows[name], 1) is None:
-                names = ", ".join(rows) or "none"
-                raise self._error(f"unknown initial value {name!r} (initial values: {names})")
+        rows = {name: row for name, row in self._rows(table).items() if table.item(row, 1)}
+        typed: list[tuple[int, str, str]] = []  # (row, its name, value)
         for name, text in command.value:
-            table.item(rows[name], 1).setText(text)
+            # q_dot where the table has p_q (or the other way round): the row is renamed,
+            # as a user retypes its name; scene files take either
+            row = rows.get(name, rows.get(_counterpart(name, rows)))
+            if row is None and text:
+                names = ", ".join(rows) or "none"
+                raise self._error(
+                    f"unknown initial value {name!r} (initial values: {names}; a velocity "
+                    "q_dot may stand for the momentum p_q and the other way round)"
+                )
+            if row is not None:
+                typed.append((row, name, text))
+        for row, name, text in typed:
+            if table.item(row, 0).text().strip() != name:
+                table.item(row, 0).setText(name)
+            table.item(row, 1).setText(text)
 
     def _do_edit(self, command: Command) -> None:
         field, text = command.value
@@ -296,6 +381,9 @@ class Player(QObject):
             return
         if field == "given-by":
             editor.kind_combo.setCurrentIndex(editor.kind_combo.findData(text))
+            return
+        if field in TABLE_FIELDS or field == "gravity":
+            editor.replace_table(field, text)
             return
         if field == "coordinates":
             target = editor.coordinates
@@ -394,20 +482,55 @@ class Player(QObject):
     def _do_launch(self, command: Command) -> None:
         window = self.window
         view = window.phase_view
-        if view.compiled is None or window.worker is None:
+        compiled = view.compiled
+        if compiled is None or window.worker is None:
             raise self._error("no system is running to launch an orbit in")
-        coordinates = view.compiled.mechanics.scene.coordinates
+        coordinates = list(compiled.mechanics.scene.coordinates)
         names = [*coordinates, *(f"p_{q}" for q in coordinates)]
+        velocities = [f"{q}_dot" for q in coordinates]
         state = np.array(view.y0, dtype=float)
+        qdot: dict[int, float] = {}
+        momenta = False
         for name, value in command.value:
-            if name not in names:
-                hint = " (give the momentum p_q, not the velocity)" if name.endswith("_dot") else ""
+            if name in velocities:
+                qdot[velocities.index(name)] = value
+            elif name in names:
+                state[names.index(name)] = value
+                momenta = momenta or names.index(name) >= len(coordinates)
+            else:
                 raise self._error(
-                    f"{name!r} is not a coordinate or momentum of this system "
-                    f"(names: {', '.join(names)}){hint}"
+                    f"{name!r} is not a coordinate, velocity or momentum of this system "
+                    f"(names: {', '.join([*names, *velocities])})"
                 )
-            state[names.index(name)] = value
+        if qdot:
+            if momenta:
+                raise self._error(
+                    "give the velocities q_dot or the momenta p_q of a launch, not both"
+                )
+            state = self._with_velocities(state, qdot)
         view.launch_requested.emit(state)
+
+    def _with_velocities(self, state: np.ndarray, given: dict[int, float]) -> np.ndarray:
+        """``state`` with its momenta for the velocities ``given`` (index -> q_dot) and,
+        for the other coordinates, the velocities of the initial state."""
+        window = self.window
+        compiled = window.phase_view.compiled
+        n = compiled.n
+        t0 = 0.0  # where the window starts a launched orbit
+        main = window.store.main
+        if main is not None and compiled.mechanics.classification.time_dependent:
+            t0 = main.last_t
+        y0 = np.array(window.phase_view.y0, dtype=float)
+        qdot = np.array(compiled.velocities(t0, y0[None, :])[0], dtype=float)
+        for i, value in given.items():
+            qdot[i] = value
+        try:
+            p = compiled.momenta_from_velocities(t0, state[:n], qdot)
+        except (ValueError, ArithmeticError) as exc:
+            raise self._error(f"no momenta for these velocities: {exc}") from None
+        if not np.all(np.isfinite(p)):
+            raise self._error("the momenta for these velocities are not finite numbers")
+        return np.concatenate([state[:n], p])
 
     def _do_delete(self, command: Command) -> None:
         keys = [trajectory.key for trajectory in self.window.store if trajectory.key != 0]
@@ -443,6 +566,9 @@ class Player(QObject):
         self._note(command)
         self._wait = _Pause(command.value)
 
+    def _do_did_not_build(self, _command: Command) -> None:
+        pass  # checked with the lines before it (``_check_build``)
+
     def _do_tab(self, command: Command) -> None:
         try:
             self.window.show_tab(command.value)
@@ -469,6 +595,16 @@ class Player(QObject):
         if self.window.save_scene(path) is False:
             shown = self.window.statusBar().currentMessage()
             raise self._error(shown or f"could not save {path}")
+
+
+def _counterpart(name: str, rows) -> str | None:
+    """Among ``rows``, the momentum ``p_q`` of a velocity ``q_dot``, or the other way round."""
+    candidates = []
+    if name.endswith("_dot"):
+        candidates.append(f"p_{name[:-4]}")
+    if name.startswith("p_"):
+        candidates.append(f"{name[2:]}_dot")
+    return next((c for c in candidates if c in rows), None)
 
 
 class _RunUntil:
@@ -501,6 +637,7 @@ class _RunUntil:
             )
             self.deadline = now + self.allowed
             self.start = (now, reached)
+            self._reachable(window, reached)
         if main is None or main.status == "running":
             self.stopped = None
         elif self.stopped is None or self.stopped[1] != reached:
@@ -517,6 +654,27 @@ class _RunUntil:
                 "(give run-until a longer timeout=SECONDS, or a higher speed)"
             )
         return False
+
+    def _reachable(self, window, reached: float) -> None:
+        """A script error now if ``t`` cannot come in the time allowed: beyond the end of
+        the run (a Poincaré section's), or, at a finite speed, further away than the
+        speed covers in the time allowed (the run never goes faster than its speed)."""
+        settings = getattr(window, "settings", None)
+        t_end = getattr(settings, "t_end", math.inf)
+        if self.t > t_end:
+            raise self.player._error(
+                f"the run ends at t = {t_end:g} (the Poincaré section's run; `play` after "
+                f"its end goes on): run-until {self.t:g} waits for a time it does not reach "
+                "(run-until the end, then `play`)"
+            )
+        speed = getattr(settings, "speed", window.controls.speed)  # a section runs at max
+        needed = (self.t - reached) / speed
+        if math.isfinite(speed) and needed > self.allowed:
+            raise self.player._error(
+                f"at speed {speed:g}, t = {self.t:g} is {needed:.3g} s of wall time away "
+                f"(t = {reached:.6g} now), beyond the {self.allowed:.3g} s allowed (a higher "
+                "speed or `speed max`, a smaller T, or a longer timeout=SECONDS)"
+            )
 
     def _project(self, now: float, reached: float) -> None:
         """A script error now if, at the rate the run has advanced for

@@ -27,7 +27,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from explorer.session import Command, ScriptError, line, parse, quote, split, time_mark
-from explorer.session.edits import NOT_RECORDED, edit_lines, form
+from explorer.session.edits import edit_lines, form
 from explorer.session.script import GRAMMAR
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -229,15 +229,20 @@ def test_editor_edits_become_edit_initial_and_effect_lines():
     back = form(_pendulum_data(), previous=as_l)
     assert [text for _, text in edit_lines(as_l, back)] == ["edit given-by energies"]
     drawn = form({**_pendulum_data(), "drawing": {"points": {"bob": ["x", "y"]}}}, previous=before)
-    assert [text for _, text in edit_lines(before, drawn)] == [NOT_RECORDED]
-    # "Given by" particles: a line the script replays; the particles themselves are noted
+    assert [text for _, text in edit_lines(before, drawn)] == [
+        """edit drawing '{ points = { bob = ["x", "y"] } }'"""
+    ]
+    # "Given by" particles: the choice, the particles and gravity are lines a script replays
     bob = {"bob": {"mass": "m", "position": ["L*sin(theta)", "-L*cos(theta)"]}}
     system = dict(_pendulum_data()["system"])
     del system["kinetic"]
+    system["gravity"] = ["0", "-g"]
     as_particles = form({**_pendulum_data(), "system": system, "particles": bob}, previous=before)
-    lines = [text for _, text in edit_lines(before, as_particles)]
-    assert lines[0] == "edit given-by particles"
-    assert lines[-1].startswith("# not recorded: particles edited in the editor")
+    assert [text for _, text in edit_lines(before, as_particles)] == [
+        "edit given-by particles",
+        'edit particles \'{ bob = { mass = "m", position = ["L*sin(theta)", "-L*cos(theta)"] } }\'',
+        'edit gravity "[0, -g]"',
+    ]
 
 
 # -- replaying in a window ------------------------------------------------------------------------
@@ -316,7 +321,9 @@ def test_parameters_initial_state_and_fields_replayed(qtbot, window):
 def test_given_by_particles_replayed(qtbot, blank_window):
     """A scene given by particles: switching "Given by" away and back to particles is a
     line the script replays, and the particles typed before are kept."""
-    replay(qtbot, blank_window, "open bead_on_rotating_hoop\nedit given-by energies")
+    # T is blank then: that build fails, and the script says so
+    script = "open bead_on_rotating_hoop\nedit given-by energies\ndid-not-build"
+    replay(qtbot, blank_window, script)
     assert blank_window.editor.kind_combo.currentData() == "energies"
     replay(qtbot, blank_window, "edit given-by particles")
     assert blank_window.editor.kind_combo.currentData() == "particles"
@@ -352,8 +359,8 @@ def test_orbits_launched_deleted_cleared_and_reset(qtbot, window):
     assert window.store is not old and len(window.store) == 2  # the launch is started again
     replay(qtbot, window, "clear")
     assert [t.key for t in window.store] == [0]
-    player = replay(qtbot, window, "launch theta_dot=1", expect=2)
-    assert "give the momentum p_q, not the velocity" in player.message
+    player = replay(qtbot, window, "launch theta_dot=1 p_theta=1", expect=2)
+    assert "give the velocities q_dot or the momenta p_q of a launch, not both" in player.message
 
 
 def test_section_and_pair_replayed(qtbot, blank_window):
@@ -415,9 +422,13 @@ def test_run_until_says_why_it_could_not_wait(qtbot, window):
     assert "before t = 1000: energy_error" in player.message
     player = replay(qtbot, window, "reset\npause\nrun-until 1000", expect=2)
     assert "the simulation is paused at t = " in player.message
-    script = "method auto\ndt auto\nplay\nspeed 0.1\nrun-until 1000 timeout=0.3"
+    script = "method auto\ndt auto\nplay\nspeed max\nrun-until 1e12 timeout=0.3"
     player = replay(qtbot, window, script, expect=2)
-    assert "after waiting 0.3 s for t = 1000" in player.message
+    assert "after waiting 0.3 s for t = 1e+12" in player.message
+    # at a finite speed a time too far away for the time allowed is said at once
+    player = replay(qtbot, window, "speed 0.1\nreset\nrun-until 1000 timeout=30", expect=2)
+    assert "at speed 0.1, t = 1000 is " in player.message
+    assert "beyond the 30 s allowed" in player.message
 
 
 @pytest.mark.qt_no_exception_capture  # the window's ErrorReporter must see it, as in use
@@ -574,7 +585,8 @@ def test_cli_refuses_a_grammar_error_before_any_window(tmp_path, capsys, monkeyp
     Path("demo.session").write_text("open simple_pendulum\nlaunch theta\n", encoding="utf-8")
     assert main(["open", "--session", "demo.session", "--offscreen", "--exit"]) == 2
     assert capsys.readouterr().err.strip() == (
-        "demo.session:2: 'theta' is not NAME=VALUE (usage: launch NAME=VALUE ... (q and p_q))"
+        "demo.session:2: 'theta' is not NAME=VALUE (usage: launch NAME=VALUE ... (q, and "
+        "q_dot or p_q))"
     )
     assert main(["open", "--session", "missing.session", "--exit"]) == 2
     assert "missing.session: cannot read the file" in capsys.readouterr().err
