@@ -134,9 +134,14 @@ class Classification:
         Scleronomic, holonomic and conservative.
     dissipative : tuple of str or None
         H has no explicit t, no constraint moves, and the effects' power
-        ``sum Q_i qdot_i`` is provably never positive (damping): H can only decrease. The
-        names are the parameters that proof takes as positive (their values in the
-        scene are); None where H is conserved or may grow.
+        ``sum Q_i qdot_i`` is provably never positive and not identically zero (damping):
+        H can only decrease. The names are the parameters that proof takes as positive
+        (their values in the scene are); None where H is conserved or may grow.
+    gauge_time : bool
+        L contains t only through a total time derivative dF(q, t)/dt: Lagrange's
+        equations do not contain t, while the momenta p = dL/dqdot, H and Hamilton's
+        equations do. H is then not the energy and not conserved; the energy of L
+        without dF/dt is (``Mechanics.conserved["E"]`` where it could be formed).
     """
 
     time_dependent: bool
@@ -150,6 +155,7 @@ class Classification:
     bilateral: bool
     simple: bool
     dissipative: tuple[str, ...] | None = None
+    gauge_time: bool = False
 
     def as_dict(self) -> dict[str, bool | None]:
         """The answers by name, as ``derive --json`` prints them (None is null)."""
@@ -165,6 +171,7 @@ class Classification:
             "bilateral": self.bilateral,
             "simple": self.simple,
             "dissipative": self.dissipative is not None,
+            "gauge_time": self.gauge_time,
         }
 
     def describe(self) -> list[str]:
@@ -175,8 +182,8 @@ class Classification:
             describe_bilateral(self.bilateral),
             describe_conservative(self.conservative),
             describe_simple(self.simple),
-            describe_time_dependent(self.time_dependent),
-            "H is conserved" if self.hamiltonian_conserved else "H is not conserved",
+            describe_time_dependent(self.time_dependent, gauge_time=self.gauge_time),
+            describe_hamiltonian_conserved(self.hamiltonian_conserved, gauge_time=self.gauge_time),
             describe_energy(self.hamiltonian_is_energy),
             "natural (T quadratic in velocities)" if self.natural else "not natural",
             "separable: H = T(p) + V(q)" if self.separable else "not separable",
@@ -218,11 +225,31 @@ def describe_simple(simple: bool) -> str:
     return "general system: not scleronomic, holonomic and conservative all at once"
 
 
-def describe_time_dependent(time_dependent: bool) -> str:
-    """Time dependent or autonomous, in the textbook's words."""
+def describe_time_dependent(time_dependent: bool, *, gauge_time: bool = False) -> str:
+    """Time dependent or autonomous, in the textbook's words.
+
+    With ``gauge_time`` (L contains t only through a total time derivative) Lagrange's
+    equations are autonomous and only H and the canonical form carry t.
+    """
+    if gauge_time:
+        return (
+            "autonomous motion: Lagrange's equations do not contain t; L contains it only "
+            "through a total time derivative dF(q, t)/dt, which puts t into H (and, where "
+            "F depends on q, into the momenta p = ∂L/∂q̇ and Hamilton's "
+            "equations) but does not change the motion"
+        )
     if time_dependent:
         return "time dependent: t appears explicitly in the equations of motion"
     return "autonomous: the equations of motion do not contain t"
+
+
+def describe_hamiltonian_conserved(conserved: bool, *, gauge_time: bool = False) -> str:
+    """Whether H is conserved, and why not where L has a total time derivative."""
+    if conserved:
+        return "H is conserved"
+    if gauge_time:
+        return "H is not conserved: it contains t through the total time derivative dF/dt in L"
+    return "H is not conserved"
 
 
 def describe_energy(is_energy: bool | None) -> str:
@@ -289,6 +316,9 @@ def classify(
     q, qdot, p = tuple(q), tuple(qdot), tuple(p)
     n = len(q)
     acting = any(not probe.identical(Q, 0) for Q in forces)
+    # an effect whose power sum Q_i qdot_i vanishes identically (a gyroscopic or magnetic
+    # force) does no work: dH/dt = dH/dt (explicit) + Q . qdot keeps H as it is
+    workless = acting and _workless(forces, qdot, probe)
     from_potential = not acting or _forces_from_potential(forces, q, qdot, t, probe)
 
     lagrange = []
@@ -319,7 +349,13 @@ def classify(
     H_explicit_t = probe.depends_on(hamiltonian, (t,)) or (
         matrix_form is not None and any(probe.depends_on(e, (t,)) for e in matrix_form.mass_matrix)
     )
-    hamiltonian_conserved = not acting and not H_explicit_t and not moving and not inelastic
+    working = acting and not workless
+    hamiltonian_conserved = not working and not H_explicit_t and not moving and not inelastic
+    # Lagrange's equations without t while H has it: t enters L only through a total
+    # time derivative dF(q, t)/dt (p = dL/dqdot carries F_q, H carries -F_t), which
+    # changes H and Hamilton's equations but not the motion
+    gauge_time = bool(lagrange) and not lagrange_t and not explicit
+    gauge_time = gauge_time and (hamilton_t or H_explicit_t)
 
     kind = scene.kind
     if kind == "energies":
@@ -328,6 +364,9 @@ def classify(
         rheonomic = probe.depends_on(_velocity_part(lagrangian, qdot), (t,))
     else:
         rheonomic = probe.depends_on(_velocity_part(hamiltonian, p), (t,))
+    if rheonomic and kind != "energies" and lagrange and momenta is not None:
+        # L and L + dF(q, t)/dt classify alike: only what the equations see counts
+        rheonomic = _velocity_part_rheonomic(mass_matrix, momenta, q, t, probe)
     rheonomic = rheonomic or _constraints_rheonomic(constraints, qdot, t, probe)
 
     if kind == "energies":
@@ -336,10 +375,12 @@ def classify(
     else:
         given = lagrangian if kind == "lagrangian" else hamiltonian
         is_energy = None
-        if not probe.depends_on(given, (t,)) and _positive_kinetic_form(
-            mass_matrix, hamilton_equations[:n], qdot, p, probe
-        ):
-            is_energy = True
+        if (
+            not probe.depends_on(given, (t,)) or (gauge_time and not rheonomic)
+        ) and _positive_kinetic_form(mass_matrix, hamilton_equations[:n], qdot, p, probe):
+            # with a total time derivative in L, the energy is that of L without it; the
+            # H of these momenta differs from it by -dF/dt
+            is_energy = not gauge_time
 
     holonomic = not constraints.nonholonomic
     bilateral = not constraints.unilateral
@@ -356,9 +397,10 @@ def classify(
         simple=bool(not rheonomic and holonomic and conservative),
         dissipative=(
             _dissipation(scene, forces, qdot)
-            if acting and not H_explicit_t and not moving and not inelastic
+            if working and not H_explicit_t and not moving and not inelastic
             else None
         ),
+        gauge_time=gauge_time,
     )
 
 
@@ -390,6 +432,95 @@ def _dissipation(scene: Scene, forces, qdot) -> tuple[str, ...] | None:
 
 
 # -- the questions ---------------------------------------------------------------------------
+
+
+def _workless(forces, qdot, probe: _Probe) -> bool:
+    power = sum((as_expr(Q) * v for Q, v in zip(forces, qdot, strict=True)), sympy.S.Zero)
+    return probe.identical(power, 0)
+
+
+def does_no_work(forces: Sequence[sympy.Expr], qdot: Sequence[sympy.Symbol]) -> bool:
+    """True if effects with generalized forces Q_i(q, qdot, t) do no work: their power
+    ``sum Q_i qdot_i`` vanishes identically (at random states), as that of a magnetic or
+    gyroscopic force Q = G qdot with G antisymmetric does. No forces do no work."""
+    probe = _Probe()
+    if all(probe.identical(Q, 0) for Q in forces):
+        return True
+    return _workless(forces, tuple(qdot), probe)
+
+
+GAUGE_SECONDS = 2.0
+"""CPU seconds given to sympy's integral in ``gauge_energy``."""
+
+
+def gauge_energy(
+    lagrangian: sympy.Expr,
+    momenta: Sequence[sympy.Expr],
+    q: Sequence[sympy.Symbol],
+    qdot: Sequence[sympy.Symbol],
+    t: sympy.Symbol,
+) -> tuple[sympy.Expr, sympy.Expr] | None:
+    """The conserved energy and the potential of an L whose t is a total time derivative.
+
+    For ``L = f(q, qdot) + a(q, t) . qdot + L0(q, t)`` whose Lagrange equations contain
+    no t (``Classification.gauge_time``), ``a_t - dL0/dq`` is free of t and is the
+    gradient of U(q), the potential of L without its total time derivative dF(q, t)/dt:
+    ``U(q) = -L0(q, 0) + int_0^1 q . a_t(s q, 0) ds``. Along a motion on which no effect
+    or constraint does work, ``E = h + L0 + U`` (h = qdot . p - L, Jacobi's energy
+    function, which the total derivative changes by -F_t) is conserved: dE/dt = -L_t +
+    dL0/dt + U_q . qdot = 0. E is the energy of L - dF/dt; H of these momenta is E - F_t.
+
+    Returns
+    -------
+    (E, U) in (q, qdot, t) and in q, or None where sympy cannot form the integral in
+    ``GAUGE_SECONDS`` of CPU time.
+    """
+    from systems.cpu_limit import TimeLimitExceeded, cpu_limit
+
+    zero = dict.fromkeys(qdot, sympy.S.Zero)
+    L0 = as_expr(lagrangian).xreplace(zero)
+    rest = [as_expr(m).xreplace(zero) for m in momenta]
+    s = sympy.Dummy("s", real=True)
+    along = {x: s * x for x in q}
+    integrand = sympy.Add(
+        *[
+            x * sympy.diff(a, t).xreplace({t: sympy.S.Zero}).xreplace(along)
+            for x, a in zip(q, rest, strict=True)
+        ]
+    )
+    try:
+        with cpu_limit(GAUGE_SECONDS, "the potential of a total time derivative"):
+            try:
+                integral = sympy.integrate(sympy.expand(integrand), (s, 0, 1))
+            except (NotImplementedError, ValueError, TypeError):
+                return None
+    except TimeLimitExceeded:
+        return None
+    if integral.has(sympy.Integral) or integral.has(s):
+        return None
+    U = -L0.xreplace({t: sympy.S.Zero}) + integral
+    h = sympy.Add(*[v * m for v, m in zip(qdot, momenta, strict=True)]) - lagrangian
+    return h + L0 + U, U
+
+
+def _velocity_part_rheonomic(mass_matrix, momenta, q, t, probe: _Probe) -> bool:
+    """True if what a total time derivative dF(q, t)/dt cannot change depends on t.
+
+    Adding dF/dt to L adds F_q to the momenta and F_t to L: its velocity Hessian
+    d2L/dqdot2 (the mass matrix) and the antisymmetric part of dp_i/dq_j (the gyroscopic
+    or magnetic field, F_q_iq_j being symmetric) are unchanged. A t in either is a moving
+    frame or a field that changes with time; a t elsewhere in the velocity part of L is
+    a total derivative (and a driving field, which the equations show).
+    """
+    if any(probe.depends_on(entry, (t,)) for entry in mass_matrix):
+        return True
+    n = len(q)
+    derivatives = [[sympy.diff(as_expr(momenta[i]), q[j]) for j in range(n)] for i in range(n)]
+    return any(
+        probe.depends_on(derivatives[i][j] - derivatives[j][i], (t,))
+        for i in range(n)
+        for j in range(i + 1, n)
+    )
 
 
 def _velocity_part(expr: sympy.Expr, gens: Sequence[sympy.Symbol]) -> sympy.Expr:

@@ -17,13 +17,13 @@ from dataclasses import dataclass, field
 import sympy
 
 from systems.calculus import Calculus, Unsupported, numeric_evaluator, numeric_matrix, replaced
-from systems.classification import Classification, classify
+from systems.classification import Classification, classify, does_no_work, gauge_energy
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit, limit_seconds
 from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
 from systems.expressions import as_expr
 from systems.scene import Scene
-from systems.symmetries import conserved_charges, pushes_along
+from systems.symmetries import ENERGY, conserved_charges, pushes_along
 
 ZERO_TOLERANCE = 1e-9
 SYMBOLIC_INVERSE_LIMIT = 4
@@ -599,6 +599,13 @@ class _Context:
                 conserved["H"] = replaced(H, to_p)
             else:
                 conserved["H"] = H
+        elif (
+            classification.gauge_time
+            and classification.conservative
+            and does_no_work(forces, qd)
+            and (energy := gauge_energy(L, momenta, q, qd, t)) is not None
+        ):
+            conserved[ENERGY] = energy[0]  # H is E - dF/dt: the energy of L - dF/dt
         for name in cyclic:
             i = self.scene.coordinates.index(name)
             if self.vanishes(forces[i]):

@@ -24,7 +24,8 @@ with numbers for the current parameters: a 64-particle chain takes about 0.1 s.
 When modes do not apply, ``analyse`` says why in one sentence (``ModeAnalysis.reason``)
 instead of returning numbers: a rheonomic system, a potential that does not depend on
 some coordinate (the Kepler problem's angle), terms of L linear in the velocities
-(gyroscopic or magnetic: the modes of ``K v = w**2 M v`` are not its small oscillations),
+(gyroscopic or magnetic: the modes of ``K v = w**2 M v`` are not its small oscillations;
+so do effects that do no work, the same force given as a force),
 no minimum reached from the start, or a zero frequency (a free translation of a ring).
 Dissipation and driving forces are ignored: the modes are those of the conservative part.
 
@@ -55,8 +56,10 @@ import sympy
 
 from systems.angles import angle_flags
 from systems.calculus import to_symengine
+from systems.classification import does_no_work
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.mechanics import Mechanics
+from systems.symmetries import ENERGY
 
 PREPARE_SECONDS = 10.0
 """Limit on the symbolic preparation (gradient, Hessian, mass matrix) of one derivation."""
@@ -166,7 +169,13 @@ class _Prepared:
         self.args = [*q, *(mechanics.params[name] for name in self.parameter_names)]
         zero_qdot = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
         zero_p = dict.fromkeys(mechanics.p, sympy.S.Zero)
-        if mechanics.lagrangian is not None:
+        if ENERGY in mechanics.conserved:
+            # L contains t only through a total time derivative: U and the momenta at
+            # rest of L without it (its energy at rest; L at t = 0 differs by dF/dt there)
+            U = mechanics.conserved[ENERGY].xreplace(zero_qdot)
+            kinetic = mechanics.lagrangian.xreplace({mechanics.t: sympy.S.Zero})
+            velocities, zero = mechanics.qdot, zero_qdot
+        elif mechanics.lagrangian is not None:
             U = -mechanics.lagrangian.xreplace(zero_qdot)
             kinetic, velocities, zero = mechanics.lagrangian, mechanics.qdot, zero_qdot
         elif mechanics.separable_parts is not None:
@@ -195,7 +204,15 @@ class _Prepared:
                 "freely (a zero frequency), so there are no normal modes of small oscillation"
             )
             return
-        if any(force != 0 for force in mechanics.generalized_forces):
+        forces = mechanics.generalized_forces
+        if any(force != 0 for force in forces) and does_no_work(forces, mechanics.qdot):
+            self.reason = (
+                "the effects do no work but turn the velocities (a gyroscopic or magnetic "
+                "force), so the small oscillations are not the normal modes of "
+                "K v = \u03c9\u00b2 M v"
+            )
+            return
+        if any(force != 0 for force in forces):
             self.note = "modes of the conservative part (dissipation and forces ignored)"
         # a natural T is quadratic in the velocities: no terms linear in them, no momenta
         # at rest; otherwise they are checked at the equilibrium

@@ -21,7 +21,7 @@ from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
 from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
 from systems.expressions import as_expr
-from systems.symmetries import ROTATIONS, TRANSLATIONS
+from systems.symmetries import ENERGY, ROTATIONS, TRANSLATIONS
 
 try:
     import symengine
@@ -141,6 +141,11 @@ def _noether_lines(mechanics: Mechanics) -> list[str]:
             lines.append(f"- {name}: angular momentum about the {axis} axis (Noether: rotations)")
         elif name in TRANSLATIONS:
             lines.append(f"- {name}: total linear momentum along {axis} (Noether: translations)")
+        elif name == ENERGY:
+            lines.append(
+                f"- {name}: the energy of L without its total time derivative dF(q, t)/dt "
+                "(H of these momenta is E \u2212 \u2202F/\u2202t, and not conserved)"
+            )
         elif name != "H" and not name.startswith("p_"):
             lines.append(f"- {name}: the charge of the generator [symmetries] {name}")
     left_out = [name for name, _ in mechanics.scene.symmetries if name not in mechanics.conserved]

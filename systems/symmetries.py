@@ -70,7 +70,10 @@ if TYPE_CHECKING:
 AXES = ("x", "y", "z")
 ROTATIONS = ("L_x", "L_y", "L_z")
 TRANSLATIONS = ("P_x", "P_y", "P_z")
-RESERVED = frozenset({"H", *ROTATIONS, *TRANSLATIONS})
+ENERGY = "E"
+"""The name under which ``Mechanics.conserved`` lists the energy of a Lagrangian whose t
+is a total time derivative (``systems.classification.gauge_energy``)."""
+RESERVED = frozenset({"H", ENERGY, *ROTATIONS, *TRANSLATIONS})
 """Charge names a ``[symmetries]`` entry may not take (nor any ``p_<...>``)."""
 
 TOLERANCE = 1e-9
@@ -532,7 +535,7 @@ _FUNCTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def phase_space_charges(mechanics: Mechanics) -> dict[str, sympy.Expr]:
-    """The Noether charges listed in ``mechanics.conserved`` (all but ``H`` and the
+    """The Noether charges listed in ``mechanics.conserved`` (all but ``H``, ``E`` and the
     ``p_<q>``), each as Q = sum_i p_i xi_i(q, t) in (q, p, t), in their order.
 
     The generators are formed again from the scene (cheap; the derivation decided which
@@ -542,7 +545,11 @@ def phase_space_charges(mechanics: Mechanics) -> dict[str, sympy.Expr]:
         return dict(_PHASE[mechanics])
     except KeyError:
         pass
-    names = [name for name in mechanics.conserved if name != "H" and not name.startswith("p_")]
+    names = [
+        name
+        for name in mechanics.conserved
+        if name not in ("H", ENERGY) and not name.startswith("p_")
+    ]
     found = {}
     if names:
         by_name = {g.name: g for g in generators(mechanics.scene)}

@@ -9,9 +9,12 @@ A scene given only by a Hamiltonian that cannot be turned into a Lagrangian uses
 Small oscillations use the whole quadratic Lagrangian about an equilibrium,
 ``L2 = qdot^T M qdot/2 + qdot^T C q - q^T K q/2`` with ``K = d2U/dq2`` and
 ``C = d2L/dqdot dq`` (the terms of L linear in the velocities: a rotating frame, a magnetic
-field). Its equations ``M qdd + G qdot + K q = 0``, ``G = C - C^T``, are the quadratic
+field). Its equations ``M qdd + G qdot + K q = 0``, ``G = C - C^T - B``, are the quadratic
 eigenproblem ``det(-w^2 M + i w G + K) = 0``, solved through its 2m x 2m linearisation; a
-Hamiltonian-only scene linearises Hamilton's equations instead (``J Hess H``). The
+Hamiltonian-only scene linearises Hamilton's equations instead (``J Hess H``). Effects
+that do no work (``Q . qdot = 0`` identically, without explicit t: a magnetic or
+gyroscopic force given as a force) enter as ``B = dQ/dqdot`` at rest; other effects are
+left out (the equilibria of the conservative part). The
 equilibrium is stable when every eigenvalue lies on the imaginary axis (with ``G = 0``:
 when U has a minimum; with ``G != 0`` a maximum or saddle of U may be stabilized
 gyroscopically), unstable when one has a positive real part.
@@ -46,6 +49,7 @@ import sympy
 from systems.calculus import Calculus, Unsupported
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
+from systems.symmetries import ENERGY
 from systems.textbook._numeric import (
     cache_for,
     fold_angle,
@@ -298,8 +302,14 @@ def equilibrium_potential(mechanics: Mechanics) -> tuple[sympy.Expr, str]:
     """U(q) (parameters symbolic) whose stationary points are the equilibria, and its origin.
 
     Returns ``(U, source)`` with source ``"lagrangian"`` (U = -L at zero velocities) or
-    ``"hamiltonian"`` (U = H at zero momenta).
+    ``"hamiltonian"`` (U = H at zero momenta). Where L contains t only through a total
+    time derivative dF(q, t)/dt (``Classification.gauge_time``) U is that of L - dF/dt:
+    the conserved energy ``E`` at rest (``systems.classification.gauge_energy``), so L
+    and L + dF/dt have the same equilibria.
     """
+    if ENERGY in mechanics.conserved:
+        zero = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
+        return _expand(mechanics.conserved[ENERGY].xreplace(zero)), "lagrangian"
     if mechanics.lagrangian is not None:
         zero = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
         return _expand(-mechanics.lagrangian.xreplace(zero)), "lagrangian"
@@ -392,20 +402,14 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
     if reason is not None:
         return EquilibriumSearch([], "not computed", reason, potential=U)
     expression = mechanics.lagrangian if source == "lagrangian" else mechanics.hamiltonian
+    if ENERGY in mechanics.conserved:  # U of L - dF/dt, free of t by construction
+        expression = U
     if expression.has(mechanics.t):
-        return EquilibriumSearch(
-            [],
-            "none",
-            "the system is rheonomic (its Lagrangian depends explicitly on t), so it has "
-            "no equilibria in these coordinates",
-            potential=U,
-        )
+        return EquilibriumSearch([], "none", _time_dependent_reason(mechanics), potential=U)
     rows = _constraint_rows(mechanics)
     if rows is not None:
         return _search_constrained(mechanics, rows, U, box, parameters, symbolic, timeout)
-    notes = []
-    if any(f != 0 for f in mechanics.generalized_forces):
-        notes.append("equilibria of the conservative part (dissipation and forces ignored)")
+    notes = _effects_notes(mechanics)
     if source == "hamiltonian":
         notes.append("U = H(q, p = 0), as the Hamiltonian has no Lagrangian")
     free = tuple(name for name, qi in zip(names, mechanics.q, strict=True) if not U.has(qi))
@@ -445,6 +449,52 @@ def _search_equilibria(mechanics, box, parameters, symbolic, timeout) -> Equilib
         periodic=periodic,
         box=region,
         potential=U,
+    )
+
+
+def _effects_notes(mechanics: Mechanics) -> list[str]:
+    """What the search makes of the enabled effects, as notes."""
+    if all(f == 0 for f in mechanics.generalized_forces):
+        return []
+    if _gyroscopic_effects(mechanics):
+        return [
+            "the effects do no work (Q\u00b7q\u0307 = 0): they leave the equilibria where "
+            "they are and enter the small oscillations as gyroscopic terms"
+        ]
+    return ["equilibria of the conservative part (dissipation and forces ignored)"]
+
+
+def _gyroscopic_effects(mechanics: Mechanics) -> bool:
+    """True if the enabled effects act, do no work and have no explicit t: a force
+    Q = B(q) qdot + ... with B antisymmetric, which the linearisation keeps."""
+    from systems.classification import does_no_work
+
+    forces = mechanics.generalized_forces
+    if mechanics.lagrangian is None or all(f == 0 for f in forces):
+        return False
+    if any(sympy.S(f).has(mechanics.t) for f in forces):
+        return False
+    return does_no_work(forces, mechanics.qdot)
+
+
+def _time_dependent_reason(mechanics: Mechanics) -> str:
+    """Why a system whose L (or H) contains t gets no equilibria, in words that agree
+    with its classification."""
+    c = mechanics.classification
+    if c.gauge_time:
+        return (
+            "L contains t only through a total time derivative dF(q, t)/dt, and the "
+            "potential of L without it could not be formed, so the equilibria are not "
+            "computed"
+        )
+    if c.rheonomic:
+        return (
+            "the system is rheonomic (its Lagrangian depends explicitly on t), so it has "
+            "no equilibria in these coordinates"
+        )
+    return (
+        "the equations of motion depend explicitly on t (a time-dependent potential or "
+        "field), so rest at a constant q is not sought"
     )
 
 
@@ -556,9 +606,7 @@ def _search_constrained(
             free=tuple(names),
             potential=U,
         )
-    notes = []
-    if any(f != 0 for f in mechanics.generalized_forces):
-        notes.append("equilibria of the conservative part (dissipation and forces ignored)")
+    notes = _effects_notes(mechanics)
     involved = U.free_symbols.union(*(rows.values[i].free_symbols for i in positional))
     free = tuple(name for name, qi in zip(names, mechanics.q, strict=True) if qi not in involved)
     searched = tuple(name for name in names if name not in free)
@@ -1659,8 +1707,9 @@ class _ConstrainedProblem(_Problem):
 _VERDICTS = {
     "stable: minimum": "U has a strict minimum (K positive definite)",
     "stable: gyroscopic": (
-        "gyroscopic stabilization: U has a {kind}, but the terms of L linear in the "
-        "velocities put every eigenvalue of the linearisation on the imaginary axis"
+        "gyroscopic stabilization: U has a {kind}, but the gyroscopic terms (of L linear "
+        "in the velocities, or effects that do no work) put every eigenvalue of the "
+        "linearisation on the imaginary axis"
     ),
     "unstable: linear": "the linearisation has a growing mode (an eigenvalue with positive "
     "real part)",
@@ -1709,7 +1758,10 @@ def _decided_text(verdict, kind, eig_K, null, order, regular, gyroscopic) -> str
     if verdict.startswith("stable") and not regular:
         text += "; the inertia there is zero or infinite, so there are no small oscillations"
     elif verdict == "stable: minimum" and gyroscopic:
-        text += "; the terms of L linear in the velocities shift the frequencies"
+        text += (
+            "; the gyroscopic terms (of L linear in the velocities, or effects that do no "
+            "work) shift the frequencies"
+        )
     return text
 
 
@@ -1801,13 +1853,19 @@ class _Cross:
     the search itself still uses U = H(q, p = 0)).
     """
 
-    def __init__(self, function, hamiltonian: bool, n: int):
+    def __init__(self, function, hamiltonian: bool, n: int, effects=None):
         self.function, self.hamiltonian, self.n = function, hamiltonian, n
+        self.effects = effects
+        """None, or ``B(q)`` with ``B[i, j] = dQ_i/dqdot_j`` at rest of effects that do
+        no work: ``M qdd + (C - C^T - B) qdot + K q = 0``."""
 
     def gyroscopic(self, q, index_r, index_f, back):
-        if self.function is None:
+        if self.function is None and self.effects is None:
             return None, self.hamiltonian
-        C = np.asarray(self.function(*q), dtype=float).reshape(self.n, self.n)
+        if self.function is None:
+            C = np.zeros((self.n, self.n))
+        else:
+            C = np.asarray(self.function(*q), dtype=float).reshape(self.n, self.n)
         if self.hamiltonian:  # C[i, j] = d2H/dp_i dq_j: G = H_qp is its transpose
             block = C[np.ix_(index_r, index_r)].T
             big = float(np.max(np.abs(block), initial=0.0))
@@ -1819,6 +1877,13 @@ class _Cross:
         big = float(np.max(np.abs(G), initial=0.0))
         # a symmetric C (a total time derivative in L) leaves only rounding errors
         if not big > 1e-10 * float(np.max(np.abs(reduced), initial=0.0)):
+            G = np.zeros_like(G)
+        if self.effects is not None:
+            B = np.asarray(self.effects(*q), dtype=float).reshape(self.n, self.n)
+            # a free coordinate's momentum is held at zero as above; the effects' part
+            # along it is left out (it is not conserved under them)
+            G = G - B[np.ix_(index_r, index_r)]
+        if not float(np.max(np.abs(G), initial=0.0)) > 0:
             return None, False
         return G, False
 
@@ -1835,11 +1900,20 @@ def _cross_function(mechanics: Mechanics, momenta, parameters) -> _Cross:
         if all(e == 0 for e in entries):
             return _Cross(None, True, n)
         return _Cross(vectorize(entries, mechanics.q), True, n)
+    effects = None
+    if _gyroscopic_effects(mechanics):
+        zero = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
+        entries = [
+            with_parameters(sympy.diff(f, v), mechanics, parameters).xreplace(zero)
+            for f in mechanics.generalized_forces
+            for v in mechanics.qdot
+        ]
+        effects = vectorize(entries, mechanics.q)
     if all(sympy.S(a) == 0 for a in momenta):
-        return _Cross(None, False, n)
+        return _Cross(None, False, n, effects)
     engine = Calculus(mechanics.scene.symbols.values())
     rows = [engine.gradient(a, mechanics.q) for a in momenta]
-    return _Cross(vectorize([e for row in rows for e in row], mechanics.q), False, n)
+    return _Cross(vectorize([e for row in rows for e in row], mechanics.q), False, n, effects)
 
 
 def _set_equation_finder(mechanics, U, unknowns, timeout: float, parameters, region):

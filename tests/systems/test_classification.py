@@ -109,8 +109,8 @@ def test_derive_json_has_the_new_keys_and_null(derived):
     from systems.report import derivation_json
 
     data = derivation_json(derive(_scene(TIME_DEPENDENT_L)))["classification"]
-    assert set(data) == {*KEYS, "dissipative"}
-    assert data["dissipative"] is False
+    assert set(data) == {*KEYS, "dissipative", "gauge_time"}
+    assert data["dissipative"] is False and data["gauge_time"] is False
     assert '"hamiltonian_is_energy": null' in json.dumps(data)
     hoop = derived("bead_on_rotating_hoop").classification.as_dict()
     assert hoop["rheonomic"] is True and hoop["simple"] is False and hoop["holonomic"] is True
@@ -323,10 +323,17 @@ lagrangian = "{L}"
 
 def test_a_total_time_derivative_in_L_leaves_the_system_conservative():
     """L + d/dt (x sin(w t)): the same oscillator. Hamilton's equations carry t (p is not
-    m x_dot), Lagrange's do not."""
-    c = classified(_lagrangian("m*x_dot**2/2 - k*x**2/2 + x_dot*sin(w*t) + x*w*cos(w*t)"))
+    m x_dot), Lagrange's do not: scleronomic and simple like the oscillator; H (of these
+    momenta) is not conserved and is not the energy, E is."""
+    mech = derive(_scene(_lagrangian("m*x_dot**2/2 - k*x**2/2 + x_dot*sin(w*t) + x*w*cos(w*t)")))
+    c = mech.classification
     assert c.conservative and c.time_dependent and not c.hamiltonian_conserved
-    assert c.hamiltonian_is_energy is None
+    assert c.gauge_time and not c.rheonomic and c.simple
+    assert c.hamiltonian_is_energy is False
+    assert set(mech.conserved) == {"E"}
+    m, k = mech.params["m"], mech.params["k"]
+    (x,), (v,) = mech.q, mech.qdot
+    assert sympy.simplify(mech.conserved["E"] - (m * v**2 / 2 + k * x**2 / 2)) == 0
 
 
 def test_a_lagrangian_scaled_by_exp_gamma_t_is_not_conservative():
@@ -364,7 +371,8 @@ forces = {{ {forces} }}
 def test_forces_are_conservative_when_they_come_from_a_potential(forces, conservative, reason):
     c = classified(_with_forces(forces))
     assert c.conservative is conservative, reason
-    assert not c.hamiltonian_conserved  # H does not hold the forces' potential
+    # H does not hold the forces' potential; a magnetic force does no work
+    assert c.hamiltonian_conserved is ("B*y_dot" in forces), reason
 
 
 def test_magnetic_force_as_an_effect_agrees_with_the_magnetic_lagrangian():
