@@ -30,9 +30,12 @@ rheonomic
     A t in V alone is read as a time-dependent applied field (a driving force), not as a
     moving constraint: such a scene is time dependent and not conservative, but
     scleronomic. A scene given by L or H is rheonomic when the part that depends on the
-    velocities (L - L0, or H - H0) contains t explicitly; a part of L linear in the
-    velocities without t is read as a velocity-dependent potential (the magnetic
-    L = m v**2/2 + q B (x y_dot - y x_dot)/2), not as a moving frame.
+    velocities (L - L0, or H - H0) contains t explicitly in a way no total time
+    derivative dF(q, t)/dt removes: in the mass matrix d2L/dqdot2 or in the antisymmetric
+    part of dp_i/dq_j (which dF/dt, adding F_q to p, leaves alone), so that L and
+    L + dF/dt classify alike; a part of L linear in the velocities without t is read as a
+    velocity-dependent potential (the magnetic L = m v**2/2 + q B (x y_dot - y x_dot)/2),
+    not as a moving frame.
 holonomic, bilateral
     True unless nonholonomic (velocity) or unilateral (inequality) constraints are
     declared (``Constraints``); a constraint that contains t, or a velocity constraint with
@@ -52,9 +55,16 @@ hamiltonian_is_energy
     can be named: L or H depends on t explicitly (T and V cannot be told apart in a
     time-dependent L), or its velocity part is not a positive kinetic energy.
 hamiltonian_conserved, natural, separable
-    H has no explicit t, no effects act, no constraint moves (its force then does work)
-    and no impact is inelastic; T is quadratic in the velocities (the derivation decides);
-    H = T(p) + V(q, t) (likewise).
+    H has no explicit t, no effect does work (dH/dt = H_t + Q . qdot: an effect whose
+    power Q . qdot vanishes identically, a gyroscopic or magnetic force, keeps H), no
+    constraint moves (its force then does work) and no impact is inelastic; T is
+    quadratic in the velocities (the derivation decides); H = T(p) + V(q, t) (likewise).
+gauge_time
+    Lagrange's equations contain no t while H (or Hamilton's equations) does: t enters L
+    only through a total time derivative dF(q, t)/dt. These answers describe H and the
+    canonical variables, which dF/dt changes (p gains F_q, H gains -F_t): H is then not
+    conserved and not the energy, while the motion is that of L without dF/dt, whose
+    energy ``gauge_energy`` forms (``Mechanics.conserved["E"]``).
 """
 
 from __future__ import annotations
@@ -496,8 +506,8 @@ def gauge_energy(
                 return None
     except TimeLimitExceeded:
         return None
-    if integral.has(sympy.Integral) or integral.has(s):
-        return None
+    if integral.has(sympy.Integral, s, sympy.oo, sympy.zoo, sympy.nan):
+        return None  # not formed, or singular along the path from q = 0
     U = -L0.xreplace({t: sympy.S.Zero}) + integral
     h = sympy.Add(*[v * m for v, m in zip(qdot, momenta, strict=True)]) - lagrangian
     return h + L0 + U, U
