@@ -222,6 +222,7 @@ def test_a_total_time_derivative_leaves_the_oscillator_scleronomic_with_its_equi
     (e,) = search_equilibria(gauged, symbolic=False).equilibria
     assert e.q["x"] == pytest.approx(0.0, abs=1e-12) and e.stable
     assert e.frequencies == pytest.approx([np.sqrt(2.0)])
+    assert analyse(gauged).modes.omega == pytest.approx([np.sqrt(2.0)])
     text = readable(gauged)
     assert "scleronomic" in text and "rheonomic" not in text
     assert "Lagrange's equations do not contain t" in text
