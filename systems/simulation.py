@@ -30,7 +30,10 @@ from systems.integrators.registry import Stepper, make_runner
 from systems.integrators.stepsize import drawing_step
 from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
-PROBLEMS = ("non_finite", "singular", "energy_error", "stalled", "budget", "unstable")
+PROBLEMS = (
+    "non_finite", "singular", "energy_error", "stalled", "budget", "unstable", "inaccurate"
+)  # fmt: skip
+"""How a run can end other than ok; ``"inaccurate"`` only from ``systems.run_check``."""
 STATUS_WORDS = {
     Status.NON_FINITE: "non_finite",
     Status.NOT_CONVERGED: "stalled",

@@ -173,6 +173,19 @@ def run(args: argparse.Namespace) -> int:
                 write_trajectory(args.out, scene, t, y, qdot, H, n, multipliers)
             except OSError as exc:
                 raise UserError(f"could not write {args.out}: {exc.strerror or exc}") from None
+    status_, message = ("interrupted" if interrupted else last.status), last.message
+    accuracy = None
+    if not (endless or interrupted or conserved) and last.status == "ok":
+        # nothing in the run watched its answer: a finer second run does
+        from systems.run_check import check_final_state
+
+        found = check_final_state(
+            compiled, method, last.setting, last.setting_value, 0.0, y0, float(last.t[-1]),
+            last.y[-1], max_steps=args.max_steps,
+        )  # fmt: skip
+        accuracy = found.as_dict()
+        if not found.accurate:
+            status_, message = "inaccurate", found.message
     report = {
         "method": method,
         "why": why,
@@ -190,24 +203,24 @@ def run(args: argparse.Namespace) -> int:
         },
         "max_rel_energy_error": max_rel,
         "max_constraint_violation": violation,
-        "status": "interrupted" if interrupted else last.status,
+        "accuracy": accuracy,
+        "status": status_,
         "message": (
             f"interrupted at t = {t[-1]:.6g}; the {sampler.count} rows up to there were written"
             + ("" if args.out else " (none: no --out)")
             if interrupted
-            else last.message
+            else message
         ),
     }
     if args.json:
         print(json.dumps(report, indent=2))
     else:
         print(readable(scene, report))
-    if report["status"] != "ok":
-        print(f"stopped: {report['status']}: {report['message']}", file=sys.stderr)
-        if interrupted:
-            return status()
-        return 1
-    return 0
+    if report["status"] == "ok":
+        return 0
+    done = "inaccurate" if report["status"] == "inaccurate" else f"stopped: {report['status']}"
+    print(f"{done}: {report['message']}", file=sys.stderr)
+    return status() if interrupted else 1
 
 
 def check_t_end(t_end: float, given: str = "--t-end", alternative: str = "") -> None:
@@ -369,6 +382,12 @@ def readable(scene, report: dict) -> str:
         lines.append(f"  max relative energy error: {report['max_rel_energy_error']:.3g}")
     if report["max_constraint_violation"] is not None:
         lines.append(f"  max constraint violation: {report['max_constraint_violation']:.3g}")
+    accuracy = report["accuracy"]
+    if accuracy is not None and accuracy["final_state_error"] is not None:
+        lines.append(
+            f"  checked against {accuracy['checked_against']}: final state off by about "
+            f"{accuracy['final_state_error']:.2g}"
+        )
     final = ", ".join(f"{k} = {v:.10g}" for k, v in report["final"]["q"].items())
     lines.append(f"  final: {final}")
     lines.append(

@@ -18,6 +18,7 @@ SCENES = Path(__file__).resolve().parents[2] / "resources" / "scenes"
 
 ROOT = Path(__file__).resolve().parents[2]
 JSON_KEYS = {
+    "accuracy",
     "max_constraint_violation",
     "method",
     "why",
@@ -102,6 +103,23 @@ def test_run_energy_error_is_null_when_h_is_not_conserved(tmp_path, capsys):
     assert code == 0
     assert report["method"] == "dop853"
     assert report["max_rel_energy_error"] is None
+    # checked instead by a run at a hundredth of the tolerance
+    assert report["accuracy"]["checked_against"] == "dop853 at tol = 1e-10"
+    assert report["accuracy"]["accurate"] and report["accuracy"]["final_state_error"] < 1e-6
+
+
+def test_a_run_the_energy_cannot_check_is_checked_and_may_end_inaccurate(capsys):
+    """Euler's default step on the damped pendulum ends 1e-2 from the true state: the run
+    says so (status inaccurate, exit 1) instead of ok."""
+    code, report = run_json(capsys, "damped_pendulum", "--method", "euler", "--t-end", "10")
+    assert code == 1 and report["status"] == "inaccurate"
+    assert "euler at dt = " in report["accuracy"]["checked_against"]
+    assert report["accuracy"]["final_state_error"] > 1e-4
+    assert "take a smaller step (--dt) or an adaptive method" in report["message"]
+    assert main(["run", "damped_pendulum", "--method", "euler", "--t-end", "10"]) == 1
+    captured = capsys.readouterr()
+    assert "checked against euler at dt" in captured.out
+    assert captured.err.startswith("inaccurate: the final state is off by about")
 
 
 def test_run_stops_with_a_problem_status_and_exit_code(capsys):
