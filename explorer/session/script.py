@@ -15,6 +15,7 @@ raises ``ScriptError`` naming the first bad line; whatever depends on the scene 
 from __future__ import annotations
 
 import difflib
+import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -332,15 +333,30 @@ def table_text(table: Mapping[str, Any] | None) -> str:
     TypeError
         For a value TOML cannot hold (None, an object).
     """
-    from systems.scene import document_toml
+    return "" if table is None else _toml(dict(table))
 
-    if table is None:
-        return ""
-    if not table:
-        return "{}"
-    # document_toml writes a table's keys one a line, each value inline, under "[table]"
-    lines = document_toml({"table": dict(table)}).splitlines()
-    return "{ " + ", ".join(lines[1:]) + " }"
+
+def _toml(value: Any) -> str:
+    """A value as inline TOML. Keys are bare only when TOML allows it (ASCII letters,
+    digits, ``_`` and ``-``): ``str.isalnum`` would let ``¹`` through unquoted."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)  # inf, -inf and nan are TOML too
+    if isinstance(value, str):
+        # a JSON string is a TOML basic string, once DEL is escaped as TOML wants
+        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        items = ", ".join(f"{_toml_key(str(k))} = {_toml(v)}" for k, v in value.items())
+        return "{ " + items + " }" if items else "{}"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def _toml_key(key: str) -> str:
+    bare = key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key)
+    return key if bare else _toml(key)
 
 
 def _read_effect(args):
