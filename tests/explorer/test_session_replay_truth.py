@@ -29,21 +29,9 @@ from hypothesis import strategies as st
 from explorer.session import ScriptError, parse
 from explorer.session.edits import table_line
 from systems.scene import SCENES_DIR
+from tests.explorer.test_sessions import REPLAY_MS, SOURCE, replay
 
 ROOT = Path(__file__).resolve().parents[2]
-SOURCE = "truth.session"
-REPLAY_MS = 120000
-
-
-def replay(qtbot, window, text: str, folder=None, recorder=None, expect=0):
-    """Replay ``text`` in ``window`` until it ends; check its status; return the player."""
-    from explorer.session import Player
-
-    player = Player(window, parse(text, SOURCE), source=SOURCE, folder=folder, recorder=recorder)
-    player.start()
-    qtbot.waitUntil(lambda: player.status is not None, timeout=REPLAY_MS)
-    assert player.status == expect, player.message
-    return player
 
 
 # -- tables written as lines (no Qt) ---------------------------------------------------------
