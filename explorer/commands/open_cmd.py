@@ -38,7 +38,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--exit",
         action="store_true",
         help="with --session: close when the script ends; exit status 0 when it ran "
-        "through, 1 when the application raised an exception, 2 for a script error",
+        "through, 1 when the application raised an exception or a build failed that the "
+        "script expects to build (the replay stops there), 2 for a script error",
     )
 
 
