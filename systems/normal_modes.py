@@ -170,8 +170,9 @@ class _Prepared:
         zero_qdot = dict.fromkeys(mechanics.qdot, sympy.S.Zero)
         zero_p = dict.fromkeys(mechanics.p, sympy.S.Zero)
         if ENERGY in mechanics.conserved:
-            # L contains t only through a total time derivative: U and the momenta at
-            # rest of L without it (its energy at rest; L at t = 0 differs by dF/dt there)
+            # L contains t only through a total time derivative dF/dt: U is the energy E
+            # at rest (the potential of L without dF/dt); the momenta at rest are read
+            # from L at t = 0, which adds F_q(q, 0) to them
             U = mechanics.conserved[ENERGY].xreplace(zero_qdot)
             kinetic = mechanics.lagrangian.xreplace({mechanics.t: sympy.S.Zero})
             velocities, zero = mechanics.qdot, zero_qdot
