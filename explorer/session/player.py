@@ -110,7 +110,8 @@ class Player(QObject):
         self._wait: _RunUntil | _Pause | None = None
         self._settle_deadline = math.inf
         self._asked: tuple[Command, Command] | None = None  # lines whose build to check
-        self._outcome: tuple[str, str] | None = None  # ("built"|"failed", message) since
+        # the last build's ("built"|"failed", message) since those lines began, if any
+        self._outcome: tuple[str, str] | None = None
         busy_bar = getattr(window, "busy_bar", None)
         self._busy = busy_bar is not None and not busy_bar.isHidden()
         self._timer = QTimer(self)
