@@ -438,3 +438,35 @@ def test_run_until_past_the_end_of_a_section_run_says_so_at_once(qtbot, blank_wi
     player = replay(qtbot, blank_window, script, expect=2)
     assert player.message.startswith(f"{SOURCE}:3: the run ends at t = ")
     assert blank_window.store.main.last_t < 1e9
+
+
+@pytest.mark.qt_no_exception_capture  # the window's ErrorReporter must see them, as in use
+def test_the_mark_follows_the_line_that_asked_for_the_build(qtbot, blank_window):
+    """A line recorded while a build is derived (the speed changed meanwhile) does not
+    take the ``did-not-build`` of the edit before it; the script replays through."""
+    from explorer.session import Recorder
+
+    window = blank_window
+    recorder = Recorder(window)
+    window.open_scene("simple_pendulum")
+    qtbot.waitUntil(lambda: window.compiled is not None, timeout=REPLAY_MS)
+    editor = window.editor
+    _type(editor.fields["kinetic"], "m*l**2*theta_dot**2/")
+    editor.flush()  # the build is asked for now; it fails later
+    window.controls.speed_combo.setCurrentIndex(window.controls.speed_combo.count() - 1)
+    qtbot.waitUntil(lambda: editor.build_status == "failed", timeout=REPLAY_MS)
+    lines = [text for text in recorder.lines if not text.startswith("run-until")]
+    assert lines[0] == "open simple_pendulum"
+    assert lines[1] == "edit kinetic m*l**2*theta_dot**2/"
+    assert lines[2].startswith('did-not-build "<editor>: system.kinetic: ')
+    assert lines[3:] == ["speed max"]
+    second = type(window)()
+    second.show()
+    try:
+        replay(qtbot, second, recorder.text())
+        assert second.editor.build_status == "failed"
+        assert second.built.scene.kinetic == "m*l**2*theta_dot**2/2"  # the last that built
+    finally:
+        second.close()
+        second.deleteLater()
+        qtbot.wait(10)
