@@ -43,6 +43,8 @@ from explorer.panels.conserved_view import ConservedView
 from explorer.panels.constraint_forces_view import attach as attach_constraint_view
 from explorer.panels.mode_energy_view import attach as attach_mode_view
 from explorer.panels.phase_view import PhaseView
+from explorer.panels.presentation import Presentation
+from explorer.panels.window_layout import DockShares, keep_plots_readable
 from explorer.preferences import Preferences
 from explorer.session.script import line
 from explorer.trajectories import TrajectoryStore
@@ -78,7 +80,6 @@ class MainWindow(QMainWindow):
     def __init__(self, parent: QWidget | None = None, runs=None):
         super().__init__(parent)
         self.setWindowTitle("Phase Explorer")
-        self.resize(1400, 880)
         self._runs = runs
         self.energy_tolerance: float | None = RunSettings().energy_tolerance
         self.built: Built | None = None
@@ -145,12 +146,6 @@ class MainWindow(QMainWindow):
         self.mode_view = attach_mode_view(self)
         # the constraint forces, in a dock offered for scenes with constraints or particles
         self.constraint_view = attach_constraint_view(self)
-        self.resizeDocks(
-            [self.docks["editor"], self.docks["configuration"]],
-            [440, 440],
-            Qt.Orientation.Horizontal,
-        )
-        self.resizeDocks([self.docks["conserved"]], [230], Qt.Orientation.Vertical)
 
         toolbar = self.addToolBar("Run")
         toolbar.setObjectName("run-toolbar")
@@ -190,6 +185,13 @@ class MainWindow(QMainWindow):
         from explorer.textbook import install as install_textbook
 
         self.textbook = install_textbook(self)
+        # sized to the screen, each dock its share, no plot crushed below a readable size
+        for panel in self.panels.values():
+            keep_plots_readable(panel)
+        self.dock_shares = DockShares(self)
+        self.dock_shares.fit(self.screen().availableGeometry())
+        self.presentation = Presentation(self)
+        self._build_presentation_menu()
         # Qt runs the filter installed last first: this one shuts down before the
         # Textbook's waits for its computations (which end sooner once the builder stops)
         self.installEventFilter(self)
@@ -353,7 +355,7 @@ class MainWindow(QMainWindow):
             "Reset &layout",
             self.reset_layout,
             "Ctrl+Shift+L",
-            "Put every panel back where it was when the window opened",
+            "Put every panel that applies to this system back where it was at the start",
         )
         help_menu = menu.addMenu("&Help")
         self._action(
@@ -972,13 +974,41 @@ class MainWindow(QMainWindow):
     # -- layout, tabs and help ---------------------------------------------------------------
 
     def reset_layout(self) -> None:
-        """View > Reset layout: every dock back where it was when the window opened."""
+        """View > Reset layout: every dock that applies to the running system back where
+        it was when the window opened, at its default share of the window.
+
+        A dock offered only where its panel applies (normal modes, constraint forces)
+        comes back where opening the system would show it, and stays hidden otherwise.
+        """
+        self.presentation_action.setChecked(False)
         self.restoreState(self._default_layout)
         for dock in self.docks.values():
             if dock.isFloating():
                 dock.setFloating(False)
-            dock.show()
+            link = getattr(dock.widget(), "link", None)
+            dock.setVisible(getattr(link, "wanted", True))
         self.docks["conserved"].raise_()
+        self.dock_shares.reset()
+
+    def _build_presentation_menu(self) -> None:
+        """View > Presentation (F11) and View > Presentation panels."""
+        self.presentation_action = self._action(
+            self.view_menu,
+            "&Presentation",
+            self.presentation.set_active,
+            "F11",
+            "Full screen, large type and thick curves, only the chosen panels (F11 again: back)",
+        )
+        self.presentation_action.setCheckable(True)
+        panels = self.view_menu.addMenu("Presentation pa&nels")
+        panels.setToolTipsVisible(True)
+        self.presentation_panel_actions = {}
+        for key, dock in self.docks.items():
+            action = panels.addAction(dock.windowTitle())
+            action.setCheckable(True)
+            action.setChecked(key in self.presentation.panels)
+            action.toggled.connect(lambda shown, k=key: self.presentation.choose(k, shown))
+            self.presentation_panel_actions[key] = action
 
     def tab_names(self) -> dict[str, QWidget]:
         """What ``show_tab`` accepts: dock keys and the Textbook's and editor's tab names."""

@@ -1,4 +1,5 @@
-"""What the window remembers between sessions: recent files and the last folder used.
+"""What the window remembers between sessions: recent files, the last folder used and the
+panels shown in presentation mode.
 
 Kept in one small JSON file, ``preferences.json``, in ``PHASE_EXPLORER_CONFIG`` when it
 is set (the tests point it at a temporary folder), else in the platform's configuration
@@ -13,6 +14,8 @@ import os
 from pathlib import Path
 
 RECENT_LIMIT = 8
+PRESENTATION_PANELS = ("configuration", "conserved")
+"""The docks presentation mode shows beside the phase plane until the user chooses."""
 
 
 def config_dir() -> Path:
@@ -66,6 +69,19 @@ class Preferences:
         if isinstance(folder, str) and Path(folder).is_dir():
             return folder
         return str(Path.cwd())
+
+    @property
+    def presentation_panels(self) -> tuple[str, ...]:
+        """The dock keys presentation mode shows (View > Presentation panels)."""
+        panels = self._data.get("presentation_panels")
+        if not isinstance(panels, list) or not all(isinstance(p, str) for p in panels):
+            return PRESENTATION_PANELS
+        return tuple(panels)
+
+    def set_presentation_panels(self, panels: tuple[str, ...] | list[str]) -> None:
+        """Remember the dock keys presentation mode shows."""
+        self._data["presentation_panels"] = list(panels)
+        self._save()
 
     def _save(self) -> None:
         from systems.files import atomic_path

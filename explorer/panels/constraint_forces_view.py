@@ -642,6 +642,7 @@ class ConstraintDockLink(OfferedDockLink):
         fresh = key != self._scene_key
         self._scene_key = key
         self._offer(reason is None, reason or "")
+        self.wanted = reason is None
         if fresh:
             if reason is None:
                 self.dock.show()

@@ -578,6 +578,7 @@ class ModeDockLink(OfferedDockLink):
         offered = analysis.applies and n >= 2
         why = analysis.reason if not analysis.applies else "a single coordinate"
         self._offer(offered, why)
+        self.wanted = offered and n >= SHOWN_FROM
         if self._fresh:
             self._fresh = False
             if offered and n >= SHOWN_FROM:

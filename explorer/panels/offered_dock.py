@@ -3,7 +3,8 @@
 The normal-mode energies and the constraint forces each live in a dock tabbed with the
 conserved quantities. ``OfferedDockLink`` keeps the dock's View-menu action enabled
 where the panel applies (or while the dock is still open), with a status tip saying why
-not, and shuts the view's background work down when the window closes.
+not, and shuts the view's background work down when the window closes. ``wanted`` says
+whether the dock is shown for the running system: View > Reset layout shows it only then.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ class OfferedDockLink(QObject):
         self.view = view
         self.dock = dock
         self.offered = False
+        self.wanted = False  # whether opening the system shows the dock (and Reset layout)
         self._tips = (offered_tip, refused_tip)
         dock.visibilityChanged.connect(self._on_dock_visibility_changed)
         window.installEventFilter(self)

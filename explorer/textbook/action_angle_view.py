@@ -13,6 +13,7 @@ from explorer.textbook.plots import (
     ORANGE,
     PURPLE,
     RED,
+    beside_notes,
     clear_plot,
     headroom,
     make_plot,
@@ -39,8 +40,7 @@ class ActionAngleView(TextbookTabView):
         self.splitter.addWidget(self.period_plot)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
-        layout.addWidget(self.summary)
-        layout.addWidget(self.splitter, 1)
+        layout.addLayout(beside_notes(self.splitter, self.summary), 1)
 
     def _clear(self) -> None:
         self.result = None

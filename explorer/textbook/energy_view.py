@@ -11,6 +11,7 @@ from explorer.textbook.plots import (
     GREEN,
     ORANGE,
     RED,
+    beside_notes,
     clear_plot,
     headroom,
     make_plot,
@@ -100,8 +101,7 @@ class EnergyTheoremView(TextbookTabView):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addLayout(controls)
-        layout.addWidget(splitter, 1)
-        layout.addWidget(self.summary)
+        layout.addLayout(beside_notes(splitter, self.summary), 1)
         self._scene_name = None
 
     def set_system(self, compiled) -> None:

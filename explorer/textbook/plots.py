@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pyqtgraph as pg
-from PySide6.QtCore import QObject, Qt
-from PySide6.QtWidgets import QDoubleSpinBox, QLabel
+from PySide6.QtCore import QObject, QSize, Qt
+from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QLayout, QVBoxLayout, QWidget
 
 from explorer.panels.curves import style_plot
 
@@ -27,12 +27,50 @@ def pen(colour: str, width: float = 2.0, dash: bool = False, dot: bool = False):
     return pg.mkPen(colour, width=width, style=style)
 
 
+PLOT_HINT = QSize(320, 160)
+"""A Textbook plot's preferred size. A tab is laid out at its preferred height inside its
+scroll area (word-wrapped notes make the layout height-for-width), so pyqtgraph's own
+640 x 480 made the plots taller than the dock and showed only their top."""
+NOTES_WIDTH = (260, 460)
+"""The least and greatest width of the column of notes beside a tab's plots."""
+
+
+class TextbookPlot(pg.PlotWidget):
+    """A plot widget that prefers ``PLOT_HINT``: the tab's layout stretches it to fit."""
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt override
+        return QSize(PLOT_HINT)
+
+
+def beside_notes(plots: QWidget, *notes: QWidget | QLayout) -> QHBoxLayout:
+    """``plots`` with a column of ``notes`` (widgets or layouts) on its right.
+
+    The notes sit beside the plots rather than above or below them, so a short bottom
+    dock gives its height to the plots.
+    """
+    column = QWidget()
+    column.setMinimumWidth(NOTES_WIDTH[0])
+    column.setMaximumWidth(NOTES_WIDTH[1])
+    layout = QVBoxLayout(column)
+    layout.setContentsMargins(0, 0, 0, 0)
+    for note in notes:
+        if isinstance(note, QLayout):
+            layout.addLayout(note)
+        else:
+            layout.addWidget(note)
+    layout.addStretch(1)
+    row = QHBoxLayout()
+    row.addWidget(plots, 3)
+    row.addWidget(column, 2)
+    return row
+
+
 CORNERS = {"top-right": (-10, 10), "top-left": (10, 10), "bottom-right": (-10, -10)}
 
 
 def make_plot(title: str, bottom: str, left: str, corner: str = "top-right") -> pg.PlotWidget:
     """A white plot with a grid, axis labels (HTML allowed) and a legend in ``corner``."""
-    widget = pg.PlotWidget(background="w")
+    widget = TextbookPlot(background="w")
     plot = widget.getPlotItem()
     style_plot(plot)
     plot.setTitle(title, color="#222", size="10pt")

@@ -23,6 +23,7 @@ from explorer.textbook.plots import (
     ORANGE,
     PURPLE,
     RED,
+    beside_notes,
     clear_plot,
     headroom,
     make_plot,
@@ -88,15 +89,20 @@ class PrincipleView(TextbookTabView):
         self.boundary_time = spin_box(0.05, 1000.0, 1.0, 0.25)
         self.solve_button = QPushButton("Solve A → B")
         self.solve_button.clicked.connect(self._on_solve_clicked)
-        boundary = QHBoxLayout()
-        boundary.addWidget(QLabel("Two-point problem: A ="))
-        boundary.addWidget(self.point_a)
-        boundary.addWidget(QLabel("B ="))
-        boundary.addWidget(self.point_b)
-        boundary.addWidget(QLabel("in time"))
-        boundary.addWidget(self.boundary_time)
-        boundary.addWidget(self.solve_button)
-        boundary.addStretch(1)
+        ends = QHBoxLayout()
+        ends.addWidget(QLabel("A ="))
+        ends.addWidget(self.point_a)
+        ends.addWidget(QLabel("B ="))
+        ends.addWidget(self.point_b)
+        solve = QHBoxLayout()
+        solve.addWidget(QLabel("in time"))
+        solve.addWidget(self.boundary_time)
+        solve.addWidget(self.solve_button)
+        solve.addStretch(1)
+        boundary = QVBoxLayout()
+        boundary.addWidget(QLabel("<b>Two-point problem</b>"))
+        boundary.addLayout(ends)
+        boundary.addLayout(solve)
 
         self.action_plot = make_plot("Action of the varied paths", "ε", "S(ε)")
         self.path_plot = make_plot("True and varied path", "t", "q")
@@ -113,10 +119,7 @@ class PrincipleView(TextbookTabView):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addLayout(controls)
-        layout.addWidget(self.summary)
-        layout.addWidget(splitter, 1)
-        layout.addLayout(boundary)
-        layout.addWidget(self.boundary_note)
+        layout.addLayout(beside_notes(splitter, self.summary, boundary, self.boundary_note), 1)
 
     # -- system ------------------------------------------------------------------------------
 

@@ -24,6 +24,7 @@ from explorer.textbook.plots import (
     GREY,
     ORANGE,
     RED,
+    beside_notes,
     clear_plot,
     make_plot,
     note_label,
@@ -59,9 +60,7 @@ class ReductionView(TextbookTabView):
         self.splitter.addWidget(self.portrait_plot)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
-        layout.addWidget(self.summary)
-        layout.addLayout(self.slider_box)
-        layout.addWidget(self.splitter, 1)
+        layout.addLayout(beside_notes(self.splitter, self.summary, self.slider_box), 1)
 
     def _clear(self) -> None:
         self.setup = None
