@@ -18,7 +18,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from explorer.editor.collapsible import CollapsibleSection
-from explorer.editor.fields import ExpressionField, error_html
+from explorer.editor.fields import ExpressionField, error_html, never_widens
 
 TITLES = {
     "holonomic": "Holonomic: f(q, t) = 0",
@@ -56,7 +56,7 @@ class ConstraintList(QWidget):
         title.setWordWrap(True)
         title.setToolTip(f"{kind}: {meaning}, e.g. {example}")
         self.error = QLabel()
-        self.error.setWordWrap(True)
+        never_widens(self.error)
         self.error.setVisible(False)
         self.entries = QVBoxLayout()
         self.entries.setSpacing(2)
@@ -167,7 +167,7 @@ class ConstraintsSection(CollapsibleSection):
         self.toggle.setToolTip("Equations and inequalities that tie the coordinates together")
         self.lists: dict[str, ConstraintList] = {}
         self.general_error = QLabel()
-        self.general_error.setWordWrap(True)
+        never_widens(self.general_error)
         self.general_error.setVisible(False)
         self.content.addWidget(self.general_error)
         for kind, (meaning, example) in _kinds().items():

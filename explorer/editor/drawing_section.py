@@ -27,7 +27,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.editor.fields import ExpressionField, error_html
+from explorer.editor.fields import ExpressionField, error_html, never_widens
 
 LINK_JOINS = ("->", "→", "–", "—")
 """Also accepted between the two ends of a link, besides ``-``."""
@@ -93,7 +93,7 @@ class PointRow(QFrame):
         self.x.set_text(x)
         self.y.set_text(y)
         self.name_error = QLabel()
-        self.name_error.setWordWrap(True)
+        never_widens(self.name_error)
         self.name_error.setVisible(False)
         layout = QGridLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
@@ -142,10 +142,10 @@ class DrawingSection(QGroupBox):
             "Points in the plane (x right, y up) in the coordinates, t and parameters; "
             "origin is (0, 0)."
         )
-        self.note.setWordWrap(True)
+        never_widens(self.note)
         self.note.setStyleSheet("QLabel { color: #555; }")
         self.left_out = QLabel()  # shown while the drawing is left out of the build
-        self.left_out.setWordWrap(True)
+        never_widens(self.left_out)
         self.left_out.setVisible(False)
         self.left_out.setStyleSheet(
             "QLabel { background: #fff8e1; border: 1px solid #e0a800; border-radius: 4px;"
@@ -161,7 +161,7 @@ class DrawingSection(QGroupBox):
         self.links.edited.connect(self._on_edited)
         self.trace.edited.connect(self._on_edited)
         self.general_error = QLabel()
-        self.general_error.setWordWrap(True)
+        never_widens(self.general_error)
         self.general_error.setVisible(False)
         form = QGridLayout()
         for row, (label, field) in enumerate((("Links", self.links), ("Trace", self.trace))):

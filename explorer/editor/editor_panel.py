@@ -59,9 +59,10 @@ from PySide6.QtWidgets import (
 
 from explorer.editor.constraints_section import ConstraintsSection
 from explorer.editor.drawing_section import DrawingSection
-from explorer.editor.fields import ExpressionField, error_html
+from explorer.editor.fields import ExpressionField, error_html, never_widens
 from explorer.editor.parameters_table import ParameterTableView, fit_rows, number_text
 from explorer.editor.particles_section import ParticlesSection
+from explorer.editor.scroll_anchor import ScrollAnchor
 from explorer.editor.symmetries_section import SymmetriesSection
 from explorer.labels import coordinate_label
 
@@ -339,7 +340,7 @@ class SystemEditorPanel(QWidget):
         self.parameter_table.name_refused.connect(self._on_parameter_value_refused)
         self.parameter_table.structure_changed.connect(self._on_parameter_structure_changed)
         self.parameter_error = QLabel()
-        self.parameter_error.setWordWrap(True)
+        never_widens(self.parameter_error)
         self.add_button = QPushButton("Add")
         self.add_button.setToolTip("Add a parameter with a free name; edit its name and value")
         self.add_button.clicked.connect(lambda: self.parameter_table.add_parameter())
@@ -376,7 +377,7 @@ class SystemEditorPanel(QWidget):
         fit_rows(self.initial_table, least=2)
         self.initial_table.itemChanged.connect(self._on_field_edited)
         self.initial_error = QLabel()
-        self.initial_error.setWordWrap(True)
+        never_widens(self.initial_error)
         initial_box = QGroupBox("Initial state (q and q_dot, or p_q)")
         initial_layout = QVBoxLayout(initial_box)
         initial_layout.addWidget(self.initial_table)
@@ -388,20 +389,20 @@ class SystemEditorPanel(QWidget):
         self.symmetries = SymmetriesSection()
 
         self.general_error = QLabel()  # at the top: a refused file or build is seen at once
-        self.general_error.setWordWrap(True)
+        never_widens(self.general_error)
         self.general_error.setVisible(False)
         self.general_error.setStyleSheet(
             "QLabel { background: #fff3f3; border: 1px solid #d62728; border-radius: 4px;"
             " padding: 4px; }"
         )
         self.warning_label = QLabel()  # what was left out of the build, and why
-        self.warning_label.setWordWrap(True)
+        never_widens(self.warning_label)
         self.warning_label.setVisible(False)
         self.warning_label.setTextFormat(Qt.TextFormat.RichText)
         self.warning_label.setStyleSheet(WARNING_STYLE)
         self.warning_label.linkActivated.connect(self._on_warning_link_activated)
         self.info_label = QLabel()  # a note that goes with the first edit
-        self.info_label.setWordWrap(True)
+        never_widens(self.info_label)
         self.info_label.setVisible(False)
         self.info_label.setStyleSheet(INFO_STYLE)
         self.undo_button = QPushButton("Undo")
@@ -409,14 +410,14 @@ class SystemEditorPanel(QWidget):
         self.redo_button = QPushButton("Redo")
         self.redo_button.clicked.connect(self.redo)
         self.state_label = QLabel("")
-        self.state_label.setWordWrap(True)
+        never_widens(self.state_label)
         history = QHBoxLayout()
         history.addWidget(self.undo_button)
         history.addWidget(self.redo_button)
         history.addWidget(self.state_label, 1)
 
         self.classification_card = QLabel()
-        self.classification_card.setWordWrap(True)
+        never_widens(self.classification_card)
         self.classification_card.setTextFormat(Qt.TextFormat.RichText)
         self.classification_card.setStyleSheet(
             "QLabel { background: #f4f7fb; border: 1px solid #c9d6e6; border-radius: 6px;"
@@ -452,10 +453,12 @@ class SystemEditorPanel(QWidget):
         scroll.setWidgetResizable(True)
         scroll.setWidget(content)
         self._scroll = scroll
+        # a build finishing never moves the page under the hand
+        self.scroll_anchor = ScrollAnchor(scroll)
         derivation = QWidget()
         derivation_layout = QVBoxLayout(derivation)
         self.derivation_card = QLabel()
-        self.derivation_card.setWordWrap(True)
+        never_widens(self.derivation_card)
         self.derivation_card.setStyleSheet(self.classification_card.styleSheet())
         derivation_layout.addWidget(self.derivation_card)
         derivation_layout.addWidget(self.derived, 1)

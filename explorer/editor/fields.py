@@ -5,6 +5,8 @@ long T or V stays in sight. An expression is one line of text: Enter inserts not
 pasted line breaks become spaces, so positions in error messages are columns of that line.
 An error is shown under the field (the reason, and the stretch of text around the position
 with a caret under it) and the character at that position is marked in the field itself.
+Error text wraps to the width the field has and never asks for more (``never_widens``):
+the stretch shown is cut to what fits, so a long message cannot widen the editor.
 """
 
 from __future__ import annotations
@@ -12,33 +14,54 @@ from __future__ import annotations
 import html
 
 from PySide6.QtCore import QMimeData, Qt, Signal
-from PySide6.QtGui import QColor, QKeyEvent, QTextCharFormat, QTextCursor, QTextOption
+from PySide6.QtGui import (
+    QColor,
+    QFontMetrics,
+    QKeyEvent,
+    QTextCharFormat,
+    QTextCursor,
+    QTextOption,
+)
 from PySide6.QtWidgets import QFrame, QLabel, QSizePolicy, QTextEdit, QVBoxLayout, QWidget
 
 ERROR_STYLE = "QTextEdit { border: 1px solid #d62728; background: #fff3f3; }"
 MAX_LINES = 4
 """Lines a field grows to before it scrolls."""
 EXCERPT = 44
-"""Characters of the text shown around an error's position under a field."""
+"""Characters of the text shown around an error's position under a field, at most."""
+EXCERPT_LEAST = 12
+"""... and at least, however narrow the field."""
+
+
+def never_widens(label: QLabel) -> QLabel:
+    """Make ``label`` wrap to the width its layout gives it and never ask for more: a long
+    message, even one unbroken word, cannot widen the editor (and add a scroll bar)."""
+    policy = label.sizePolicy()
+    policy.setHorizontalPolicy(QSizePolicy.Policy.Ignored)
+    label.setSizePolicy(policy)
+    label.setWordWrap(True)
+    return label
 
 
 def error_html(
-    reason: str, text: str | None, position: int | None, action: tuple[str, str] | None = None
+    reason: str,
+    text: str | None,
+    position: int | None,
+    action: tuple[str, str] | None = None,
+    width: int = EXCERPT,
 ) -> str:
     """The reason, and when a position is known the text with a caret under that column.
 
-    A text longer than ``EXCERPT`` characters is cut to the stretch around the position
+    A text longer than ``width`` characters is cut to the stretch around the position
     (``…`` marks a cut), so the caret stays in sight in a narrow panel. ``action`` is a
     ``(link, label)`` offered under it as a link (a quick fix).
     """
-    lines = [f"<span style='color:#b00020'>{html.escape(reason)}</span>"]
+    where = f" (position {position})" if text is not None and position else ""
+    lines = [f"<span style='color:#b00020'>{html.escape(reason)}{where}</span>"]
     if text is not None and position:
-        shown, column = excerpt(text, position)
+        shown, column = excerpt(text, position, width)
         caret = " " * (column - 1) + "^"
-        lines.append(
-            "<pre style='margin:0; color:#b00020'>"
-            f"{html.escape(shown)}\n{caret} position {position}</pre>"
-        )
+        lines.append(f"<pre style='margin:0; color:#b00020'>{html.escape(shown)}\n{caret}</pre>")
     if action is not None:
         link, label = action
         lines.append(f"<a href='{html.escape(link)}'>{html.escape(label)}</a>")
@@ -130,8 +153,7 @@ class ExpressionField(QWidget):
         font.setStyleHint(font.StyleHint.Monospace)
         self.edit.setFont(font)
         self.edit._fit_height()
-        self.error_label = QLabel()
-        self.error_label.setWordWrap(True)
+        self.error_label = never_widens(QLabel())
         self.error_label.setVisible(False)
         self.error_label.setTextInteractionFlags(
             Qt.TextInteractionFlag.TextSelectableByMouse
@@ -145,6 +167,7 @@ class ExpressionField(QWidget):
         layout.addWidget(self.edit)
         layout.addWidget(self.error_label)
         self._setting = False
+        self._error: tuple | None = None  # (reason, position, action) shown, to fit again
         self.edit.textChanged.connect(self._on_edit_text_changed)
 
     def text(self) -> str:
@@ -168,13 +191,33 @@ class ExpressionField(QWidget):
     ) -> None:
         """Show ``reason`` under the field and mark ``position`` (1-based) in the text;
         ``action`` (link, label) is offered as a quick fix (``action_requested``)."""
-        self.error_label.setText(error_html(reason, self.text(), position, action))
+        self._error = (reason, position, action)
+        self._show_error_text()
         self.error_label.setVisible(True)
         self.edit.setStyleSheet(ERROR_STYLE)  # the cursor stays put: the user may be typing
         self._mark(position)
 
+    def _excerpt_width(self) -> int:
+        """The characters of text the error's stretch may show in the field's width."""
+        font = self.edit.font()
+        advance = max(QFontMetrics(font).horizontalAdvance("m"), 1)
+        fits = (self.width() - 8) // advance - 2  # the two ``…`` of a cut
+        return max(EXCERPT_LEAST, min(EXCERPT, fits))
+
+    def _show_error_text(self) -> None:
+        reason, position, action = self._error
+        width = self._excerpt_width()
+        self._error_width = width
+        self.error_label.setText(error_html(reason, self.text(), position, action, width))
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().resizeEvent(event)
+        if self._error is not None and self._excerpt_width() != self._error_width:
+            self._show_error_text()
+
     def clear_error(self) -> None:
         """Remove the error under the field and its mark."""
+        self._error = None
         self.error_label.setVisible(False)
         self.error_label.clear()
         self.edit.setStyleSheet("")

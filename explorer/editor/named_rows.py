@@ -14,7 +14,7 @@ from collections.abc import Iterable
 
 from PySide6.QtWidgets import QFrame, QLabel, QLineEdit, QPushButton
 
-from explorer.editor.fields import error_html
+from explorer.editor.fields import error_html, never_widens
 
 
 def free_name(prefix: str, taken: Iterable[str]) -> str:
@@ -43,7 +43,7 @@ class NamedRow(QFrame):
         self.remove_button = QPushButton("Remove")
         self.remove_button.setToolTip(f"Remove this {what}")
         self.name_error = QLabel()
-        self.name_error.setWordWrap(True)
+        never_widens(self.name_error)
         self.name_error.setVisible(False)
 
     def typed_name(self) -> str:

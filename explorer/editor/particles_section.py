@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.editor.fields import ExpressionField, error_html
+from explorer.editor.fields import ExpressionField, error_html, never_widens
 from explorer.editor.named_rows import NamedRow, free_name, row_for_field, take_typed_name
 
 AXES = ("x", "y", "z")
@@ -99,7 +99,7 @@ class ParticleRow(NamedRow):
         for axis, text in zip(AXES, components, strict=False):
             self.axes[axis].set_text(text)
         self.position_error = QLabel()
-        self.position_error.setWordWrap(True)
+        never_widens(self.position_error)
         self.position_error.setVisible(False)
         layout = QGridLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)

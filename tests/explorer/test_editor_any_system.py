@@ -18,8 +18,17 @@ import re
 from types import SimpleNamespace
 
 import pytest
+from hypothesis import HealthCheck, Phase, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import (
+    RuleBasedStateMachine,
+    invariant,
+    rule,
+    run_state_machine_as_test,
+)
 from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt
 from PySide6.QtGui import QWheelEvent
+from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication, QComboBox, QScrollArea, QSpinBox, QVBoxLayout, QWidget
 
 from explorer.builder import Built, failure_from
@@ -28,6 +37,7 @@ from explorer.editor.fields import MAX_LINES, ExpressionField, excerpt
 from explorer.editor.parameters_table import NAME, VALUE
 from explorer.wheel_guard import install_wheel_guard
 from systems.scene import SceneError, catalogue, load_scene, parse_scene, scene_from_dict
+from tests.conftest import examples
 from tests.explorer.conftest import wait_for_points
 
 CATALOGUE = [entry.name for entry in catalogue()]
@@ -671,3 +681,164 @@ def test_a_parameter_value_in_force_keeps_the_document_built(editor):
     editor.parameter_table.set_value("l", 2.0)
     assert editor.debounce.isActive()
     editor.flush()
+
+
+# -- builds that finish while the user types (issue 25, item 3) --------------------------------
+
+
+class EditorUnderTheHand(RuleBasedStateMachine):
+    """The user scrolls, clicks into a field and types while builds finish in the
+    background with any outcome (built, with warnings, failed at any field, equilibria
+    found, a derivation laid out). Invariants: what the user looks at stays where it is
+    on screen until the user scrolls (the focused field keeps its focus and its place;
+    without one, the widget at the top of the view, or the top of the page), and every
+    keystroke stays in its field."""
+
+    editor: SystemEditorPanel
+    built: Built
+
+    def __init__(self):
+        super().__init__()
+        editor = self.editor
+        editor.show_scene(self.built.scene)
+        editor.show_built(self.built)
+        QApplication.processEvents()
+        editor._scroll.verticalScrollBar().setValue(0)
+        self.typed: dict = {}  # field -> its text as the user left it
+        self.seen: tuple | None = None  # (scroll value, focus, its top) after the user
+
+    def _fields(self) -> list[ExpressionField]:
+        editor = self.editor
+        fields = [editor.coordinates, *editor.fields.values(), editor.dissipation]
+        fields += list(editor.force_fields.values())
+        return [f for f in fields if f.isVisibleTo(editor)]
+
+    def _settle(self) -> None:
+        for _ in range(3):
+            QApplication.processEvents()
+
+    def _look(self) -> tuple:
+        """What the user sees: the focused field and where it is on screen; without one,
+        the widget at the top of the view and where it is (at the top of the page: the
+        top of the page)."""
+        bar = self.editor._scroll.verticalScrollBar()
+        content = self.editor._scroll.widget()
+        focus = QApplication.focusWidget()
+        if focus is not None and content.isAncestorOf(focus):
+            top = focus.mapTo(content, QPoint(0, 0)).y() - bar.value()
+            if -focus.height() < top < self.editor._scroll.viewport().height():
+                return focus, top  # the field the user types in, in sight
+        if bar.value() == 0:
+            return ("page top",)
+        widget = content.childAt(QPoint(12, bar.value() + 2))
+        if widget is None:  # between widgets: the scroll position is what stays
+            return ("scrolled to", bar.value())
+        return widget, widget.mapTo(content, QPoint(0, 0)).y() - bar.value()
+
+    @rule(fraction=st.floats(0, 1))
+    def scroll(self, fraction):
+        bar = self.editor._scroll.verticalScrollBar()
+        bar.setValue(round(fraction * bar.maximum()))
+        self._settle()
+        self.seen = self._look()
+
+    @rule(pick=st.integers(0, 63), text=st.sampled_from(["r", " + 0", "*x", "("]))
+    def click_and_type(self, pick, text):
+        fields = self._fields()
+        field = fields[pick % len(fields)]
+        self.editor._scroll.ensureWidgetVisible(field)  # the user scrolls to it first
+        field.edit.setFocus()
+        self._settle()
+        QTest.keyClicks(field.edit, text)
+        self.typed[field] = field.text()
+        self._settle()
+        self.seen = self._look()
+
+    @rule(
+        outcome=st.sampled_from(["built", "warned", "failed", "equilibria", "derivation"]),
+        pick=st.integers(0, 63),
+        lines=st.integers(0, 12),
+    )
+    def a_build_finishes(self, outcome, pick, lines):
+        editor = self.editor
+        if outcome == "built":
+            editor.show_built(self.built)
+        elif outcome == "warned":
+            warning = SimpleNamespace(part="view", field="view.pair", reason="no such pair " * 9)
+            scene = SimpleNamespace(**{**vars(self.built.scene), "warnings": (warning,)})
+            editor.show_built(Built(0, scene, self.built.compiled, "rk4", "a test", 0.5))
+        elif outcome == "failed":
+            fields = ["system.kinetic", "system.potential", "system.coordinates", "", "initial.x"]
+            failure = SimpleNamespace(
+                field=fields[pick % len(fields)],
+                reason="syntax error: a long reason that wraps " * (1 + pick % 4),
+                position=1 + pick % 5,
+                message="the scene does not build " * 6,
+            )
+            editor.show_failure(failure)
+        elif outcome == "equilibria":
+            editor.show_equilibria([f"theta = {k}: stable, omega = 3.13" for k in range(lines)])
+        else:
+            editor.show_derivation("L = ...\n" * lines)
+        self._settle()
+
+    @invariant()
+    def nothing_moves_under_the_hand(self):
+        if self.seen is not None:
+            assert self._look() == self.seen
+
+    @invariant()
+    def nothing_typed_is_lost(self):
+        for field, text in self.typed.items():
+            assert field.text() == text
+
+
+def test_builds_finishing_mid_typing_never_move_the_editor(qtbot):
+    from dataclasses import replace
+
+    from systems.mechanics import derive
+
+    panel = SystemEditorPanel()
+    qtbot.addWidget(panel)
+    panel.resize(380, 460)
+    panel.show()
+    qtbot.waitExposed(panel)
+    scene = replace(load_scene("simple_pendulum"), dissipation="b*theta_dot**2/2")
+    scene = replace(scene, parameters=(*scene.parameters, ("b", 0.1)))
+    mechanics = derive(scene)
+    EditorUnderTheHand.editor = panel
+    EditorUnderTheHand.built = Built(0, scene, SimpleNamespace(mechanics=mechanics), "rk4", "", 0.1)
+    run_state_machine_as_test(
+        EditorUnderTheHand,
+        settings=settings(
+            max_examples=examples(25, 100),
+            stateful_step_count=12,
+            deadline=None,
+            derandomize=True,
+            database=None,
+            phases=[Phase.explicit, Phase.generate],  # one editor for all: no shrinking
+            suppress_health_check=list(HealthCheck),
+        ),
+    )
+    panel.shutdown()
+
+
+def test_a_long_error_wraps_and_never_widens_the_editor(qtbot):
+    panel = SystemEditorPanel()
+    qtbot.addWidget(panel)
+    panel.resize(360, 500)
+    panel.show()
+    _pendulum(panel)
+    content = panel._scroll.widget()
+    qtbot.waitUntil(lambda: content.width() <= panel._scroll.viewport().width())
+    text = "m*l**2*theta_dot**2/2 + " + " + ".join(f"a{i}*theta**{i}" for i in range(40))
+    panel.fields["kinetic"].set_text(text + " + (")
+    unbroken = "no_such_name_" * 12
+    panel.fields["kinetic"].show_error(f"unknown name '{unbroken}'", len(text) + 3)
+    panel._show_label(panel.general_error, f"not opened: /a/{unbroken}/scene.toml")
+    qtbot.waitUntil(lambda: panel.fields["kinetic"].error_label.height() > 40)
+    assert content.width() <= panel._scroll.viewport().width()
+    assert not panel._scroll.horizontalScrollBar().isVisible()
+    label = panel.fields["kinetic"].error_label
+    assert label.width() <= panel.fields["kinetic"].width()
+    assert f"position {len(text) + 3}" in _plain(label)
