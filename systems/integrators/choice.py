@@ -243,7 +243,9 @@ def _choose(mechanics) -> tuple[str, str]:
             f"(tolerance {DEFAULT_TOL:g})"
         )
     singular = not c.time_dependent and _singular_attractive(mechanics)
-    if singular and c.separable:
+    # a force that does no work keeps H conserved, but a splitting of H leaves it out
+    splits = c.separable and _splitting_applies(mechanics)
+    if singular and splits:
         return "logh_yoshida6", (
             "separable with a singular attractive potential: time-transformed "
             "(logarithmic-Hamiltonian) symplectic steps shrink near the singularity"
@@ -255,8 +257,20 @@ def _choose(mechanics) -> tuple[str, str]:
             f"(tolerance {DEFAULT_TOL:g})"
         )
     aim = f"steps aimed at a relative energy error of {ENERGY_TARGET:g}"
-    if c.separable:
+    if splits:
         return "yoshida8", f"separable H = T(p) + V(q): explicit symplectic, 8th order, {aim}"
+    if c.separable:
+        return "gauss_legendre6", (
+            "H is separable, but a force that does no work acts besides it, which a "
+            f"splitting of H would leave out: implicit Gauss-Legendre, 6th order, {aim}"
+        )
     return "gauss_legendre6", (
         f"conservative but H is not separable: implicit symplectic Gauss-Legendre, 6th order, {aim}"
     )
+
+
+def _splitting_applies(mechanics) -> bool:
+    """Whether the splitting methods integrate the whole system (no effect they drop)."""
+    from systems.integrators.registry import STEPPERS
+
+    return STEPPERS["yoshida8"].applies_to(mechanics) is None

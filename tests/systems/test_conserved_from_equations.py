@@ -168,18 +168,16 @@ def test_a_workless_effect_keeps_H_conserved_and_is_not_dissipative():
     assert not damped.hamiltonian_conserved and damped.dissipative == ("G",)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="systems/integrators/choice.py picks yoshida8 (H conserved and separable) for a "
-    "scene whose effects do no work, and the splitting drops them; its registry refuses "
-    "it. Not ours to change (issue 26 item 3 made H conserved there)",
-)
 def test_the_default_method_steps_a_workless_effect():
+    """H is conserved and separable, but a splitting would drop the force: the automatic
+    choice takes a method that integrates it (it took yoshida8, which its own registry
+    refuses)."""
     from systems.integrators import STEPPERS
 
     mechanics = derive(_scene(GYROSCOPIC))
-    method, _ = choose_method(mechanics)
+    method, why = choose_method(mechanics)
     assert STEPPERS[method].applies_to(mechanics) is None
+    assert method == "gauss_legendre6" and "does no work" in why
 
 
 def test_a_workless_effect_enters_the_small_oscillations_as_gyroscopic_terms():

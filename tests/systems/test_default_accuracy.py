@@ -59,3 +59,22 @@ def test_the_automatic_choice_says_what_accuracy_it_aims_at():
         _, why = choose_method(derive(load_scene(name)))
         assert "1e-10" in why
     assert math.isfinite(TARGET)
+
+
+USER_SCENES = sorted((Path(__file__).resolve().parents[1] / "user_systems").glob("*.toml"))
+
+
+@pytest.mark.parametrize(
+    "source", CATALOGUE + [str(p) for p in USER_SCENES], ids=lambda s: Path(s).stem
+)
+def test_the_automatic_choice_always_integrates_the_whole_system(source):
+    """Never a method its own registry refuses for the scene (a splitting that drops an
+    effect, a fixed step through impacts)."""
+    from systems.integrators import STEPPERS
+    from systems.scene import parse_scene
+
+    path = Path(source)
+    scene = load_scene(source) if not path.suffix else parse_scene(path.read_text(), source=source)
+    mechanics = derive(scene)
+    method, why = choose_method(mechanics)
+    assert STEPPERS[method].applies_to(mechanics) is None, (method, why)
