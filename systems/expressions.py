@@ -10,9 +10,13 @@ with numeric exponents.
 from __future__ import annotations
 
 import ast
+import difflib
+import io
 import keyword
 import math
 import numbers
+import re
+import tokenize
 from collections.abc import Callable, Mapping
 
 import sympy
@@ -175,10 +179,14 @@ def parse_expression(
     try:
         tree = ast.parse(source.strip(), mode="eval")
     except SyntaxError as exc:
-        position = _original_position(text, exc.offset) if exc.offset else len(text)
-        raise ExpressionError(
-            f"syntax error: {_syntax_reason(exc)}", text=text, field=field, position=position
-        ) from None
+        hint = _writing_hint(source, symbols)
+        if hint is not None:
+            reason, at = hint
+            position = _original_position(text, at)
+        else:
+            reason = f"syntax error: {_syntax_reason(exc)}"
+            position = _original_position(text, exc.offset) if exc.offset else len(text)
+        raise ExpressionError(reason, text=text, field=field, position=position) from None
     except (RecursionError, MemoryError):
         raise ExpressionError(
             f"the expression is nested too deeply (limit {MAX_DEPTH})", text=text, field=field
@@ -222,6 +230,55 @@ def _bracket_depth(source: str) -> int:
         elif char in ")]}":
             depth -= 1
     return deepest
+
+
+_ENDS_OPERAND = {tokenize.NUMBER, tokenize.NAME}
+_OPERATORS = {"+", "-", "*", "/", "**"}
+
+
+def _writing_hint(source: str, symbols: Mapping[str, sympy.Basic]) -> tuple[str, int] | None:
+    """What to fix in text Python cannot read, in a student's words, with its 1-based
+    column in ``source``: a velocity written ``x'``, a missing ``*`` (``2 x``, ``3x``,
+    ``m/2 (a + b)``), a function without brackets (``sin x``), an expression ending in
+    an operator. None where no such slip is found (Python's own reason is given)."""
+    prime = re.search(r"([A-Za-z_]\w*)\s*'", source)
+    if prime is not None:
+        name = prime.group(1)
+        return f"a velocity is written {name}_dot, not {name}'", prime.end()
+    try:
+        tokens = [
+            t
+            for t in tokenize.generate_tokens(io.StringIO(source).readline)
+            if t.type not in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.INDENT)
+        ]
+    except (tokenize.TokenError, SyntaxError, IndentationError):
+        return None
+    for before, after in zip(tokens, tokens[1:], strict=False):
+        column = after.start[1] + 1
+        if before.type == tokenize.NAME and before.string in FUNCTIONS:
+            if after.type in _ENDS_OPERAND:
+                return (
+                    f"write {before.string}({after.string}): a function's argument goes in "
+                    "brackets",
+                    column,
+                )
+            continue
+        ends = before.type in _ENDS_OPERAND or before.string == ")"
+        starts = after.type in _ENDS_OPERAND or after.string == "("
+        if ends and starts and not keyword.iskeyword(after.string):
+            if before.string == ")" or after.string == "(":
+                return f"missing * before {after.string}", column
+            return (
+                f"missing * between {before.string} and {after.string}: write "
+                f"{before.string}*{after.string}",
+                column,
+            )
+    if tokens and tokens[-1].string in _OPERATORS:
+        last = tokens[-1]
+        return f"the expression ends with {last.string}: something is missing after it", (
+            last.start[1] + 1
+        )
+    return None
 
 
 def _syntax_reason(exc: SyntaxError) -> str:
@@ -309,6 +366,7 @@ _FORBIDDEN = {
 class _Builder:
     def __init__(self, text: str, symbols: Mapping[str, sympy.Basic], field: str | None, offset):
         self.text = text
+        self.source = text.replace("^", "**").strip()  # what ``ast`` read
         self.symbols = symbols
         self.field = field
         self.offset = offset
@@ -448,12 +506,21 @@ class _Builder:
         if name in FUNCTIONS:
             raise self.fail(f"{name} is a function: write {name}(...)", node)
         known = ", ".join(sorted(self.symbols)) or "none"
-        raise self.fail(f"unknown name {name!r} (known names: {known})", node)
+        close = difflib.get_close_matches(name, list(self.symbols), n=1, cutoff=0.75)
+        guess = f"; did you mean {close[0]}?" if close else ""
+        raise self.fail(f"unknown name {name!r}{guess} (known names: {known})", node)
 
     def call(self, node: ast.Call, depth: int) -> sympy.Expr:
+        if isinstance(node.func, ast.Constant | ast.BinOp | ast.UnaryOp | ast.Call):
+            before = ast.get_source_segment(self.source, node.func) or "the number"
+            if isinstance(node.func, ast.BinOp | ast.UnaryOp):
+                before = f"({before})"
+            raise self.fail(f"missing * between {before} and (: write {before}*(...)", node)
         if not isinstance(node.func, ast.Name):
             raise self.fail("only the listed functions may be called, by name", node)
         name = node.func.id
+        if name in self.symbols:
+            raise self.fail(f"{name} is not a function: write {name}*(...) for a product", node)
         if name not in FUNCTIONS:
             allowed = ", ".join(sorted(set(FUNCTIONS) - {"abs"}))
             raise self.fail(f"unknown function {name!r} (allowed: {allowed})", node)

@@ -44,7 +44,7 @@ def test_arithmetic_and_functions():
         ("z + 1", "unknown name 'z'"),
         ("foo(x)", "unknown function 'foo'"),
         ("x // 2", "operator //"),
-        ("x +", "syntax error"),
+        ("x +", "the expression ends with +: something is missing after it"),
         ("1/0", "division by zero"),
         ("x if y else 1", "if"),
         ("", "empty"),
@@ -57,6 +57,40 @@ def test_rejections_are_clear_and_fast(text, reason):
     assert time.process_time() - start < 1.0
     assert reason in str(info.value)
     assert str(info.value).startswith("system.potential: ")
+
+
+@pytest.mark.parametrize(
+    ("text", "reason", "position"),
+    [
+        ("m/2 (x**2 + y**2)", "missing * before (", 5),
+        ("2 x", "missing * between 2 and x: write 2*x", 3),
+        ("3x + 1", "missing * between 3 and x: write 3*x", 2),
+        ("1/2 m", "missing * between 2 and m", 5),
+        ("sin(x) cos(y)", "missing * before cos", 8),
+        ("2(x + 1)", "missing * between 2 and (: write 2*(...)", 1),
+        ("(x + 1)(y - 1)", "write (x + 1)*(...)", 2),
+        ("x(y + 1)", "x is not a function: write x*(...) for a product", 1),
+        ("sin x", "write sin(x): a function's argument goes in brackets", 5),
+        ("x'**2/2", "a velocity is written x_dot, not x'", 2),
+        ("xx + 1", "unknown name 'xx'", 1),
+        ("x**2 -", "the expression ends with -", 6),
+        ("(x + 1", "'(' was never closed", 1),
+        ("x + 1)", "unmatched ')'", 6),
+    ],
+)
+def test_slips_a_student_makes_are_named_in_their_words(text, reason, position):
+    """Implicit multiplication, a function without brackets, x' for a velocity, a
+    dangling operator and unbalanced brackets: what to fix, where."""
+    with pytest.raises(ExpressionError) as info:
+        parse_expression(text, NAMES)
+    assert reason in str(info.value)
+    assert info.value.position == position
+
+
+def test_a_misspelt_name_gets_a_suggestion():
+    names = {**NAMES, "theta_dot": sympy.Symbol("theta_dot")}
+    with pytest.raises(ExpressionError, match="did you mean theta_dot"):
+        parse_expression("thetadot**2", names)
 
 
 def test_position_points_at_the_problem():
