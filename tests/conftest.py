@@ -12,9 +12,15 @@ kernel cache, a derivation cache or preferences.
 
 import os
 import shutil
+import signal
 import tempfile
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+# A suite started in the background of a shell (``make test &``, nohup) inherits SIGINT
+# ignored, and so would every command a test starts: the tests of Ctrl+C need it heard.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 THOROUGH = os.environ.get("PHASE_EXPLORER_THOROUGH", "") == "1"
 
