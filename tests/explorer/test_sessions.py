@@ -472,6 +472,11 @@ def test_a_recorded_session_replays_to_the_same_script(qtbot, blank_window):
         table.item(2, VALUE).setText(text)
     phase.launch_at(0.3, 1.0)
     qtbot.wait(int(1000 * TIME_MARK_SECONDS) + 300)  # the run goes on: a time mark comes
+    # ... once the launched orbit has moved on (a busy machine may keep it waiting)
+    qtbot.waitUntil(
+        lambda: window.store.main is not None and window.store.main.last_t > 0.01,
+        timeout=REPLAY_MS,
+    )
     qtbot.mouseClick(controls.play_button, Qt.MouseButton.LeftButton)
     qtbot.mouseClick(controls.step_button, Qt.MouseButton.LeftButton)
     qtbot.mouseClick(controls.play_button, Qt.MouseButton.LeftButton)
