@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -1381,4 +1382,6 @@ def _inline(table: Mapping[str, Any]) -> str:
 
 
 def _key(key: str) -> str:
-    return key if key.replace("_", "a").isalnum() else _str(key)
+    """A TOML key: bare where TOML allows it (ASCII letters, digits, _ and -), else quoted
+    (``str.isalnum`` also takes θ and ¹, which TOML refuses bare)."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _str(key)

@@ -286,3 +286,17 @@ def test_document_toml_of_a_scene_document_is_the_scene():
     for text in (PENDULUM, PLANETARY, DRIVEN_DAMPED):
         s = scene(text)
         assert parse_scene(document_toml(_tables(text)), source="test.toml") == s
+
+
+def test_a_document_with_non_ascii_names_is_written_as_toml_that_reads_back():
+    """TOML takes only ASCII letters, digits, _ and - bare; θ1 or a¹ must be quoted (they
+    were written bare, so a saved scene with a particle named θ1 could not be opened)."""
+    import tomllib
+
+    from systems.scene import document_toml
+
+    document = {
+        "system": {"coordinates": ["x"], "parameters": {"m": 1.0}},
+        "particles": {"θ1": {"mass": "m", "position": ["x", "0"]}, "a¹": {"mass": "m"}},
+    }
+    assert tomllib.loads(document_toml(document))["particles"] == document["particles"]
