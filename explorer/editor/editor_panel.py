@@ -1245,10 +1245,15 @@ def classification_html(mechanics, method: str, reason: str) -> str:
         badge(cls.bilateral, words.describe_bilateral(cls.bilateral)),
         badge(cls.conservative, words.describe_conservative(cls.conservative)),
         badge(cls.simple, words.describe_simple(cls.simple)),
-        badge(not cls.time_dependent, words.describe_time_dependent(cls.time_dependent)),
+        badge(
+            not cls.time_dependent or cls.gauge_time,
+            words.describe_time_dependent(cls.time_dependent, gauge_time=cls.gauge_time),
+        ),
         badge(
             cls.hamiltonian_conserved,
-            "H is conserved" if cls.hamiltonian_conserved else "H is not conserved",
+            words.describe_hamiltonian_conserved(
+                cls.hamiltonian_conserved, gauge_time=cls.gauge_time
+            ),
         ),
         badge(cls.hamiltonian_is_energy, words.describe_energy(cls.hamiltonian_is_energy)),
         badge(
