@@ -714,8 +714,15 @@ class EditorUnderTheHand(RuleBasedStateMachine):
         return [f for f in fields if f.isVisibleTo(editor)]
 
     def _settle(self) -> None:
-        for _ in range(3):
+        """Events until what the user sees stops changing (a restore is a zero-time timer,
+        which other widgets' pending events may delay past a fixed count of rounds)."""
+        look = None
+        for _ in range(50):
             QApplication.processEvents()
+            now = (self._look(), self.editor._scroll.verticalScrollBar().value())
+            if now == look:
+                return
+            look = now
 
     def _look(self) -> tuple:
         """What the user sees: the focused field and where it is on screen; without one,

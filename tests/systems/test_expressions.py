@@ -62,13 +62,16 @@ def test_rejections_are_clear_and_fast(text, reason):
 @pytest.mark.parametrize(
     ("text", "reason", "position"),
     [
-        ("m/2 (x**2 + y**2)", "missing * before (", 5),
+        ("x/2 (x**2 + y**2)", "missing * between 2 and (: write 2*(...)", 3),
+        ("x**2 (y)", "missing * between 2 and (", 4),
         ("2 x", "missing * between 2 and x: write 2*x", 3),
         ("3x + 1", "missing * between 3 and x: write 3*x", 2),
         ("1/2 m", "missing * between 2 and m", 5),
         ("sin(x) cos(y)", "missing * before cos", 8),
         ("2(x + 1)", "missing * between 2 and (: write 2*(...)", 1),
-        ("(x + 1)(y - 1)", "write (x + 1)*(...)", 2),
+        ("(x + 1)(y - 1)", "write (x + 1)*(...)", 1),
+        ("(x + 1) (y - 1)", "write (x + 1)*(...)", 1),
+        ("sin(x) (y - 1)", "write sin(x)*(...)", 1),
         ("x(y + 1)", "x is not a function: write x*(...) for a product", 1),
         ("sin x", "write sin(x): a function's argument goes in brackets", 5),
         ("x'**2/2", "a velocity is written x_dot, not x'", 2),
