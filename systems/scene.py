@@ -1009,6 +1009,35 @@ def _positive_finite(value: Any) -> bool:
     return _finite(value) and value > 0
 
 
+def _refuse_output_names(scene: Scene, fail) -> None:
+    """Names the output itself uses are not a coordinate's or a parameter's: ``H`` (the
+    CSV column and symbol of the Hamiltonian) and ``lambda_<k>`` (the multipliers'
+    columns) as a coordinate, ``<q>_ddot`` (how the derivation prints the acceleration
+    of q) as any name."""
+    accelerations = {f"{q}_ddot": q for q in scene.coordinates}
+    for name in scene.coordinates:
+        if name == "H":
+            raise fail(
+                "system.coordinates",
+                "'H' names the Hamiltonian in the output (the CSV's H column, the printed H); "
+                "call the coordinate otherwise (h, z, ...)",
+            )
+        if re.fullmatch(r"lambda_\d+", name):
+            raise fail(
+                "system.coordinates",
+                f"{name!r} names a Lagrange multiplier in the output (the CSV's multiplier "
+                "columns); call the coordinate otherwise",
+            )
+    for name in [*scene.coordinates, *(n for n, _ in scene.parameters)]:
+        if name in accelerations:
+            field = "system.coordinates" if name in scene.coordinates else "system.parameters"
+            raise fail(
+                field,
+                f"{name!r} is how the derivation writes the acceleration of "
+                f"{accelerations[name]}; choose another name",
+            )
+
+
 def _validate(scene: Scene) -> None:
     def fail(field: str, reason: str) -> SceneError:
         return SceneError(reason, source=scene.source, field=field)
@@ -1025,6 +1054,7 @@ def _validate(scene: Scene) -> None:
                 f"the name {name!r} is used twice (as coordinate, velocity, momentum or parameter)",
             )
         seen.add(name)
+    _refuse_output_names(scene, fail)
     _validate_particles(scene, fail)
     for name, entries in scene.symmetries:
         for q, _ in entries:

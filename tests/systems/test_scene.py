@@ -300,3 +300,34 @@ def test_a_document_with_non_ascii_names_is_written_as_toml_that_reads_back():
         "particles": {"θ1": {"mass": "m", "position": ["x", "0"]}, "a¹": {"mass": "m"}},
     }
     assert tomllib.loads(document_toml(document))["particles"] == document["particles"]
+
+
+@pytest.mark.parametrize(
+    ("system", "field", "words"),
+    [
+        ('coordinates = ["H"]\nkinetic = "H_dot**2/2"', "system.coordinates", "Hamiltonian"),
+        (
+            'coordinates = ["lambda_1"]\nkinetic = "lambda_1_dot**2/2"',
+            "system.coordinates",
+            "Lagrange multiplier",
+        ),
+        (
+            'coordinates = ["x"]\nparameters = { x_ddot = 1.0 }\nkinetic = "x_dot**2/2"',
+            "system.parameters",
+            "acceleration of x",
+        ),
+    ],
+)
+def test_names_the_output_uses_are_refused(system, field, words):
+    """A coordinate H gave a CSV with two H columns, lambda_1 one with two multiplier
+    columns, and a parameter x_ddot printed exactly like x's acceleration."""
+    with pytest.raises(SceneError) as info:
+        parse_scene(f"[system]\n{system}\n")
+    assert info.value.field == field and words in str(info.value)
+
+
+def test_a_parameter_named_h_is_still_a_height():
+    scene = parse_scene(
+        '[system]\ncoordinates = ["x"]\nparameters = { H = 2.0 }\nkinetic = "H*x_dot**2"'
+    )
+    assert dict(scene.parameters)["H"] == 2.0
