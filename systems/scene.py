@@ -810,7 +810,7 @@ class _Reader:
                 raise self.fail(
                     field,
                     f"{name!r} is the name of a quantity Phase Explorer finds itself "
-                    "(H, p_<q>, L_x, L_y, L_z, P_x, P_y, P_z); choose another name",
+                    f"({', '.join(sorted(RESERVED))}, p_<q>); choose another name",
                 )
             if not isinstance(entry, Mapping) or not entry:
                 raise self.fail(
