@@ -67,7 +67,8 @@ def test_stopping_during_a_derivation_leaves_no_worker(qtbot, service, monkeypat
     job = service._worker._job
     assert service.stop()
     qtbot.waitUntil(lambda: gone(job.pid), timeout=WAIT_MS)
-    assert job not in processes.running()
+    # let go by its waiting thread, which a busy machine may keep a moment
+    qtbot.waitUntil(lambda: job not in processes.running(), timeout=WAIT_MS)
 
 
 def _text(name: str) -> str:
