@@ -22,8 +22,10 @@ projections and impacts are the drivers' own, given its straight-line ``PRIMITIV
 
 from __future__ import annotations
 
+import contextlib
 import ctypes.util
 import functools
+import signal
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -427,6 +429,23 @@ def write_ir(specs: Sequence[FunctionSpec], rename: dict) -> str:
 _compile_lock = threading.Lock()
 
 
+@contextlib.contextmanager
+def _stop_signals_held():
+    """Ctrl+C (and SIGTERM, SIGHUP) wait until LLVM has made the machine code: it calls
+    back into Python (the object cache), where a KeyboardInterrupt is only printed as
+    "Exception ignored" with a traceback. Held in the main thread, which alone runs
+    Python's handlers; they run as soon as the signals are let through."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
 class _ObjectFile:
     """The machine code of one IR text on disk (LLVM's object cache for MCJIT), so that
     a scene opened again loads its functions instead of optimising and compiling them
@@ -488,7 +507,8 @@ class LLVMKernels:
                 builder.getModulePassManager().run(parsed, builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)
             self._engine.set_object_cache(stored.keep, stored.give)
-            self._engine.finalize_object()
+            with _stop_signals_held():
+                self._engine.finalize_object()
         from systems.codegen import function_value
 
         self.functions = {
