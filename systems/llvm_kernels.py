@@ -435,7 +435,8 @@ def _stop_signals_held():
     back into Python (the object cache), where a KeyboardInterrupt is only printed as
     "Exception ignored" with a traceback. Held in the main thread, which alone runs
     Python's handlers; they run as soon as the signals are let through."""
-    if threading.current_thread() is not threading.main_thread():
+    # get_ident: current_thread() would register a dummy for a Qt thread, left for ever
+    if threading.get_ident() != threading.main_thread().ident:
         yield
         return
     held = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
