@@ -13,6 +13,19 @@ potential = "k*x**2/2"
 x = 1.0
 """
 
+DAMPED_OSCILLATOR = """
+title = "damped oscillator"
+[system]
+coordinates = ["x"]
+parameters = { m = 1.0, k = 1.0, c = 0.2 }
+kinetic = "m*x_dot**2/2"
+potential = "k*x**2/2"
+[effects]
+forces = { x = "-c*x_dot" }
+[initial]
+x = 1.0
+"""
+
 PENDULUM = """
 title = "Pendulum"
 [system]

@@ -11,18 +11,10 @@ from systems.mechanics import derive
 from systems.run_check import ACCURACY, check_final_state
 from systems.scene import load_scene, parse_scene
 from systems.simulation import Run, run_to_end
+from tests.systems.scenes import DAMPED_OSCILLATOR as SHARED_DAMPED
 
-DAMPED_OSCILLATOR = """
-[system]
-coordinates = ["x"]
-parameters = { m = 1.0, k = 1.0, c = 0.1 }
-kinetic = "m*x_dot**2/2"
-potential = "k*x**2/2"
-[effects]
-forces = { x = "-c*x_dot" }
-[initial]
-x = 1.0
-"""
+# c = 0.1: the exact solution below
+DAMPED_OSCILLATOR = SHARED_DAMPED.replace("c = 0.2", "c = 0.1")
 
 
 def _exact_oscillator(t: float) -> np.ndarray:

@@ -10,7 +10,7 @@ from systems.integrators import STEPPERS, choose_method
 from systems.mechanics import derive
 from systems.scene import load_scene
 from systems.simulation import PROBLEMS, ensemble, required_wants, stream
-from tests.systems.scenes import DRIVEN_DAMPED, PLANETARY, scene
+from tests.systems.scenes import DAMPED_OSCILLATOR, DRIVEN_DAMPED, PLANETARY, scene
 
 ALL = ("rhs", "hamiltonian", "velocities", "separable", "drawing")
 
@@ -223,19 +223,6 @@ def test_endless_runs_stream_until_the_caller_stops(pendulum, method):
 
 
 # -- a damped run whose energy rises is wrong, and says so ------------------------------------
-
-DAMPED_OSCILLATOR = """
-title = "damped oscillator"
-[system]
-coordinates = ["x"]
-parameters = { m = 1.0, k = 1.0, c = 0.2 }
-kinetic = "m*x_dot**2/2"
-potential = "k*x**2/2"
-[effects]
-forces = { x = "-c*x_dot" }
-[initial]
-x = 1.0
-"""
 
 
 def _damped(text: str = DAMPED_OSCILLATOR, **parameters):
