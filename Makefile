@@ -34,8 +34,9 @@ test: $(VENV)/.installed-test
 	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile --max-worker-restart 1 --durations=25
 
-# everyday work: the suite without its model-based, soak and slow tests
-test-quick: $(VENV)/.installed-test
+# everyday work: the suite without its model-based, soak and slow tests (the session
+# copies the drivers `warm` compiled instead of compiling its own: tests/conftest.py)
+test-quick: $(VENV)/.installed-test $(VENV)/.warm
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow and not soak" -q
 
 # the whole suite beside two busy loops, as on a shared machine (run before a release)

@@ -23,6 +23,7 @@ SCRIPTS = (
     "large_systems",
     "scene_switches",
     "worker_latency",
+    "window_close",
 )
 
 
