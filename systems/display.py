@@ -55,6 +55,42 @@ def display_names(scene) -> dict[str, str]:
     return names
 
 
+LATEX_GREEK = {name: "\\lambda" if name == "lam" else "\\" + name for name in GREEK}
+"""The LaTeX of each Greek stem (``lam`` is λ: ``lambda`` is a Python keyword)."""
+
+
+def latex_name(name: str, accent: str = "") -> str:
+    """The LaTeX of a coordinate or parameter name, with ``accent`` (``dot``, ``ddot``):
+    ``theta1`` -> ``\\theta_{1}``, ``x_dot`` of ``x`` -> ``\\dot{x}``, ``k_B`` -> ``k_{B}``,
+    ``mass`` -> ``\\mathrm{mass}`` (upright, as a word)."""
+    stem, digits = _split(name)
+    if not stem:
+        stem, digits = digits, ""
+    base, *under = stem.split("_")
+    if base in LATEX_GREEK:
+        base = LATEX_GREEK[base]
+    elif not base.isdigit() and (len(base) > 1 or not base.isalpha()):
+        base = "\\mathrm{" + base.replace("_", "\\_") + "}"
+    if accent:
+        base = f"\\{accent}{{{base}}}"
+    subscript = ",".join(filter(None, [*(latex_name(u) for u in under if u), digits]))
+    return f"{base}_{{{subscript}}}" if subscript else base
+
+
+def latex_names(scene) -> dict[str, str]:
+    """Scene name -> LaTeX for coordinates, velocities, accelerations, momenta and
+    parameters (``display_names`` in LaTeX)."""
+    names = {}
+    for q in scene.coordinates:
+        names[q] = latex_name(q)
+        names[f"{q}_dot"] = latex_name(q, "dot")
+        names[f"{q}_ddot"] = latex_name(q, "ddot")
+        names[f"p_{q}"] = f"p_{{{latex_name(q)}}}"
+    for name, _ in scene.parameters:
+        names[name] = latex_name(name)
+    return names
+
+
 def for_display(expr: sympy.Expr, scene) -> sympy.Expr:
     """``expr`` with its symbols renamed for people; pretty-print the result."""
     names = display_names(scene)

@@ -44,6 +44,8 @@ PRELOAD = [
     "numba.core.datamodel",
     "systems.sources",
     "systems.report",
+    "systems.typeset",
+    "matplotlib.textpath",  # mathtext, which sets the derivation's equations in type
     "systems.textbook.equilibria",
 ]
 """Modules the fork server imports once, so that every worker starts with them."""

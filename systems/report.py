@@ -19,7 +19,15 @@ import sympy
 
 from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
-from systems.display import combine_trig, display_names, expanded_terms, for_display, tidied
+from systems.display import (
+    combine_trig,
+    display_names,
+    expanded_terms,
+    for_display,
+    latex_name,
+    latex_names,
+    tidied,
+)
 from systems.expressions import as_expr
 from systems.symmetries import ENERGY, ROTATIONS, TRANSLATIONS
 
@@ -42,6 +50,42 @@ PRETTY_CHARS = 600
 SORTED_NODES = 2000
 """Expressions with more nodes are printed without sorting their terms (``order="none"``):
 sorting a sum of thousands of products cost seconds."""
+
+
+@dataclass(frozen=True)
+class Title:
+    """The scene's title, at the head of a derivation (underlined with ``=``)."""
+
+    title: str
+
+
+@dataclass(frozen=True)
+class Heading:
+    """The title of a block of a derivation (underlined with ``-``)."""
+
+    title: str
+
+
+@dataclass(frozen=True)
+class Row:
+    """One equation of a derivation: ``label = expr`` (``label: lhs = rhs`` for an Eq).
+
+    ``expr`` is a sympy expression or equation, a symengine expression (``_Compact``) or
+    a ``sympy.Tuple`` (a vector); ``latex_label`` is the label in LaTeX
+    (``systems.typeset`` writes ``latex_label = latex(expr)``; an Eq's label is its
+    tag); ``text``, where given, is the row's text (written without sympy); ``note``
+    says in words what the typeset row is (``quadratic in q̇``), as its text label does.
+    """
+
+    label: str
+    expr: object
+    latex_label: str
+    text: str | None = None
+    note: str = ""
+
+
+Part = Title | Heading | Row | str
+"""What a derivation is made of (``derivation_parts``): a sentence is a ``str``."""
 
 
 def one_line(expression: sympy.Basic) -> str:
@@ -97,10 +141,17 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         derivation. Expressions beyond ``PRETTY_NODES`` nodes are printed on one line, so
         a twenty-link chain is laid out in about a second.
     """
+    return "\n".join(text_lines(derivation_parts(mechanics, equilibria), mechanics.scene))
+
+
+def derivation_parts(mechanics: Mechanics, equilibria: bool = True) -> list[Part]:
+    """What ``readable`` lays out, part by part: titles, sentences and ``Row`` equations
+    (``text_lines`` writes them as text, ``systems.typeset`` as LaTeX)."""
     scene = mechanics.scene
     shown = display_names(scene)
+    names = latex_names(scene)
     params = ", ".join(f"{shown[k]} = {v:g}" for k, v in scene.parameters) or "none"
-    lines = [scene.title, "=" * len(scene.title)]
+    lines: list[Part] = [Title(scene.title)]
     if scene.description:
         lines.append(scene.description)
     coordinates = ", ".join(shown[q] for q in scene.coordinates)
@@ -112,10 +163,10 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         lines += particles_lines(scene)
     lines += constraints_lines(mechanics)
     if mechanics.matrix_form is not None:
-        lines += _matrix_form_lines(mechanics, shown)
+        lines += _matrix_form_lines(mechanics, shown, names)
     else:
-        lines += _closed_form_lines(mechanics, shown)
-    lines += ["", "Classification", "--------------"]
+        lines += _closed_form_lines(mechanics, shown, names)
+    lines += [Heading("Classification")]
     lines += [f"- {sentence}" for sentence in mechanics.classification.describe()]
     cyclic = ", ".join(shown[q] for q in mechanics.cyclic) or "none"
     lines.append(f"- cyclic coordinates: {cyclic}")
@@ -123,12 +174,30 @@ def readable(mechanics: Mechanics, equilibria: bool = True) -> str:
         conserved = dict(mechanics.conserved)
         if mechanics.matrix_form is not None:
             conserved.update(_compact(mechanics).conserved)
-        rows = [(shown.get(name, name), expr) for name, expr in conserved.items()]
-        lines += _block("Conserved quantities", rows, scene)
+        rows = [
+            (shown.get(name, name), expr, names.get(name) or sympy.latex(sympy.Symbol(name)))
+            for name, expr in conserved.items()
+        ]
+        lines += _block("Conserved quantities", rows)
     lines += _noether_lines(mechanics)
     if equilibria:
         lines += _equilibria_lines(mechanics)
-    return "\n".join(lines)
+    return lines
+
+
+def text_lines(parts: list[Part], scene: Scene) -> list[str]:
+    """The lines of text of a derivation's parts: each ``Row`` by ``_rows``."""
+    lines: list[str] = []
+    for part in parts:
+        if isinstance(part, Title):
+            lines += [part.title, "=" * len(part.title)]
+        elif isinstance(part, Heading):
+            lines += ["", part.title, "-" * len(part.title)]
+        elif isinstance(part, Row):
+            lines += [part.text] if part.text is not None else _rows([part], scene)
+        else:
+            lines.append(part)
+    return lines
 
 
 def _noether_lines(mechanics: Mechanics) -> list[str]:
@@ -158,11 +227,13 @@ def _noether_lines(mechanics: Mechanics) -> list[str]:
     return lines
 
 
-def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]:
+def _closed_form_lines(
+    mechanics: Mechanics, shown: dict[str, str], names: dict[str, str]
+) -> list[Part]:
     """L, Lagrange's equations, accelerations, momenta, H and Hamilton's equations, each
-    in closed form."""
+    in closed form (``names``: the LaTeX of the scene's names)."""
     scene = mechanics.scene
-    lines: list[str] = []
+    lines: list[Part] = []
     # with constraints these are the free coordinates' equations (see constraints_lines)
     free = ""
     if scene.nonholonomic_constraints or scene.unilateral_constraints:
@@ -170,26 +241,39 @@ def _closed_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]
     elif scene.holonomic_constraints:
         free = " (free, without −Φ_qᵀ λ)"
     if mechanics.lagrangian is not None:
-        lines += _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
-        equations = [(f"({i + 1})", eq) for i, eq in enumerate(mechanics.lagrange_equations())]
-        lines += _block("Lagrange's equations" + free, equations, scene)
+        lines += _block("Lagrangian", [("L", mechanics.lagrangian, "L")])
+        equations = [
+            (f"({i + 1})", eq, f"({i + 1})") for i, eq in enumerate(mechanics.lagrange_equations())
+        ]
+        lines += _block("Lagrange's equations" + free, equations)
         try:
             accelerations = zip(scene.coordinates, mechanics.accelerations(), strict=True)
-            rows = [(shown[f"{q}_ddot"], a) for q, a in accelerations]
-            lines += _block("Accelerations" + free, rows, scene)
+            rows = [(shown[f"{q}_ddot"], a, names[f"{q}_ddot"]) for q, a in accelerations]
+            lines += _block("Accelerations" + free, rows)
         except ValueError:
             pass
     if mechanics.momenta is not None:
-        rows = [(shown[p], m) for p, m in zip(scene.momentum_names, mechanics.momenta, strict=True)]
-        lines += _block("Generalized momenta p = dL/dq̇", rows, scene)
-    lines += _block("Hamiltonian", [("H", mechanics.hamiltonian)], scene)
-    names = list(scene.coordinates) + list(scene.momentum_names)
+        rows = [
+            (shown[p], m, names[p])
+            for p, m in zip(scene.momentum_names, mechanics.momenta, strict=True)
+        ]
+        lines += _block("Generalized momenta p = dL/dq̇", rows)
+    lines += _block("Hamiltonian", [("H", mechanics.hamiltonian, "H")])
+    coordinates = list(scene.coordinates) + list(scene.momentum_names)
     rows = [
-        (f"d{shown[name]}/dt", expr)
-        for name, expr in zip(names, mechanics.hamilton_equations, strict=True)
+        (f"d{shown[name]}/dt", expr, _dotted(name, names))
+        for name, expr in zip(coordinates, mechanics.hamilton_equations, strict=True)
     ]
-    lines += _block("Hamilton's equations" + free, rows, scene)
+    lines += _block("Hamilton's equations" + free, rows)
     return lines
+
+
+def _dotted(name: str, names: dict[str, str]) -> str:
+    """The time derivative of a coordinate or momentum in LaTeX: ``\\dot{x}``,
+    ``\\dot{p}_{x}`` (``names``: ``systems.display.latex_names``)."""
+    if f"{name}_dot" in names:
+        return names[f"{name}_dot"]
+    return "\\dot{p}" + names[name][1:]
 
 
 def matrix_form_sentence(mechanics: Mechanics) -> str:
@@ -201,57 +285,64 @@ def matrix_form_sentence(mechanics: Mechanics) -> str:
     )
 
 
-def _matrix_form_lines(mechanics: Mechanics, shown: dict[str, str]) -> list[str]:
+def _matrix_form_lines(
+    mechanics: Mechanics, shown: dict[str, str], latex: dict[str, str]
+) -> list[Part]:
     """The derivation of a system in matrix form: M and F of ``M q̈ = F`` entry by entry,
     the momenta, H as ``½ (p − a)ᵀ M⁻¹ (p − a) − L₀`` and Hamilton's equations with the
-    velocities left to the numerical solve."""
+    velocities left to the numerical solve (``latex``: the LaTeX of the scene's names)."""
     scene = mechanics.scene
     compact = _compact(mechanics)
     n = mechanics.n
     names = list(scene.coordinates)
     index = [_subscript(i, n) for i in range(n)]
-    lines = _block("Lagrangian", [("L", mechanics.lagrangian)], scene)
-    title = "Lagrange's equations: M q̈ = F"
-    lines += ["", title, "-" * len(title)]
+    lines = _block("Lagrangian", [("L", mechanics.lagrangian, "L")])
+    lines.append(Heading("Lagrange's equations: M q̈ = F"))
     lines.append(
         "M = ∂²L/∂q̇∂q̇ is symmetric; its entries on and above the diagonal, then F "
         "(∂L/∂q, less the parts of d/dt ∂L/∂q̇ without accelerations, plus the effects):"
     )
     for i in range(n):  # one line each, renamed as text: n (n + 1) / 2 of them
         for j in range(i, n):
-            entry = _display_text(_text(compact.mass_matrix[i][j]), shown)
-            lines.append(f"M{index[i]},{index[j]} = {entry}")
-    lines += _rows([(f"F{index[i]}", compact.forcing[i]) for i in range(n)], scene)
+            entry = compact.mass_matrix[i][j]
+            label = f"M{index[i]},{index[j]}"
+            text = f"{label} = {_display_text(_text(entry), shown)}"
+            lines.append(Row(label, entry, f"M_{{{i + 1},{j + 1}}}", text))
+    lines += _row_parts([(f"F{index[i]}", compact.forcing[i], f"F_{{{i + 1}}}") for i in range(n)])
     lines.append(
         f"(the accelerations are not formed symbolically: M, {n} by {n} and coupled, is "
         "factorised numerically at every step)"
     )
-    title = "Generalized momenta p = ∂L/∂q̇ = M q̇ + a"
-    lines += ["", title, "-" * len(title)]
-    rows = [(shown[f"p_{q}"], m) for q, m in zip(names, compact.momenta, strict=True)]
-    lines += _rows(rows, scene)
-    lines += ["", "Hamiltonian", "-----------"]
+    lines.append(Heading("Generalized momenta p = ∂L/∂q̇ = M q̇ + a"))
+    rows = [
+        (shown[f"p_{q}"], m, latex[f"p_{q}"]) for q, m in zip(names, compact.momenta, strict=True)
+    ]
+    lines += _row_parts(rows)
+    lines.append(Heading("Hamiltonian"))
     lines.append("H = ½ (p − a)ᵀ M⁻¹ (p − a) − L₀, with M as above,")
     if all(a == 0 for a in compact.shift):
         lines.append("a = ∂L/∂q̇ at q̇ = 0: zero (no terms linear in the velocities), and")
     else:
         lines.append("a = ∂L/∂q̇ at q̇ = 0 (the terms linear in the velocities):")
-        lines += _rows([(f"a{index[i]}", a) for i, a in enumerate(compact.shift)], scene)
-    lines += _rows([("L₀ = L at q̇ = 0", compact.rest)], scene)
+        lines += _row_parts(
+            [(f"a{index[i]}", a, f"a_{{{i + 1}}}") for i, a in enumerate(compact.shift)]
+        )
+    lines.append(Row("L₀ = L at q̇ = 0", compact.rest, "L_{0}", note="L at q̇ = 0"))
     lines.append(matrix_form_sentence(mechanics))
-    lines += _rows([("H = (p − a)·q̇/2 − L₀", compact.hamiltonian)], scene)
-    title = "Hamilton's equations (q̇ solved from M q̇ = p − a)"
-    lines += ["", title, "-" * len(title)]
-    rows = [(f"d{shown[q]}/dt", sympy.Symbol(f"{q}_dot")) for q in names]
-    rows += [
-        (f"d{shown[f'p_{q}']}/dt = ∂L/∂{shown[q]} + Q{index[i]}", e)
-        for i, (q, e) in enumerate(zip(names, compact.pdot, strict=True))
-    ]
-    lines += _rows(rows, scene)
+    half = "H = \\frac{1}{2} (p - a) \\cdot \\dot{q} - L_{0}"
+    lines += _row_parts([("H = (p − a)·q̇/2 − L₀", compact.hamiltonian, half)])
+    lines.append(Heading("Hamilton's equations (q̇ solved from M q̇ = p − a)"))
+    rows = [(f"d{shown[q]}/dt", sympy.Symbol(f"{q}_dot"), latex[q]) for q in names]
+    rows = [(label, e, f"\\frac{{d{name}}}{{dt}}") for label, e, name in rows]
+    for i, (q, e) in enumerate(zip(names, compact.pdot, strict=True)):
+        partial = f"\\frac{{\\partial L}}{{\\partial {latex[q]}}} + Q_{{{i + 1}}}"
+        label = f"d{shown[f'p_{q}']}/dt = ∂L/∂{shown[q]} + Q{index[i]}"
+        rows.append((label, e, f"{_dotted(f'p_{q}', latex)} = {partial}"))
+    lines += _row_parts(rows)
     return lines
 
 
-def particles_lines(scene: Scene) -> list[str]:
+def particles_lines(scene: Scene) -> list[Part]:
     """The particles of a scene: transformation equations, velocities, T = T2 + T1 + T0,
     the gravitational V, and whether the transformation is rheonomic.
 
@@ -262,8 +353,8 @@ def particles_lines(scene: Scene) -> list[str]:
 
     Returns
     -------
-    list of str
-        Lines of text, starting with an empty one.
+    list of Part
+        Parts of a derivation (``text_lines`` writes them), starting with a heading.
     """
     derived = scene.transformation
     if derived is None:
@@ -273,19 +364,26 @@ def particles_lines(scene: Scene) -> list[str]:
         shown = [one_line(for_display(c, scene)) for c in components]
         return "(" + ", ".join(shown) + ")"
 
-    title = "Particles: transformation equations r = r(q, t)"
-    lines = ["", title, "-" * len(title)]
+    lines: list[Part] = [Heading("Particles: transformation equations r = r(q, t)")]
     for name, mass, position in zip(derived.names, derived.masses, derived.positions, strict=True):
-        lines.append(f"r_{name} = {vector(position)}, mass {one_line(for_display(mass, scene))}")
-    title = "Velocities v = dr/dt = (∂r/∂q)·q̇ + ∂r/∂t"
-    lines += ["", title, "-" * len(title)]
+        m = one_line(for_display(mass, scene))
+        text = f"r_{name} = {vector(position)}, mass {m}"
+        r = f"\\mathbf{{r}}_{{{latex_name(name)}}}"
+        lines.append(Row(f"r_{name}", sympy.Tuple(*position), r, text, f"mass {m}"))
+    lines.append(Heading("Velocities v = dr/dt = (∂r/∂q)·q̇ + ∂r/∂t"))
     for name, velocity in zip(derived.names, derived.velocities, strict=True):
-        lines.append(f"v_{name} = {vector(velocity)}")
+        v = f"\\mathbf{{v}}_{{{latex_name(name)}}}"
+        lines.append(Row(f"v_{name}", sympy.Tuple(*velocity), v, f"v_{name} = {vector(velocity)}"))
     T2, T1, T0 = derived.kinetic_parts
-    rows = [("T₂ (quadratic in q̇)", T2), ("T₁ (linear in q̇)", T1), ("T₀ (free of q̇)", T0)]
+    rows = [
+        Row("T₂ (quadratic in q̇)", T2, "T_{2}", note="quadratic in q̇"),
+        Row("T₁ (linear in q̇)", T1, "T_{1}", note="linear in q̇"),
+        Row("T₀ (free of q̇)", T0, "T_{0}", note="free of q̇"),
+    ]
     if scene.gravity is not None:
-        rows.append(("V from gravity = −Σ m g·r", derived.potential))
-    lines += _block("Kinetic energy T = Σ m |v|²/2 = T₂ + T₁ + T₀", rows, scene)
+        gravity = "V = -\\sum m \\, \\mathbf{g} \\cdot \\mathbf{r}"
+        rows.append(Row("V from gravity = −Σ m g·r", derived.potential, gravity, note="gravity"))
+    lines += [Heading("Kinetic energy T = Σ m |v|²/2 = T₂ + T₁ + T₀"), *rows]
     if derived.depends_on_time:
         lines.append(
             "The transformation is rheonomic: some r depends on t explicitly, so T has "
@@ -339,7 +437,7 @@ def degrees_of_freedom_sentence(mechanics: Mechanics) -> str:
     return text
 
 
-def constraints_lines(mechanics: Mechanics) -> list[str]:
+def constraints_lines(mechanics: Mechanics) -> list[Part]:
     """The constraints (holonomic Φ(q, t) = 0 with γ, nonholonomic a·q̇ + b = 0 with γ,
     unilateral g(q, t) ≥ 0 with the coefficient of restitution) and a sentence on the
     equations with multipliers, or ``[]`` for a scene without constraints."""
@@ -350,20 +448,20 @@ def constraints_lines(mechanics: Mechanics) -> list[str]:
         return []
     scene = mechanics.scene
     index = [_subscript(i, pieces.k) for i in range(pieces.k)]
-    lines: list[str] = []
+    lines: list[Part] = []
     titles = {
-        "holonomic": ("Holonomic constraints Φ(q, t) = 0", "Φ"),
-        "nonholonomic": ("Nonholonomic constraints a(q, t)·q̇ + b(q, t) = 0", "Ψ"),
-        "unilateral": ("Unilateral constraints g(q, t) ≥ 0", "g"),
+        "holonomic": ("Holonomic constraints Φ(q, t) = 0", "Φ", "\\Phi"),
+        "nonholonomic": ("Nonholonomic constraints a(q, t)·q̇ + b(q, t) = 0", "Ψ", "\\Psi"),
+        "unilateral": ("Unilateral constraints g(q, t) ≥ 0", "g", "g"),
     }
-    for kind, (title, letter) in titles.items():
+    for kind, (title, letter, latex) in titles.items():
         chosen = [i for i, k in enumerate(pieces.kinds) if k == kind]
         if not chosen:
             continue
-        rows_ = [(f"{letter}{index[i]}", pieces.values[i]) for i in chosen]
+        rows_ = [(f"{letter}{index[i]}", pieces.values[i], f"{latex}_{{{i + 1}}}") for i in chosen]
         if kind != "unilateral":
-            rows_ += [(f"γ{index[i]}", pieces.gamma[i]) for i in chosen]
-        lines += _block(title, rows_, scene)
+            rows_ += [(f"γ{index[i]}", pieces.gamma[i], f"\\gamma_{{{i + 1}}}") for i in chosen]
+        lines += _block(title, rows_)
     lines.append(
         "The equations below are those of the free coordinates. With the constraints they "
         "carry one Lagrange multiplier λ each: M q̈ + Aᵀ λ = F and A q̈ = γ, with A the "
@@ -728,16 +826,22 @@ def _larger(expr: sympy.Basic, limit: int) -> bool:
     return False
 
 
-def _block(title: str, rows: list[tuple[str, object]], scene: Scene) -> list[str]:
-    return ["", title, "-" * len(title), *_rows(rows, scene)]
+def _block(title: str, rows: list[tuple[str, object, str]]) -> list[Part]:
+    """A heading and its rows, each ``(label, expression, LaTeX label)``."""
+    return [Heading(title), *_row_parts(rows)]
 
 
-def _rows(rows: list[tuple[str, object]], scene: Scene) -> list[str]:
+def _row_parts(rows: list[tuple[str, object, str]]) -> list[Row]:
+    return [Row(label, expr, latex) for label, expr, latex in rows]
+
+
+def _rows(rows: list[Row | tuple[str, object]], scene: Scene) -> list[str]:
     """``label = expression`` lines: sympy's pretty printer for small expressions, one
     line of text for large ones (``PRETTY_NODES``)."""
     lines = []
     names = None
-    for label, expr in rows:
+    for row in rows:
+        label, expr = (row.label, row.expr) if isinstance(row, Row) else row
         if not isinstance(expr, sympy.Basic):  # symengine, from ``_Compact``
             text = str(expr)
             if len(text) > PRETTY_CHARS:  # renamed as text: no sympy at all
@@ -1008,9 +1112,9 @@ def _tidy_small(expr: sympy.Expr) -> sympy.Expr:
     return min(candidates, key=lambda e: len(str(e)))
 
 
-def _equilibria_lines(mechanics: Mechanics) -> list[str]:
+def _equilibria_lines(mechanics: Mechanics) -> list[Part]:
     lines, note = equilibria_sentences(mechanics)
-    title = ["", "Equilibria (virtual work: dV/dq = 0)", "------------------------------------"]
+    title: list[Part] = [Heading("Equilibria (virtual work: dV/dq = 0)")]
     if not lines:
         return title + [f"none: {note}" if note else "none found"]
     return title + [f"- {line}" for line in lines] + ([f"({note})"] if note else [])

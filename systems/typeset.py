@@ -1,0 +1,323 @@
+"""The derivation typeset: each equation as LaTeX, and as the outlines of its glyphs.
+
+``systems.report`` lays a derivation out in parts (``derivation_parts``); here each of
+its ``Row`` equations becomes a ``Formula``: its LaTeX, from sympy's printer with the
+scene's names (``theta1_dot`` -> ``\\dot{\\theta}_{1}``, ``systems.display.latex_names``),
+which the window copies and ``derive --latex`` prints; and an ``Outline``, the glyphs of
+that LaTeX as matplotlib's mathtext draws them (Computer Modern, no TeX install, no
+pyplot), as vector paths at font size 1. The window scales an outline to its own font
+and paints it in its palette's colour; exports draw the same paths as vectors.
+
+All of it runs where the text is laid out: in a worker process for the window (the GUI
+never runs sympy or the mathtext parser), in the command line's process for ``derive``.
+An equation whose LaTeX mathtext refuses, or that is too large to set on one line, has
+no outline and is shown as its text; its LaTeX can still be copied.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import sympy
+
+from systems import report
+from systems.display import for_display, latex_names
+from systems.expressions import as_expr
+
+if TYPE_CHECKING:
+    from systems.mechanics import Mechanics
+    from systems.scene import Scene
+
+LATEX_NODES = 3000
+"""Expressions with more nodes get no LaTeX (printing them costs seconds, and nobody
+pastes a twenty-link chain's forcing term into a handout): their text is copied instead."""
+
+OUTLINE_CHARS = 1000
+"""LaTeX longer than this is not set in type: one line of it would be many screens wide.
+The window shows such an equation as wrapped text."""
+
+FONT_FAMILY = "cm"
+"""mathtext's font set: Computer Modern, as in the textbook."""
+
+REFERENCE_SIZE = 100.0
+"""The font size the outlines are measured at before scaling to 1 (matplotlib's own
+``TextToPath.FONT_SCALE``)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Outline:
+    """The glyphs of a formula as paths, in ems (font size 1), y up, baseline at y = 0.
+
+    ``vertices`` (N, 2) float32 and ``codes`` (N,) uint8 are a ``matplotlib.path.Path``
+    (1 move, 2 line, 3 quadratic, 4 cubic Bézier, 79 close); ``width`` is the advance,
+    ``ascent`` the height above the baseline, ``descent`` below it.
+    """
+
+    vertices: np.ndarray
+    codes: np.ndarray
+    width: float
+    ascent: float
+    descent: float
+
+
+@dataclass(frozen=True)
+class Heading:
+    """A heading: ``level`` 0 is the scene's title, 1 a block's title."""
+
+    title: str
+    level: int = 1
+
+
+@dataclass(frozen=True)
+class Sentence:
+    """A sentence of the derivation (a ``- `` at its start makes it an item of a list)."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Formula:
+    """One equation: ``text`` on one line (``L = m·l²·θ̇²/2``), ``latex`` (None where too
+    large), ``outline`` (None where not set in type), ``tag`` (``(1)``) and ``note``
+    (``quadratic in q̇``)."""
+
+    text: str
+    latex: str | None
+    outline: Outline | None
+    tag: str = ""
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Typeset:
+    """A derivation typeset: its parts in order, and the whole of it as ``text``
+    (``systems.report.readable``'s)."""
+
+    title: str
+    parts: tuple[Heading | Sentence | Formula, ...]
+    text: str
+
+    @property
+    def formulas(self) -> list[Formula]:
+        return [part for part in self.parts if isinstance(part, Formula)]
+
+    def latex_document(self) -> str:
+        """The derivation as a LaTeX document (amsmath), for ``derive --latex``."""
+        return latex_document(self)
+
+
+def typeset_derivation(
+    mechanics: Mechanics, equilibria: bool = False, outlines: bool = True
+) -> Typeset:
+    """The derivation of ``mechanics`` typeset (``equilibria``: with the equilibria, as
+    ``readable``; the window shows them apart when their search ends).
+
+    ``outlines=False`` leaves the glyphs out (``with_outlines`` adds them): the window
+    shows the equations as text at once, and in type once a second worker has set them
+    (mathtext's parser takes about 0.2 ms a character of LaTeX: seconds for a ten-link
+    chain, a tenth of a second for a pendulum).
+    """
+    scene = mechanics.scene
+    parts = report.derivation_parts(mechanics, equilibria)
+    typeset: list[Heading | Sentence | Formula] = []
+    for part in parts:
+        if isinstance(part, report.Title):
+            typeset.append(Heading(part.title, 0))
+        elif isinstance(part, report.Heading):
+            typeset.append(Heading(part.title))
+        elif isinstance(part, report.Row):
+            typeset.append(formula(part, scene, outlines))
+        else:
+            typeset.append(Sentence(part))
+    text = "\n".join(report.text_lines(parts, scene))
+    return Typeset(scene.title, tuple(typeset), text)
+
+
+def typeset_as_text(mechanics: Mechanics) -> Typeset:
+    """``typeset_derivation`` without outlines and equilibria: the window's first job of a
+    layout (a worker process runs it: a function by module and name)."""
+    return typeset_derivation(mechanics, outlines=False)
+
+
+def with_outlines(typeset: Typeset) -> Typeset:
+    """``typeset`` with every formula's outline (``outline``)."""
+    parts = tuple(
+        dataclasses.replace(part, outline=outline(part.latex))
+        if isinstance(part, Formula) and part.latex is not None and part.outline is None
+        else part
+        for part in typeset.parts
+    )
+    return dataclasses.replace(typeset, parts=parts)
+
+
+def formula(row: report.Row, scene: Scene, outlines: bool = True) -> Formula:
+    """A ``Row`` of the report as a ``Formula`` (with its outline if ``outlines``)."""
+    expr = row.expr
+    tag = ""
+    if isinstance(expr, sympy.Eq):
+        tag = row.label
+    latex = row_latex(row, scene)
+    return Formula(
+        text=_one_line(row, scene),
+        latex=latex,
+        outline=outline(latex) if latex is not None and outlines else None,
+        tag=tag,
+        note=row.note,
+    )
+
+
+def row_latex(row: report.Row, scene: Scene) -> str | None:
+    """``latex_label = latex(expr)`` (``lhs = rhs`` for an equation), or None when the
+    expression is too large (``LATEX_NODES``) or symengine's text of it is."""
+    expr = row.expr
+    if not isinstance(expr, sympy.Basic):  # symengine, from report._Compact
+        if len(str(expr)) > report.PRETTY_CHARS:
+            return None
+        expr = as_expr(expr)
+    if isinstance(expr, sympy.Tuple):
+        items = [expression_latex(e, scene) for e in expr]
+        if any(item is None for item in items):
+            return None
+        return f"{row.latex_label} = \\left({', '.join(items)}\\right)"
+    if isinstance(expr, sympy.Eq):
+        sides = [expression_latex(side, scene) for side in (expr.lhs, expr.rhs)]
+        return None if None in sides else " = ".join(sides)
+    body = expression_latex(expr, scene)
+    return None if body is None else f"{row.latex_label} = {body}"
+
+
+def expression_latex(expr: sympy.Basic, scene: Scene) -> str | None:
+    """An expression tidied for reading, in LaTeX with the scene's names; None beyond
+    ``LATEX_NODES``."""
+    expr = report._for_reading(as_expr(expr), scene)
+    if report._larger(expr, LATEX_NODES):
+        return None
+    names = latex_names(scene)
+    symbols = {s: names[s.name] for s in expr.free_symbols if getattr(s, "name", "") in names}
+    order = "none" if report._larger(expr, report.SORTED_NODES) else None
+    return sympy.latex(expr, symbol_names=symbols, order=order)
+
+
+def _one_line(row: report.Row, scene: Scene) -> str:
+    """The row as one line of text: the report's own text where it has one."""
+    if row.text is not None:
+        return row.text
+    expr = row.expr
+    if not isinstance(expr, sympy.Basic):
+        return f"{row.label} = {expr}"
+    shown = for_display(report._for_reading(expr, scene), scene)
+    if isinstance(shown, sympy.Eq):
+        return f"{row.label}: {report.one_line(shown.lhs)} = {report.one_line(shown.rhs)}"
+    return f"{row.label} = {report.one_line(shown)}"
+
+
+# -- LaTeX within mathtext's subset -------------------------------------------------------
+
+_REWRITES = (
+    # sympy prints atan2 as an operator with a subscript 2
+    (re.compile(r"\\operatorname\{atan\}_\{2\}"), r"\\mathrm{atan2}"),
+    (re.compile(r"\\operatorname\{"), r"\\mathrm{"),
+    (re.compile(r"\\text\{"), r"\\mathrm{"),
+    # display style, as in an equation of the textbook: mathtext's \frac is set small
+    (re.compile(r"\\[td]?frac\b"), r"\\dfrac"),
+    (re.compile(r"\\(?:displaystyle|limits|nolimits)\b\s*"), ""),
+)
+
+
+def mathtext_of(latex: str) -> str:
+    """``latex`` rewritten within matplotlib mathtext's subset (``\\operatorname`` and
+    ``\\text`` as ``\\mathrm``, every fraction as ``\\dfrac``), as one math string."""
+    for pattern, replacement in _REWRITES:
+        latex = pattern.sub(replacement, latex)
+    return f"${latex}$"
+
+
+@functools.lru_cache(maxsize=4096)
+def outline(latex: str) -> Outline | None:
+    """The glyph outlines of ``latex`` set by mathtext, or None when mathtext refuses it
+    (or it is longer than ``OUTLINE_CHARS``): then the formula is shown as text."""
+    if len(latex) > OUTLINE_CHARS:
+        return None
+    try:
+        return _outline(mathtext_of(latex))
+    except Exception:  # noqa: BLE001 - mathtext raises ValueError and others on bad input
+        return None
+
+
+@functools.cache
+def _text_to_path():
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextToPath
+
+    prop = FontProperties(size=REFERENCE_SIZE, math_fontfamily=FONT_FAMILY)
+    return TextToPath(), prop
+
+
+def _outline(math: str) -> Outline:
+    maker, prop = _text_to_path()
+    width, height, descent = maker.get_text_width_height_descent(math, prop, ismath=True)
+    vertices, codes = maker.get_text_path(prop, math, ismath=True)
+    scale = 1.0 / REFERENCE_SIZE  # the paths come at matplotlib's FONT_SCALE, 100
+    vertices = np.asarray(vertices, dtype=np.float32).reshape(-1, 2) * np.float32(scale)
+    return Outline(
+        vertices=vertices,
+        codes=np.asarray(codes, dtype=np.uint8),
+        width=width * scale,
+        ascent=(height - descent) * scale,
+        descent=descent * scale,
+    )
+
+
+# -- a LaTeX document -------------------------------------------------------------------
+
+_TEXT_ESCAPES = str.maketrans(
+    {
+        "\\": r"\textbackslash{}",
+        "&": r"\&",
+        "%": r"\%",
+        "$": r"\$",
+        "#": r"\#",
+        "_": r"\_",
+        "{": r"\{",
+        "}": r"\}",
+        "~": r"\textasciitilde{}",
+        "^": r"\textasciicircum{}",
+    }
+)
+
+
+def latex_text(text: str) -> str:
+    """Plain text escaped for a LaTeX document (its Unicode left to the engine)."""
+    return text.translate(_TEXT_ESCAPES)
+
+
+def latex_document(typeset: Typeset) -> str:
+    """A standalone LaTeX document of the derivation: headings as sections, sentences
+    as paragraphs, each formula an ``equation*`` (``\\tag`` for Lagrange's numbers); a
+    formula without LaTeX is its text, verbatim. For LuaLaTeX or XeLaTeX (the sentences
+    hold Unicode: θ̇, ∂)."""
+    lines = [
+        r"\documentclass{article}",
+        r"\usepackage{amsmath}",
+        r"\usepackage{fontspec}",
+        r"\begin{document}",
+    ]
+    for part in typeset.parts:
+        if isinstance(part, Heading):
+            command = r"\section*" if part.level == 0 else r"\subsection*"
+            lines += ["", f"{command}{{{latex_text(part.title)}}}"]
+        elif isinstance(part, Sentence):
+            lines += ["", latex_text(part.text)]
+        elif part.latex is None:
+            lines += ["", r"\begin{verbatim}", part.text, r"\end{verbatim}"]
+        else:
+            tag = f" \\tag*{{{latex_text(part.tag)}}}" if part.tag else ""
+            note = f" \\quad \\text{{({latex_text(part.note)})}}" if part.note else ""
+            lines += [r"\begin{equation*}", f"  {part.latex}{note}{tag}", r"\end{equation*}"]
+    lines += ["", r"\end{document}", ""]
+    return "\n".join(lines)
