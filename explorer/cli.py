@@ -21,7 +21,7 @@ import signal
 import sys
 from contextlib import nullcontext
 
-COMMANDS = ("list", "derive", "run", "bench", "methods", "open", "export", "warm")
+COMMANDS = ("list", "derive", "run", "bench", "methods", "periodic", "open", "export", "warm")
 
 
 def _load(name: str):

@@ -611,8 +611,10 @@ def equilibria_sentences(mechanics: Mechanics, digits: int = 6) -> tuple[list[st
     note : str
         Why there are none, or what the search assumed; empty if nothing to say.
     """
-    from systems.textbook import search_equilibria
+    from systems.textbook import floquet, search_equilibria
 
+    if floquet.explicit_time(mechanics):  # driven: constant solutions, Floquet multipliers
+        return floquet.report(mechanics, display_names(mechanics.scene), digits)
     search = search_equilibria(mechanics)
     if search.method == "not computed":  # saying "none" would be a wrong answer
         return [search.reason[0].upper() + search.reason[1:]], ""
@@ -732,7 +734,7 @@ def derivation_json(mechanics: Mechanics) -> dict:
     """
     from systems.constraints import degrees_of_freedom
     from systems.mechanics import DerivationError
-    from systems.textbook import equilibria_json
+    from systems.textbook import equilibria_json, floquet
 
     scene = mechanics.scene
 
@@ -776,6 +778,7 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "conserved": {name: read(expr) for name, expr in conserved.items()},
         "classification": mechanics.classification.as_dict(),
         "equilibria": equilibria_json(mechanics),
+        "floquet": floquet.derive_json(mechanics),
         **matrix,
         "particles": particles_json(scene),
         "degrees_of_freedom": degrees_of_freedom(mechanics),
@@ -1112,9 +1115,17 @@ def _tidy_small(expr: sympy.Expr) -> sympy.Expr:
     return min(candidates, key=lambda e: len(str(e)))
 
 
+def _equilibria_heading(mechanics: Mechanics) -> str:
+    from systems.textbook import floquet
+
+    if floquet.explicit_time(mechanics):
+        return floquet.HEADING
+    return "Equilibria (virtual work: dV/dq = 0)"
+
+
 def _equilibria_lines(mechanics: Mechanics) -> list[Part]:
     lines, note = equilibria_sentences(mechanics)
-    title: list[Part] = [Heading("Equilibria (virtual work: dV/dq = 0)")]
+    title: list[Part] = [Heading(_equilibria_heading(mechanics))]
     if not lines:
         return title + [f"none: {note}" if note else "none found"]
     return title + [f"- {line}" for line in lines] + ([f"({note})"] if note else [])

@@ -1,4 +1,4 @@
-"""The Textbook dock: five tabs that put the theorems of analytical mechanics on screen."""
+"""The Textbook dock: six tabs that put the theorems of analytical mechanics on screen."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from PySide6.QtWidgets import QFrame, QScrollArea, QTabWidget, QVBoxLayout, QWid
 from explorer.textbook.action_angle_view import ActionAngleView
 from explorer.textbook.energy_view import EnergyTheoremView
 from explorer.textbook.equilibria_view import EquilibriaView, EquilibriumMarkers
+from explorer.textbook.floquet_view import FloquetView
 from explorer.textbook.principle_view import PrincipleView
 from explorer.textbook.reduction_view import ReductionView
 from explorer.textbook.tasks import TaskRunner
@@ -15,7 +16,8 @@ MINIMUM_HEIGHT = 120
 
 
 class TextbookPanel(QWidget):
-    """Equilibria, Hamilton's principle, reduction, action–angle and the energy theorem.
+    """Equilibria, Hamilton's principle, reduction, action–angle, the energy theorem and
+    Floquet theory.
 
     ``set_system(compiled)`` shows a system (a new one, or new parameter values). Every
     computation runs in the panel's ``TaskRunner``; a tab computes when it is first shown
@@ -34,6 +36,7 @@ class TextbookPanel(QWidget):
         self.reduction = ReductionView(self.runner)
         self.action_angle = ActionAngleView(self.runner)
         self.energy = EnergyTheoremView(self.runner)
+        self.floquet = FloquetView(self.runner)
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
         self._holders: dict = {}
@@ -53,7 +56,14 @@ class TextbookPanel(QWidget):
 
     @property
     def views(self) -> tuple:
-        return (self.equilibria, self.principle, self.reduction, self.action_angle, self.energy)
+        return (
+            self.equilibria,
+            self.principle,
+            self.reduction,
+            self.action_angle,
+            self.energy,
+            self.floquet,
+        )
 
     def attach_markers(self, markers: EquilibriumMarkers) -> None:
         """Draw the equilibria found into the phase view through ``markers``."""

@@ -21,6 +21,10 @@ default) and stop early, raising ``Cancelled``.
   ``action_angle_table`` finds the equilibria first, the tab's job.
 - ``energy`` -> ``EnergyResult``: the energy theorem along a run.
 - ``integrate`` -> ``Run``: the system from its initial state on a uniform grid (DOP853).
+- ``floquet`` -> ``FloquetResult``: the constant solutions of a periodically driven system
+  and their Floquet multipliers; ``chart_block`` -> ``ChartBlock``: rows of a stability
+  chart over two parameters; ``periodic_orbit_from`` -> ``PeriodicOrbit``: shooting and
+  Newton from a start (``systems.textbook.floquet``, ``periodic_orbits``).
 """
 
 from systems.textbook.jobs._action_angle import (
@@ -32,6 +36,13 @@ from systems.textbook.jobs._action_angle import (
 from systems.textbook.jobs._cancel import NEVER, Cancel, Cancelled
 from systems.textbook.jobs._energy import EnergyResult, energy
 from systems.textbook.jobs._equilibria import EquilibriaResult, equilibria
+from systems.textbook.jobs._floquet import (
+    ChartBlock,
+    FloquetResult,
+    chart_block,
+    floquet,
+    periodic_orbit_from,
+)
 from systems.textbook.jobs._principle import PrincipleResult, TwoPointResult, principle, two_point
 from systems.textbook.jobs._reduction import (
     Quadratic,
@@ -49,8 +60,10 @@ __all__ = [
     "ActionAngleResult",
     "Cancel",
     "Cancelled",
+    "ChartBlock",
     "EnergyResult",
     "EquilibriaResult",
+    "FloquetResult",
     "PrincipleResult",
     "Quadratic",
     "ReductionCurves",
@@ -60,12 +73,15 @@ __all__ = [
     "action_angle_data",
     "action_angle_reason",
     "action_angle_table",
+    "chart_block",
     "energy",
     "equilibria",
+    "floquet",
     "integrate",
     "level_curve",
     "names_of",
     "parameters_of",
+    "periodic_orbit_from",
     "principle",
     "reduction_curves",
     "reduction_setup",
