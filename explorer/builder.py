@@ -8,8 +8,10 @@ back a ``Built`` value or a ``BuildFailure`` with the field and position of the 
 Requests are numbered: a request overtaken by a newer one is skipped, and only the
 newest result is delivered, so typing fast never shows a stale system.
 
-The derivation's layout (the readable equations and the equilibrium search) runs in
-worker processes too, after the window has drawn the new system's first frame. A newer
+The derivation's layout runs in worker processes too, after the window has drawn the
+new system's first frame: the derivation with its equations in LaTeX
+(``systems.typeset``, shown at once as text), then their glyphs set in type, then the
+equilibrium search. A newer
 request or ``BuildService.stop`` ends the processes still working for an older one: no
 thread of the window ever runs sympy, and nothing is interrupted but a process.
 """
@@ -24,9 +26,10 @@ from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from explorer.worker import keep_until_finished
 from systems import processes
-from systems.report import derivation_text as describe
 from systems.report import equilibria_lines
 from systems.sources import build_code, derive_source, wants_for
+from systems.typeset import typeset_as_text as describe
+from systems.typeset import with_outlines
 
 STOP_SECONDS = 0.8
 """How long ``BuildService.stop`` may take: closing the window must take under a second."""
@@ -134,7 +137,7 @@ class _BuildWorker(QObject):
 
     built = Signal(object)
     build_failed = Signal(object)
-    described = Signal(int, str)
+    described = Signal(int, object)
     equilibria_found = Signal(int, list)
 
     def __init__(self):
@@ -220,12 +223,18 @@ class _BuildWorker(QObject):
         # the motion first: on two cores the layout's processes would slow the first frame
         self.first_frame.wait(FIRST_FRAME_WAIT)
         mechanics = result.compiled.mechanics
-        text = self._part(layout, describe, mechanics, "laying out the derivation")
-        if text is None or request < self.latest:
+        typeset = self._part(layout, describe, mechanics, "laying out the derivation")
+        if typeset is None or request < self.latest:
             return
-        if isinstance(text, Exception):
-            text = f"(the derivation could not be laid out: {text})"
-        self.described.emit(request, text)
+        if isinstance(typeset, Exception):
+            typeset = f"(the derivation could not be laid out: {typeset})"
+        self.described.emit(request, typeset)
+        if not isinstance(typeset, str):
+            typeset = self._part(layout, with_outlines, typeset, "setting the equations in type")
+            if typeset is None or request < self.latest:
+                return
+            if not isinstance(typeset, Exception):  # else they stay shown as text
+                self.described.emit(request, typeset)
         lines = self._part(layout, equilibria_lines, mechanics, "the equilibrium search")
         if lines is None or request < self.latest:
             return
@@ -234,12 +243,12 @@ class _BuildWorker(QObject):
         self.equilibria_found.emit(request, lines)
 
     @staticmethod
-    def _part(layout: _Layout, function, mechanics, what: str):
-        """``function(mechanics)`` in a worker: its value, its exception, or None if the
+    def _part(layout: _Layout, function, value, what: str):
+        """``function(value)`` in a worker: its result, its exception, or None if the
         layout was stopped."""
         if layout.stopped.is_set():
             return None
-        job = processes.Job(function, (mechanics,), cpu_seconds=LAYOUT_SECONDS, what=what)
+        job = processes.Job(function, (value,), cpu_seconds=LAYOUT_SECONDS, what=what)
         layout.job = job
         if layout.stopped.is_set():
             job.cancel()
@@ -258,14 +267,16 @@ class BuildService(QObject):
     -------
     built(Built)
     build_failed(BuildFailure)
-    described(int, str)   the readable derivation of a built request (arrives later)
+    described(int, object)   the derivation of a built request, a ``Typeset`` (arrives
+        later: first with its equations as text, then again set in type), or a text
+        saying why it could not be laid out
     equilibria_found(int, list)   its equilibria, one sentence each (arrives last)
     busy_changed(bool)
     """
 
     built = Signal(object)
     build_failed = Signal(object)
-    described = Signal(int, str)
+    described = Signal(int, object)
     equilibria_found = Signal(int, list)
     busy_changed = Signal(bool)
     _requested = Signal(object)
@@ -338,9 +349,9 @@ class BuildService(QObject):
             self.busy_changed.emit(False)
             self.build_failed.emit(failure)
 
-    def _on_worker_described(self, request: int, text: str) -> None:
+    def _on_worker_described(self, request: int, derivation) -> None:
         if request == self._counter:
-            self.described.emit(request, text)
+            self.described.emit(request, derivation)
 
     def _on_worker_equilibria_found(self, request: int, lines: list) -> None:
         if request == self._counter:

@@ -35,10 +35,10 @@ from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
+    QFileDialog,
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
@@ -52,12 +52,12 @@ from PySide6.QtWidgets import (
     QTableWidget,
     QTableWidgetItem,
     QTabWidget,
-    QTextBrowser,
     QVBoxLayout,
     QWidget,
 )
 
 from explorer.editor.constraints_section import ConstraintsSection
+from explorer.editor.derivation_view import DerivationView
 from explorer.editor.drawing_section import DrawingSection
 from explorer.editor.fields import ExpressionField, error_html, never_widens
 from explorer.editor.parameters_table import ParameterTableView, fit_rows, number_text
@@ -65,6 +65,7 @@ from explorer.editor.particles_section import ParticlesSection
 from explorer.editor.scroll_anchor import ScrollAnchor
 from explorer.editor.symmetries_section import SymmetriesSection
 from explorer.labels import coordinate_label
+from systems.typeset import Typeset
 
 DEBOUNCE_MS = 400
 KINDS = (
@@ -423,13 +424,10 @@ class SystemEditorPanel(QWidget):
             "QLabel { background: #f4f7fb; border: 1px solid #c9d6e6; border-radius: 6px;"
             " padding: 6px; }"
         )
-        self.derived = QTextBrowser()
-        self.derived.setMinimumHeight(160)
-        font = QFont("DejaVu Sans Mono")
-        font.setStyleHint(QFont.StyleHint.Monospace)
-        font.setPointSize(9)
-        self.derived.setFont(font)
-        self.derived.setLineWrapMode(QTextBrowser.LineWrapMode.NoWrap)
+        # the card and the derivation, typeset, in one scroll area that follows the
+        # window's font (presentation mode) and palette
+        self.derived = DerivationView()
+        self.derived.export_requested.connect(self._on_derived_export_requested)
 
         content = QWidget()
         layout = QVBoxLayout(content)
@@ -457,19 +455,27 @@ class SystemEditorPanel(QWidget):
         self.scroll_anchor = ScrollAnchor(scroll)
         derivation = QWidget()
         derivation_layout = QVBoxLayout(derivation)
-        self.derivation_card = QLabel()
-        never_widens(self.derivation_card)
-        self.derivation_card.setStyleSheet(self.classification_card.styleSheet())
-        derivation_layout.addWidget(self.derivation_card)
+        derivation_layout.setContentsMargins(0, 0, 0, 0)
+        derivation_layout.setSpacing(2)
+        buttons = QHBoxLayout()
+        buttons.setContentsMargins(4, 4, 4, 0)
+        self.copy_latex_button = QPushButton("Copy LaTeX")
+        self.copy_latex_button.setToolTip(
+            "The selected equation as LaTeX (click one), or the whole derivation; "
+            "right-click an equation for more"
+        )
+        self.copy_latex_button.clicked.connect(self._on_copy_latex_button_clicked)
+        self.export_derivation_button = QPushButton("Export derivation…")
+        self.export_derivation_button.setToolTip("The derivation as PDF, SVG or LaTeX")
+        self.export_derivation_button.clicked.connect(self._on_derived_export_requested)
+        buttons.addWidget(self.copy_latex_button)
+        buttons.addWidget(self.export_derivation_button)
+        buttons.addStretch(1)
+        derivation_layout.addLayout(buttons)
         derivation_layout.addWidget(self.derived, 1)
-        # in a scroll area too: the word-wrapped card would otherwise set the dock's
-        # minimum height (too tall for a 768-pixel screen once the dock is narrow)
-        derivation_scroll = QScrollArea()
-        derivation_scroll.setWidgetResizable(True)
-        derivation_scroll.setWidget(derivation)
         self.tabs = QTabWidget()
         self.tabs.addTab(scroll, "System")
-        self.tabs.addTab(derivation_scroll, "Derivation")
+        self.tabs.addTab(derivation, "Derivation")
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(self.tabs)
@@ -567,7 +573,7 @@ class SystemEditorPanel(QWidget):
                 self.snapshot(),
                 self._history,
                 self._index,
-                self.derived.toPlainText(),
+                self.derived.state(),
                 self._built_scene.name if self._built_scene is not None else None,
                 self._requested,
                 self._outcome,
@@ -583,7 +589,7 @@ class SystemEditorPanel(QWidget):
         self._outcome = ("", None, "")
         self._saved = self.document()
         self._update_history_buttons()
-        self.derived.setPlainText("deriving…")
+        self.derived.set_plain("deriving…")
         self.state_label.setText("deriving…")
         self._select_catalogue(catalogue_name)
 
@@ -601,7 +607,7 @@ class SystemEditorPanel(QWidget):
         self._history, self._index = history, index
         self._requested, self._outcome, self._saved = requested, outcome, saved
         self._update_history_buttons()
-        self.derived.setPlainText(derived)
+        self.derived.restore(derived)
         self.state_label.setText("")
         self._select_catalogue(name)
         return True
@@ -984,7 +990,7 @@ class SystemEditorPanel(QWidget):
         card = classification_html(mechanics, built.method, built.reason)
         self._card = card
         self.classification_card.setText(card)
-        self.derivation_card.setText(card)
+        self.derived.set_card(card)
 
     def _show_warnings(self, warnings) -> None:
         """Drawing problems under their fields; a summary of what was left out at the top."""
@@ -1055,10 +1061,50 @@ class SystemEditorPanel(QWidget):
             + f"<ul style='margin:0'>{items}</ul>"
         )
         self.classification_card.setText(card)
-        self.derivation_card.setText(card)
+        self.derived.set_card(card)
 
-    def show_derivation(self, text: str) -> None:
-        self.derived.setPlainText(text)
+    def show_derivation(self, derivation) -> None:
+        """Show the derivation: a ``systems.typeset.Typeset`` (typeset, or its equations
+        still as text until their outlines come), or a text (why there is none)."""
+        if isinstance(derivation, Typeset):
+            self.derived.set_typeset(derivation)
+        else:
+            self.derived.set_plain(str(derivation))
+
+    def _on_copy_latex_button_clicked(self) -> None:
+        formula = self.derived.selected_formula()
+        if formula is not None:
+            self.derived.copy_formula(formula)
+        else:
+            self.derived.copy_all()
+
+    def _on_derived_export_requested(self) -> None:
+        """Ask where to write the derivation (PDF, SVG or LaTeX) and write it; a failure
+        is said under the buttons, never raised."""
+        if self.derived.typeset is None:
+            self.state_label.setText("no derivation to export yet: it is being laid out")
+            return
+        title = self.derived.typeset.title or "derivation"
+        name = "".join(c if c.isalnum() else "_" for c in title).strip("_").lower()
+        path, _ = QFileDialog.getSaveFileName(
+            self,
+            "Export derivation",
+            f"{name or 'derivation'}.pdf",
+            "PDF (*.pdf);;SVG (*.svg);;LaTeX (*.tex)",
+        )
+        if path:
+            self.export_derivation(path)
+
+    def export_derivation(self, path: str) -> bool:
+        """Write the derivation shown to ``path`` (.pdf, .svg or .tex); says in the
+        state line what happened. Returns True if written."""
+        try:
+            self.derived.export(path)
+        except (OSError, ValueError) as exc:
+            self.state_label.setText(f"derivation not exported: {exc}")
+            return False
+        self.state_label.setText(f"derivation exported to {path}")
+        return True
 
     def show_failure(self, failure) -> None:
         """Show a build failure at its field, with its position; the text stays as typed."""
