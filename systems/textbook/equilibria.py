@@ -178,6 +178,13 @@ class Equilibrium:
         there (0 for a unilateral constraint out of contact); empty without constraints.
     contacts : tuple of str
         The multipliers of the unilateral constraints in contact (g = 0) there.
+    chart : str
+        "" at a regular point of the chart; at a chart singularity (the mass matrix
+        singular there: the pole of polar angles) the sentence that says so, e.g.
+        ``"chart singularity at theta = 0: the mass matrix is singular there"``. Such an
+        equilibrium was decided in a regular local chart (``systems.textbook.charts``:
+        ``frequencies`` with multiplicity, ``modes`` empty) or, where none could be
+        formed, is ``"undecided"`` with the reason.
     """
 
     q: dict[str, float]
@@ -198,6 +205,7 @@ class Equilibrium:
     continuum: EquilibriumSet | None = None
     multipliers: dict[str, float] = field(default_factory=dict)
     contacts: tuple[str, ...] = ()
+    chart: str = ""
 
     @property
     def growth_rates(self) -> list[float]:
@@ -213,7 +221,8 @@ class Equilibrium:
         """``{"q", "stable", "frequencies", "kind", "decided_by"}``, and ``"order"`` for a
         degenerate equilibrium, ``"growth_rates"`` for an unstable one with a growing
         mode, ``"set"`` (``EquilibriumSet.as_json``) for a continuum, ``"multipliers"``
-        and ``"contacts"`` for a system with constraints."""
+        and ``"contacts"`` for a system with constraints, ``"chart_singularity"`` (the
+        ``chart`` sentence) at a singular point of the coordinates."""
         data = {
             "q": {name: _clean(value) for name, value in self.q.items()},
             "stable": bool(self.stable),
@@ -230,6 +239,8 @@ class Equilibrium:
         if self.multipliers:
             data["multipliers"] = {k: _clean(v) for k, v in self.multipliers.items()}
             data["contacts"] = list(self.contacts)
+        if self.chart:
+            data["chart_singularity"] = self.chart
         return data
 
 
@@ -915,6 +926,12 @@ class _Problem:
         self.probe_length = 0.005 * float(np.mean(widths))
         self.trace_step = 0.005 * float(np.mean(widths))
         self.equation = None  # set by the search: f(q) = 0 of a continuum, from sympy
+        # a length per searched coordinate, for probing about chart singularities
+        self.scales = np.array(
+            [1.0 if name in periodic else (region[name][1] - region[name][0]) / (2 * math.pi)
+             for name in searched]
+        )  # fmt: skip
+        self._embedded = None  # (position function or None,), built when first needed
 
     def hessian(self, x: np.ndarray) -> np.ndarray:
         return self._hessian(*x).reshape(self.m, self.m)
@@ -1104,9 +1121,11 @@ class _Problem:
         full = dict.fromkeys(self.names, 0.0)
         full.update({name: float(v) for name, v in zip(self.searched, x[:mq], strict=True)})
         q = np.array([full[name] for name in self.names])
+        M = self.mass(q)
+        if self.chart_singular(M):
+            return self._singular(x, q, M, exact), 0
         K = self.hessian(x)[:mq, :mq]
         K = (K + K.T) / 2
-        M = self.mass(q)
         index_r = [self.names.index(name) for name in self.searched]
         index_f = [self.names.index(name) for name in self.free]
         Mrr = M[np.ix_(index_r, index_r)]
@@ -1227,6 +1246,178 @@ class _Problem:
         keep the constraints at ``x``: all of them without constraints."""
         return np.eye(self.mq)
 
+    # -- chart singularities -----------------------------------------------------------
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """All n coordinates at the searched point ``x`` (free ones at 0)."""
+        q = np.zeros(len(self.names))
+        q[[self.names.index(name) for name in self.searched]] = x[: self.mq]
+        return q
+
+    def chart_singular(self, M: np.ndarray) -> bool:
+        """True where the mass matrix of a Lagrangian is finite and singular: the
+        coordinates fail there (a Hamiltonian whose kinetic term has no inverse at p = 0,
+        as p**4/4, is no chart singularity: there are no small oscillations)."""
+        if self.mechanics.lagrangian is None or not np.all(np.isfinite(M)):
+            return False
+        return not _regular(M)
+
+    def conditioning(self, x: np.ndarray) -> float:
+        """The smallest singular value of M over its largest at ``x`` (0 where singular)."""
+        M = self.mass(self.full(x))
+        if not np.all(np.isfinite(M)):
+            return 0.0
+        singular = np.linalg.svd(M, compute_uv=False)
+        return float(singular[-1] / singular[0]) if singular[0] > 0 else 0.0
+
+    def position(self):
+        """The particles' mass-weighted positions as a function of q (``charts.embedding``),
+        None where the scene has no fixed particles or L has velocity-linear terms."""
+        if self._embedded is None:
+            from systems.textbook import charts
+
+            plain = self.cross.function is None and self.cross.effects is None
+            plain = plain and self.m == self.mq  # no constraints
+            f = charts.embedding(self.mechanics, self.parameters) if plain else None
+            self._embedded = (f,)
+        return self._embedded[0]
+
+    def _singular(self, x, q, M, exact) -> Equilibrium:
+        """The equilibrium at a chart singularity: decided in the regular local chart of
+        the particles' positions (``charts.local_chart``), or undecided with the reason."""
+        from systems.textbook import charts
+
+        # the coordinates that the singular directions of M leave alone are what is fixed
+        _, values, vectors = np.linalg.svd(M)
+        kernel = vectors[values <= 1e-13 * max(float(values[0]), 1e-300)]
+        moving = np.any(np.abs(kernel) > 1e-8, axis=0)
+        named = [
+            f"{name} = {_short(v)}"
+            for name, v, moves in zip(self.names, q, moving, strict=True)
+            if name in self.searched and not moves
+        ] or [
+            f"{name} = {_short(full_value)}"
+            for name, full_value in zip(self.names, q, strict=True)
+            if name in self.searched
+        ]
+        chart = f"chart singularity at {', '.join(named)}: the mass matrix is singular there"
+        potential = float(self.U(*x)[0])
+        rest = {
+            f"p_{name}": _clean(v) for name, v in zip(self.names, self.rest_momenta(q), strict=True)
+        }
+        common = dict(
+            q=dict(zip(self.names, map(float, q), strict=True)),
+            modes=np.zeros((len(self.names), 0)),
+            potential=potential,
+            p=rest,
+            exact=exact,
+            chart=chart,
+        )
+        if self.m != self.mq:
+            return self._undecided_at_singularity(
+                common, "with constraints no regular chart is formed"
+            )
+        if self.cross.function is not None or self.cross.effects is not None:
+            return self._undecided_at_singularity(
+                common, "its velocity-linear terms are not carried into a regular chart"
+            )
+        n, index_r = len(self.names), [self.names.index(name) for name in self.searched]
+        scales = np.ones(n)
+        scales[index_r] = self.scales
+        position = self.position()
+        if position is not None:
+            local = charts.local_chart(
+                position, lambda point: float(self.U(*point[index_r])[0]), q, scales
+            )
+            if local.reason:
+                return self._undecided_at_singularity(common, local.reason)
+            stiffness = local.stiffness
+            how = "in a regular local chart (the particles' positions on the tangent plane)"
+        else:
+
+            def gradient(point):
+                g = np.zeros(n)
+                g[index_r] = self.gradient(*point[index_r])
+                return g
+
+            def hessian(point):
+                K = np.zeros((n, n))
+                K[np.ix_(index_r, index_r)] = self.hessian(point[index_r])
+                return K
+
+            w2, reason = charts.covariant_limit(
+                self.mass, self._mass_derivatives(), gradient, hessian, q, scales
+            )
+            if reason:
+                return self._undecided_at_singularity(common, reason)
+            stiffness = np.diag(w2)
+            how = (
+                "as the limit from the regular points around it (M\u207b\u00b9 times the "
+                "covariant Hessian of U, the same in every chart)"
+            )
+        w2 = np.linalg.eigvalsh(stiffness)
+        tol = 1e-6 * max(float(np.max(np.abs(w2))), 1e-300)
+        zero = np.abs(w2) <= tol
+        growth = np.sqrt(np.where(w2 < -tol, -w2, 0.0))
+        turn = np.sqrt(np.where(w2 > tol, w2, 0.0))
+        eigenvalues = np.concatenate([growth + 1j * turn, -growth - 1j * turn])
+        eigenvalues = eigenvalues[np.argsort(eigenvalues.imag, kind="stable")]
+        # the coordinates U does not depend on move the system where the chart is singular
+        # too, less the directions that move nothing (the kernel of M): along those U is
+        # constant, a neutral direction, as a free coordinate is at a regular point
+        fibre = int(np.count_nonzero(np.linalg.svd(M, compute_uv=False) <= 1e-13 * np.abs(M).max()))
+        neutral = max(len(self.free) - fibre, 0)
+        zeros = int(np.count_nonzero(zero))
+        along = ", neutral along the free coordinates" if zeros else ""
+        if zeros <= neutral and np.all(w2[~zero] > tol):
+            kind, verdict, stable = "minimum", "stable: minimum", True
+            decided = f"{chart}; {how} U has a strict minimum{along}"
+        elif zeros <= neutral and np.all(w2[~zero] < -tol):
+            kind, verdict, stable = "maximum", "unstable: linear", False
+            decided = f"{chart}; {how} U has a maximum{along}: a growing mode"
+        elif np.any(w2 < -tol):
+            verdict, stable, kind = "unstable: linear", False, "saddle"
+            decided = f"{chart}; {how} U has a saddle: a growing mode"
+        else:
+            kind, verdict, stable = "degenerate", "undecided", False
+            decided = f"{chart}; {how} K has {_zeros(zeros)} and a minimum across: not decided"
+        return Equilibrium(
+            stable=stable,
+            kind=kind,
+            frequencies=[float(w) for w in np.sort(turn[w2 > tol])] if stable else [],
+            omega_squared=w2,
+            hessian=stiffness,
+            eigenvalues=eigenvalues,
+            gyroscopic=np.zeros_like(stiffness),
+            decided_by=decided,
+            verdict=verdict,
+            **common,
+        )
+
+    def _mass_derivatives(self):
+        """dM/dq as ``f(q (n,)) -> (n, n, n)``, ``[k, i, j] = dM_ij/dq_k`` (at rest)."""
+        mechanics, n = self.mechanics, len(self.names)
+        zero = {**dict.fromkeys(mechanics.qdot, 0), mechanics.t: 0}
+        M = [
+            with_parameters(e, mechanics, self.parameters).xreplace(zero)
+            for e in mechanics.mass_matrix
+        ]
+        entries = [sympy.diff(e, qk) for qk in mechanics.q for e in M]
+        f = vectorize(entries, mechanics.q)
+        return lambda q: np.asarray(f(*q), dtype=float).reshape(n, n, n)
+
+    def _undecided_at_singularity(self, common: dict, reason: str) -> Equilibrium:
+        return Equilibrium(
+            stable=False,
+            kind="degenerate",
+            frequencies=[],
+            omega_squared=np.zeros(0),
+            hessian=np.zeros((0, 0)),
+            decided_by=f"{common['chart']}, so the coordinates cannot decide stability ({reason})",
+            verdict="undecided",
+            **common,
+        )
+
     # -- stability beyond the linearisation ---------------------------------------------
 
     def _decide(self, x, kind, eig_K, vec_K, null, growing, gyroscopic):
@@ -1325,6 +1516,7 @@ class _Problem:
         equilibria: list[Equilibrium] = []
         sets: list[dict] = []
         flat_minima: list[np.ndarray] = []  # traces through flat points that are no sets
+        singular: list[tuple[np.ndarray, Equilibrium]] = []  # at chart singularities
         for point, exact in found:
             if any(self.distance(point, trace).min() <= self.trace_step for trace in flat_minima):
                 continue  # the same flat point, found again where U is numerically flat
@@ -1332,6 +1524,11 @@ class _Problem:
             if member is not None:
                 member["found"] += 1
                 member["points"].append(point)
+                continue
+            if self.chart_singular(self.mass(self.full(point))):
+                # one configuration, many points of the chart (theta = 0, every phi)
+                if not any(self._one_configuration(point, other) for other, _ in singular):
+                    singular.append((point, self.equilibrium(point, exact)[0]))
                 continue
             equilibrium, flat = self.equilibrium(point, exact)
             if flat == 1:
@@ -1385,7 +1582,56 @@ class _Problem:
                     decided_by=_VERDICTS["undecided"].format(zeros=_zeros(flat), order=""),
                 )
             equilibria.append(equilibrium)
+        for point, equilibrium in singular:
+            on = next((record for record in sets if self._on_set(point, record)), None)
+            if on is None:
+                equilibria.append(equilibrium)
+            else:  # a point of the set where the chart fails: the set decides
+                on["found"] += 1
         return equilibria + [self._set_equilibrium(record) for record in sets]
+
+    def _one_configuration(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """True if the chart-singular points ``a`` and ``b`` are one configuration: the
+        particles at the same places, or (without particles) U the same at both and the
+        chart singular all along the segment between them."""
+        position = self.position()
+        if position is not None:
+            ra, rb = position(self.full(a)), position(self.full(b))
+            return bool(np.linalg.norm(ra - rb) <= 1e-7 * max(1.0, float(np.max(np.abs(ra)))))
+        level_a, level_b = float(self.U(*a)[0]), float(self.U(*b)[0])
+        if abs(level_a - level_b) > 1e-9 * max(1.0, abs(level_a)):
+            return False
+        step = np.where(self.is_periodic, _wrapped(b - a), b - a)
+        return all(
+            self.chart_singular(self.mass(self.full(a + s * step)))
+            for s in np.linspace(0.0, 1.0, 9)
+        )
+
+    def _on_set(self, point: np.ndarray, record: dict) -> bool:
+        """True if the chart-singular ``point`` is a point of the set ``record`` (a
+        curve): the same configuration as one of its points, or, without particles, a
+        point of the curve in the chart."""
+        curve = record["curve"]
+        if curve is None:
+            return False
+        position = self.position()
+        if position is None:  # the curve meets the singular line ``point`` lies on
+            M = self.mass(self.full(point))
+            _, values, vectors = np.linalg.svd(M)
+            kernel = vectors[values <= 1e-13 * max(float(values[0]), 1e-300)]
+            index_r = [self.names.index(name) for name in self.searched]
+            if len(kernel) != 1 or not np.any(kernel[0][index_r]):
+                return False
+            direction = kernel[0][index_r] * self.scales
+            line = point[: self.mq] + np.linspace(-math.pi, math.pi, 1441)[:, None] * direction
+            if not all(self._one_configuration(point, p) for p in line[::160]):
+                return False  # not a straight line of the chart's singular set
+            return bool(min(self.distance(p, curve).min() for p in line) <= 2 * self.trace_step)
+        target = position(self.full(point))
+        images = np.array([position(self.full(c)) for c in curve])
+        gaps = np.linalg.norm(np.diff(images, axis=0), axis=1)
+        reach = 2.0 * float(np.max(gaps)) if gaps.size else 0.0
+        return bool(np.linalg.norm(images - target, axis=1).min() <= reach)
 
     def _not_an_interval(self, x: np.ndarray, curve: np.ndarray) -> tuple[str, int] | None:
         """For one searched coordinate: ``(verdict, order)`` when the "curve" traced
@@ -1519,11 +1765,18 @@ class _Problem:
                 start = curve[i] + w * (curve[i + 1] - curve[i])
                 start = np.where(self.is_periodic, _wrapped(start), start)
                 x = self._on_set_with_zero(start, [j])
-                if x is not None:
+                if x is not None and self.conditioning(x) > REGULAR_CHART:
                     candidates.append(x)
             if candidates:
                 return max(candidates, key=lambda x: tuple(np.round(x, 9)))
-        return curve[0]
+        return self._most_regular(curve)
+
+    def _most_regular(self, points: np.ndarray) -> np.ndarray:
+        """The point of ``points`` where M is best conditioned (the first of equals, to
+        rounding): the stability of a set is decided at a regular point of the chart."""
+        conditions = np.round([self.conditioning(p) for p in points], 6)
+        best = points[int(np.argmax(conditions))]
+        return np.where(self.is_periodic, fold_angle(best), best)
 
     def _on_set_with_zero(self, start: np.ndarray, zeros: list[int]) -> np.ndarray | None:
         """The point of the set near ``start`` where the coordinates ``zeros`` are 0, or
@@ -1558,9 +1811,9 @@ class _Problem:
             off = np.round(np.linalg.norm(points[:, zeros], axis=1), 6)
             start = points[int(np.lexsort((-points[:, 0], off))[0])]
             x = self._on_set_with_zero(start, zeros) if count else None
-            if x is not None:
+            if x is not None and self.conditioning(x) > REGULAR_CHART:
                 return x
-        return points[0]
+        return self._most_regular(points)
 
     def _set_equilibrium(self, record: dict) -> Equilibrium:
         curve = record["curve"]
@@ -1613,6 +1866,10 @@ class _Problem:
             decided = f"U is constant along {description}: neutral along it, unstable across it"
         return replace(equilibrium, kind="continuum", decided_by=decided, continuum=continuum)
 
+
+REGULAR_CHART = 1e-6
+"""A set of equilibria is represented by a point where the smallest singular value of M
+is above this fraction of its largest (off the chart's singular lines)."""
 
 TANGENT_SPACE = (
     "K and M on the constraints' tangent space (basis Z): "
@@ -1708,7 +1965,9 @@ class _ConstrainedProblem(_Problem):
     def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> tuple[Equilibrium, int]:
         equilibrium, flat = super().equilibrium(x, exact)
         multipliers = {label: _clean(v) for label, v in zip(self.labels, x[self.mq :], strict=True)}
-        if equilibrium.hessian.size == 0:  # nothing left to move
+        if equilibrium.chart:  # a chart singularity: said as it is
+            decided, verdict = equilibrium.decided_by, equilibrium.verdict
+        elif equilibrium.hessian.size == 0:  # nothing left to move
             decided, verdict = _VERDICTS["stable: fixed"], "stable: fixed"
         else:
             decided, verdict = f"{equilibrium.decided_by}; {TANGENT_SPACE}", equilibrium.verdict
