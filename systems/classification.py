@@ -262,6 +262,30 @@ def describe_hamiltonian_conserved(conserved: bool, *, gauge_time: bool = False)
     return "H is not conserved"
 
 
+def describe_cyclic(cyclic, conserved, shown=None) -> str:
+    """``"cyclic coordinates: θ"``: the coordinates absent from L (``Mechanics.cyclic``),
+    saying which of their momenta are not conserved (an effect or a constraint acts along
+    them: dissipation on a free coordinate), so the line never reads as a conservation
+    law the derivation does not list.
+
+    ``conserved`` holds the names of the conserved quantities (``"p_<q>"``), ``shown``
+    maps scene names to display names.
+    """
+    shown = shown or {}
+    if not cyclic:
+        return "cyclic coordinates: none"
+    names = ", ".join(shown.get(q, q) for q in cyclic)
+    lost = [q for q in cyclic if f"p_{q}" not in conserved]
+    if not lost:
+        return f"cyclic coordinates: {names}"
+    momenta = ", ".join(f"p_{shown.get(q, q)}" for q in lost)
+    verb = "is" if len(lost) == 1 else "are"
+    return (
+        f"cyclic coordinates: {names} (absent from L; {momenta} {verb} not conserved: an "
+        "effect or a constraint acts along it)"
+    )
+
+
 def describe_energy(is_energy: bool | None) -> str:
     """H against the mechanical energy, in the textbook's words."""
     if is_energy is None:

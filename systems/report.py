@@ -19,6 +19,7 @@ import sympy
 
 from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
+from systems.classification import describe_cyclic
 from systems.display import (
     combine_trig,
     display_names,
@@ -168,8 +169,8 @@ def derivation_parts(mechanics: Mechanics, equilibria: bool = True) -> list[Part
         lines += _closed_form_lines(mechanics, shown, names)
     lines += [Heading("Classification")]
     lines += [f"- {sentence}" for sentence in mechanics.classification.describe()]
-    cyclic = ", ".join(shown[q] for q in mechanics.cyclic) or "none"
-    lines.append(f"- cyclic coordinates: {cyclic}")
+    cyclic = describe_cyclic(mechanics.cyclic, mechanics.conserved, shown)
+    lines.append(f"- {cyclic}")
     if mechanics.conserved:
         conserved = dict(mechanics.conserved)
         if mechanics.matrix_form is not None:
