@@ -55,7 +55,9 @@ CATALOGUE = {
     "gas_in_box":               ((F, T, F, T, T, F, T, T, T, T), "four walls, unilateral and fixed; elastic impacts (no restitution parameter: e = 1) do no work: conservative and simple, H = T conserved"),  # noqa: E501
     "harmonic_oscillator":      ((F, T, T, T, T, F, T, T, T, T), "the textbook's simple system"),  # noqa: E501
     "henon_heiles":             ((F, T, T, T, T, F, T, T, T, T), "given by a t-free H with a positive kinetic form: H is the energy"),  # noqa: E501
+    "kapitza_pendulum":         ((T, T, T, F, F, T, F, F, F, F), "the pivot is shaken, a cos(w t) in the bob's position with T1 != 0: rheonomic; the shaking does work: neither conservative nor H conserved, and H is not T + V"),  # noqa: E501
     "kepler_cartesian":         ((F, T, T, T, T, F, T, T, T, T), "free particle in a central potential: simple"),  # noqa: E501
+    "mathieu_oscillator":       ((F, T, T, F, F, T, F, T, T, T), "the stiffness delta + eps cos t puts t in V only: scleronomic but time dependent, so not conservative and H (= T + V) not conserved"),  # noqa: E501
     "pendulum_chain":           ((F, T, T, T, T, F, T, T, T, F), "fixed pivot, rigid links (matrix form): simple; M(q) couples"),  # noqa: E501
     "pendulum_ring":            ((F, T, T, T, T, F, T, T, T, T), "pendulums and torsion springs: simple"),  # noqa: E501
     "planetary_motion":         ((F, T, T, T, T, F, T, T, T, F), "central force in polar coordinates: simple; M(r) so not separable"),  # noqa: E501

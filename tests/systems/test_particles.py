@@ -451,7 +451,7 @@ def test_the_rheonomic_catalogue_scenes_are_those_with_t_in_a_position():
     rheonomic = {
         name for name in PARTICLE_SCENES if load_scene(name).transformation_depends_on_time
     }
-    assert rheonomic == {"bead_on_rotating_hoop", "variable_length_pendulum"}
+    assert rheonomic == {"bead_on_rotating_hoop", "kapitza_pendulum", "variable_length_pendulum"}
     hoop = load_scene("bead_on_rotating_hoop").transformation
     T2, T1, T0 = hoop.kinetic_parts
     assert T1 == 0 and T0 != 0  # the hoop turns, but across the bead's path

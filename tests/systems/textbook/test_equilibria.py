@@ -110,10 +110,12 @@ def test_planetary_motion_has_no_equilibrium_and_theta_is_free():
     assert "nowhere" in result.reason
 
 
-def test_rheonomic_scene_has_none_with_a_reason():
+def test_a_scene_with_t_in_its_equations_has_none_with_a_reason():
+    """No constant solution of V alone: t is in the equations, periodically, so the
+    reason points to Floquet theory (issue 26 item 8: explicit t, not "rheonomic")."""
     result = search_equilibria(derive(scene(VARIABLE_LENGTH)))
     assert result.equilibria == [] and result.method == "none"
-    assert "rheonomic" in result.reason
+    assert "explicitly on t" in result.reason and "Floquet" in result.reason
 
 
 def test_driven_damped_scene_gives_the_conservative_part():
