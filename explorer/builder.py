@@ -18,6 +18,7 @@ thread of the window ever runs sympy, and nothing is interrupted but a process.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -58,7 +59,9 @@ class BuildFailure:
     reason: str = ""
 
 
-def compile_built(mechanics, request: int = 0, start: float | None = None, code=None) -> Built:
+def compile_built(
+    mechanics, request: int = 0, start: float | None = None, code=None, t_end: float = math.inf
+) -> Built:
     """Compile a derived system for the window and choose its method.
 
     The system's functions become machine code here, in milliseconds (from ``code``,
@@ -68,6 +71,7 @@ def compile_built(mechanics, request: int = 0, start: float | None = None, code=
     """
     from systems.compiled import load_system, system_code
     from systems.integrators import choose_method
+    from systems.integrators.measured import measured_choice
     from systems.simulation import DIAGNOSTICS, precompile
     from systems.start_check import check_start
 
@@ -78,15 +82,19 @@ def compile_built(mechanics, request: int = 0, start: float | None = None, code=
         code = system_code(mechanics, wants)
     compiled = load_system(mechanics, code)
     check_start(compiled)
+    # the window's run is endless (``t_end``): the measured choice keeps a symplectic
+    # method there; a finite run (an export) is priced over its length, as `run` is
+    method, reason = measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), t_end)
     diagnostics = [d for d, want in DIAGNOSTICS.items() if want in wants]
     precompile(compiled, method, diagnostics=diagnostics)
     return Built(request, mechanics.scene, compiled, method, reason, time.perf_counter() - start)
 
 
-def build(source, request: int = 0) -> Built:
-    """Read, derive and compile in this process (the command line, a sweep, tests)."""
+def build(source, request: int = 0, t_end: float = math.inf) -> Built:
+    """Read, derive and compile in this process (the command line, a sweep, tests), for a
+    run to ``t_end`` (the method's choice is measured over it)."""
     start = time.perf_counter()
-    return compile_built(derive_source(source), request, start)
+    return compile_built(derive_source(source), request, start, t_end=t_end)
 
 
 FIRST_FRAME_WAIT = 10.0

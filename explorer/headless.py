@@ -165,7 +165,7 @@ def write_csv(scene, out: str | Path, t_end: float, times: np.ndarray) -> tuple[
     from explorer.builder import build
     from explorer.export import write_trajectories_csv
 
-    built = build(scene)
+    built = build(scene, t_end=float(t_end))
     store = integrate(built, float(t_end), times=times)
     written = write_trajectories_csv(built.compiled, list(store), out)
     return written, store.main

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--levels must be 2 to {MAX_LEVELS}, not {args.levels}")
     if args.t_end is not None:
         check_t_end(args.t_end)
-    scene, mechanics, _, _, compiled = prepare(args.scene, None, extra_wants=())
+    scene, mechanics, _, _, compiled = prepare(args.scene, None, extra_wants=(), measure=False)
     if args.methods:
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
         for method in methods:

@@ -17,18 +17,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from systems.integrators import STEPPERS, choose_method
+    from systems.integrators import STEPPERS
 
     refusals = dict.fromkeys(STEPPERS)
     chosen = None
     if args.scene:
+        from explorer.commands.run_cmd import prepare
         from systems.mechanics import derive
         from systems.scene import load_scene
 
         with user_errors():
             mechanics = derive(load_scene(args.scene))
         refusals = {name: s.applies_to(mechanics) for name, s in STEPPERS.items()}
-        chosen, why = choose_method(mechanics)
+        # what `run` and the window take: the choice measured on the compiled system
+        _, _, chosen, why, _ = prepare(args.scene, None, extra_wants=())
     rows = [
         {
             "method": name,

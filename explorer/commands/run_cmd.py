@@ -77,13 +77,23 @@ def integration_options(args: argparse.Namespace, method: str, t_end: float) -> 
     )
 
 
-def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
+def prepare(
+    scene_name: str,
+    method: str | None,
+    extra_wants=("velocities",),
+    t_end: float | None = None,
+    measure: bool = True,
+):
     """Load, derive, choose and compile. Returns (scene, mechanics, method, why, compiled).
+
+    The automatic choice is measured on the compiled system over ``t_end`` (default: the
+    scene's ``[view] t_end``; ``systems.integrators.measured``).
 
     Raises ``UserError`` for an unknown method or one the system does not allow.
     """
     from systems.compiled import compile_system
     from systems.integrators import STEPPERS, choose_method
+    from systems.integrators.measured import ALTERNATIVE, measured_choice
     from systems.mechanics import derive
     from systems.scene import load_scene
     from systems.simulation import required_wants
@@ -93,6 +103,7 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
         scene = load_scene(scene_name)
         mechanics = derive(scene)
     auto, auto_why = choose_method(mechanics)
+    requested = method
     if method is None:
         method, why = auto, auto_why
     else:
@@ -100,10 +111,16 @@ def prepare(scene_name: str, method: str | None, extra_wants=("velocities",)):
             raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
         check_method(mechanics, method)
         why = f"requested (the automatic choice would be {auto}: {auto_why})"
+    measured = measure and requested is None
     wants = required_wants(method) | {"hamiltonian", *extra_wants}
+    if measured:  # the choice is measured against DOP853 on the compiled system
+        wants |= required_wants(ALTERNATIVE)
     with user_errors():
         compiled = compile_system(mechanics, wants)
         check_start(compiled)
+    if measured:
+        t_end = float(scene.view.get("t_end", 10.0)) if t_end is None else t_end
+        method, why = measured_choice(compiled, method, why, 0.0, compiled.initial_state(), t_end)
     return scene, mechanics, method, why, compiled
 
 
@@ -122,7 +139,12 @@ def run(args: argparse.Namespace) -> int:
     endless = args.t_end is not None and math.isinf(args.t_end) and args.t_end > 0
     check_output(args, endless)
     start = time.perf_counter()
-    scene, mechanics, method, why, compiled = prepare(args.scene, args.method)
+    given_end = args.t_end if args.t_end is not None and math.isfinite(args.t_end) else None
+    # a step or tolerance given picks the kind of method: the classification's choice
+    measure = args.dt is None and args.tol is None
+    scene, mechanics, method, why, compiled = prepare(
+        args.scene, args.method, t_end=given_end, measure=measure
+    )
     t_end = args.t_end if args.t_end is not None else float(scene.view.get("t_end", 10.0))
     if not endless:
         given = "--t-end" if args.t_end is not None else f"the scene's [view] t_end of {t_end}"

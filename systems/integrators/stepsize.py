@@ -95,8 +95,10 @@ def default_step(
     probe: bool = True,
     per_period: int | None = None,
     probe_start: tuple[float, np.ndarray] | None = None,
+    aim: bool = True,
 ) -> float:
-    """A fixed step for ``stepper``: ``STEPS_PER_PERIOD`` steps per fastest period.
+    """A fixed step for ``stepper``: ``STEPS_PER_PERIOD`` steps per fastest period, then
+    (with ``aim``) aimed at the energy target by pilot runs (``aimed_step``).
 
     The fastest rate is the largest |eigenvalue| of the Jacobian at ``y0`` and, with
     ``probe``, at states sampled along a short Runge-Kutta run (about 20 periods
@@ -119,7 +121,135 @@ def default_step(
         return dt
     start = (t0, y0) if probe_start is None else probe_start
     rate = max(rate, _probed_rate(compiled, float(start[0]), np.asarray(start[1], float), t_end))
-    return min(dt, 2.0 * math.pi / rate / per_period)
+    dt = min(dt, 2.0 * math.pi / rate / per_period)
+    if not aim:
+        return dt
+    return aimed_step(compiled, stepper, float(t0), np.asarray(y0, dtype=float), t_end, dt)
+
+
+AIMED_ORDERS = (6, 8)
+"""Orders whose default step is aimed at ``ENERGY_TARGET`` by pilot runs (``aimed_step``):
+the orders the automatic choice uses for conservative systems. Lower orders keep
+``STEPS_PER_PERIOD`` (they show what low orders do)."""
+AIM = 0.1
+"""The energy error aimed at, as a fraction of ``ENERGY_TARGET`` (a margin for the part
+of the run the pilot does not cover)."""
+AIM_GROWTH = (0.25, 3.0)
+"""The aimed step stays within these factors of ``STEPS_PER_PERIOD``'s."""
+AIM_PILOT_STEPS = 8000
+"""Steps of a pilot run at most (the whole run when it is shorter)."""
+
+_aimed: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def aimed_step(compiled, stepper, t0: float, y0: np.ndarray, t_end: float, dt: float) -> float:
+    """``dt`` scaled so that the run's relative energy error lands near ``AIM *
+    ENERGY_TARGET`` instead of far below it (or above it).
+
+    For a conservative system and a fixed-step method of an order in ``AIMED_ORDERS``: a
+    pilot run of the method itself at ``dt`` (``AIM_PILOT_STEPS`` steps at most, over
+    the run or the scene's ``[view] t_end`` for an endless one) measures the energy
+    error e; the step is scaled by (AIM * ENERGY_TARGET / e)^(1 / order), within
+    ``AIM_GROWTH``, and a second pilot at the new step must keep the error within
+    ``ENERGY_TARGET`` (else the step shrinks by 1.5 at most twice more, and otherwise
+    stays ``dt``). Counted in errors, never timed: the same system and start always get
+    the same step. Remembered per compiled system, start and method.
+    """
+    order = stepper.order
+    if order not in AIMED_ORDERS or stepper.setting != "dt" or stepper.family.adaptive:
+        return dt
+    c = compiled.mechanics.classification
+    if not (c.conservative and c.hamiltonian_conserved):
+        return dt
+    if "hamiltonian" not in getattr(compiled, "wanted", ()):
+        return dt
+    horizon = t_end - t0
+    if not math.isfinite(horizon) or horizon <= 0.0:
+        horizon = float(compiled.mechanics.scene.view.get("t_end", 10.0) or 10.0)
+    parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
+    key = (stepper.name, t0, y0.tobytes(), parameters.tobytes(), horizon, dt)
+    with _probed_lock:
+        try:
+            memory = _aimed.setdefault(compiled, {})
+        except TypeError:
+            memory = {}
+        if key in memory:
+            return memory[key]
+    aimed = _aim(compiled, stepper, t0, y0, horizon, dt)
+    with _probed_lock:
+        if len(memory) >= PROBE_MEMORY:
+            memory.pop(next(iter(memory)))
+        memory[key] = aimed
+    return aimed
+
+
+def _aim(compiled, stepper, t0, y0, horizon, dt) -> float:
+    error = _pilot_error(compiled, stepper, t0, y0, horizon, dt)
+    if error is None:
+        return dt
+    low, high = AIM_GROWTH
+    target = AIM * ENERGY_TARGET
+    factor = high if error <= 0.0 else (target / error) ** (1.0 / stepper.order)
+    factor = min(max(factor, low), high)
+    if abs(factor - 1.0) < 0.05:
+        return dt
+    for _ in range(3):
+        trial = dt * factor
+        error = _pilot_error(compiled, stepper, t0, y0, horizon, trial)
+        if error is not None and error <= ENERGY_TARGET:
+            return trial
+        factor /= 1.5
+        if factor < low:
+            break
+    return dt
+
+
+def _pilot_error(compiled, stepper, t0, y0, horizon, dt) -> float | None:
+    """The largest relative |H - H0| of a run of ``stepper`` at ``dt`` over ``horizon``
+    (``AIM_PILOT_STEPS`` steps at most); None where the run fails."""
+    end = t0 + min(horizon, AIM_PILOT_STEPS * dt)
+    outcome = pilot_run(compiled, stepper.name, t0, y0, end, AIM_PILOT_STEPS, dt=dt)
+    return None if outcome is None else outcome[0]
+
+
+def pilot_run(
+    compiled, method: str, t0: float, y0: np.ndarray, t_end: float, steps: int, **setting
+) -> tuple[float, int, float] | None:
+    """A short run that measures: (the largest relative |H - H0|, the right-hand-side
+    evaluations, the time covered) of ``method`` from ``(t0, y0)`` (y0 of shape (2n,))
+    towards ``t_end``, ``steps`` steps at most, at ``setting`` (``dt=`` or ``tol=``;
+    none: the method's default). H is checked at every step: a thinned output misses
+    the peaks of the error. None where the run fails or covers no time."""
+    from systems.simulation import Run
+
+    try:
+        run = Run(
+            compiled, method=method, y0=y0, t0=t0, t_end=t_end, diagnostics=("H",),
+            max_points=steps + 2, energy_tolerance=None, max_steps=steps + 1, **setting,
+        )  # fmt: skip
+    except (ValueError, ArithmeticError):
+        return None
+    if run.runner is None:
+        return None
+    H0 = float(compiled.hamiltonian(t0, y0[None, :])[0])
+    scale = abs(H0) if abs(H0) > 1e-8 else 1.0
+    worst = 0.0
+    evaluations = 0
+    while not run.finished:
+        block = run.advance(1.0)
+        evaluations = block.rhs_evaluations  # totals since the start
+        if block.status not in ("ok", "running", "budget"):
+            return None
+        H = block.diagnostics.get("H")
+        if H is not None and len(H):
+            with np.errstate(all="ignore"):
+                worst = max(worst, float(np.max(np.abs(H - H0))) / scale)
+        if block.status == "budget":
+            break
+    covered = run.t - t0
+    if not covered > 0.0 or not math.isfinite(worst):
+        return None
+    return worst, evaluations, covered
 
 
 DRAWN_PER_PERIOD = 64

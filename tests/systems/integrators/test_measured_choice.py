@@ -1,0 +1,100 @@
+"""The automatic choice measured on the compiled system (issue 23 part 5): the cheaper
+method, in counted evaluations, among those that keep the energy target; never timed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from systems.compiled import compile_system
+from systems.integrators import choose_method, get_stepper
+from systems.integrators import measured as measured_module
+from systems.integrators.measured import measured_choice
+from systems.integrators.stepsize import ENERGY_TARGET, default_step
+from systems.mechanics import derive
+from systems.scene import load_scene
+from systems.simulation import run_to_end
+
+
+def _compiled(name: str):
+    mechanics = derive(load_scene(name))
+    wants = ("rhs", "hamiltonian")
+    if mechanics.separable_parts is not None and mechanics.classification.separable:
+        wants += ("separable",)
+    return compile_system(mechanics, wants)
+
+
+def _t_end(compiled) -> float:
+    return float(compiled.mechanics.scene.view.get("t_end", 10.0))
+
+
+def _energy_error_and_evaluations(compiled, method: str, t_end: float):
+    blocks, last = run_to_end(compiled, method=method, t_end=t_end, diagnostics=("H",))
+    assert last.status == "ok", last.message
+    H0 = compiled.hamiltonian(0.0, compiled.initial_state()[None])[0]
+    H = np.concatenate([b.diagnostics["H"] for b in blocks if len(b.t)])
+    return float(np.max(np.abs(H - H0)) / max(abs(H0), 1e-8)), last.rhs_evaluations
+
+
+@pytest.mark.parametrize(
+    "name", ["double_pendulum", "henon_heiles", "spherical_pendulum", "figure_eight"]
+)
+def test_the_measured_choice_keeps_the_energy_target_at_no_more_cost(name):
+    compiled = _compiled(name)
+    t_end = _t_end(compiled)
+    method, reason = choose_method(compiled.mechanics)
+    chosen, why = measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), t_end)
+    assert "measured" in why
+    error, evaluations = _energy_error_and_evaluations(compiled, chosen, t_end)
+    assert error <= ENERGY_TARGET, (chosen, error)
+    if chosen != method:  # the classification's method would have cost more
+        _, theirs = _energy_error_and_evaluations(compiled, method, t_end)
+        factor = measured_module.PER_EVALUATION.get(get_stepper(method).family.kernel, 1.0)
+        assert evaluations < theirs * factor
+
+
+def test_the_choice_is_the_same_every_time(monkeypatch):
+    """Counted, not timed: forgetting everything and measuring again gives the same."""
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
+    compiled = _compiled("henon_heiles")
+    method, reason = choose_method(compiled.mechanics)
+    answers = set()
+    for _ in range(3):
+        measured_module._memory.clear()
+        answers.add(measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), 200))
+    assert len(answers) == 1
+
+
+def test_a_chain_whose_fast_mode_sets_the_fixed_step_goes_adaptive():
+    """A chain's fastest mode sets a fixed step for the whole run: Gauss-Legendre paid
+    tens of times DOP853's evaluations for an energy error far below the target."""
+    compiled = _compiled("pendulum_chain")
+    method, reason = choose_method(compiled.mechanics)
+    assert method == "gauss_legendre6"
+    chosen, why = measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), 20.0)
+    assert chosen == "dop853", why
+
+
+def test_choices_that_are_not_measured_pass_through():
+    compiled = _compiled("damped_pendulum")
+    method, reason = choose_method(compiled.mechanics)
+    assert measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), 10.0) == (
+        method,
+        reason,
+    )
+
+
+@pytest.mark.parametrize("name", ["spherical_pendulum", "coupled_oscillators"])
+def test_the_default_step_is_aimed_at_the_target_not_far_below(name):
+    """Order 6 and 8 default steps land nearer 1e-10 (they overshot by orders of
+    magnitude), and never above it."""
+    compiled = _compiled(name)
+    t_end = _t_end(compiled)
+    method = "gauss_legendre6" if name == "spherical_pendulum" else "yoshida8"
+    stepper = get_stepper(method)
+    y0 = compiled.initial_state()
+    plain = default_step(compiled, stepper, 0.0, y0, t_end, aim=False)
+    aimed = default_step(compiled, stepper, 0.0, y0, t_end)
+    assert aimed > plain
+    error, _ = _energy_error_and_evaluations(compiled, method, t_end)
+    assert error <= ENERGY_TARGET
