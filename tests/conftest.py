@@ -119,9 +119,18 @@ SOAK = frozenset(SLOW_FIRST) | {
     "tests/systems/integrators/test_brouwer.py",
     "tests/systems/test_expressions_fuzz.py",
     "tests/systems/test_large_systems.py",
+    # robustness corpora that everyday work rarely touches, and the costliest (39% of the
+    # quick run's test time): damaged caches recompile drivers, replays run sessions
+    # whole, the hostile corpus starts hundreds of commands, screens and a real X server
+    "tests/systems/test_cache_integrity.py",
+    "tests/explorer/test_session_replay_truth.py",
+    "tests/explorer/test_hostile_cli.py",
+    "tests/explorer/test_window_fits_screen.py",
+    "tests/explorer/test_xvfb.py",
 }
-"""Model-based, soak and property files marked ``soak``: ``make test-quick`` leaves them
-(and ``slow``) out for everyday work; ``make test``, what CI runs, takes everything."""
+"""Model-based, soak, robustness and property files marked ``soak``: ``make test-quick``
+leaves them (and ``slow``) out for everyday work; ``make test``, what CI runs, takes
+everything."""
 
 
 def pytest_collection_modifyitems(session, config, items):
