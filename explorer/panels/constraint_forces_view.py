@@ -69,7 +69,9 @@ DRAW_GAP_SECONDS = 0.2
 at full speed a frame's rows cost more to hand to pyqtgraph than to compute."""
 """Room ahead on the time axes, a fraction of the span: each growth redraws every curve."""
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e377c2")
-MAX_FORCE_CURVES = 6
+MAX_FORCE_CURVES = 7
+"""Curves of the force plot, at most (one per colour): the Atwood rope's rope, four stops and
+two reactions."""
 CPU_SECONDS = 60.0
 """CPU seconds the analysis may take in its worker before it is stopped and said so."""
 

@@ -124,16 +124,21 @@ def test_reset_and_another_scene_start_the_panel_afresh(qtbot, window):
     view = window.constraint_view
     _opened(qtbot, window, "atwood_rope")
     _shown(qtbot, window, 4)  # a uniform acceleration: DOP853 takes few, long steps
+    # the rope, then the pulley and the floor for each mass (issue 25)
+    stops = ["-y1 ≥ 0", "-y2 ≥ 0", "h + y1 ≥ 0", "h + y2 ≥ 0"]
     assert view.force_legend.entries() == [
         "λ<sub>1</sub> (holonomic)",
+        *(f"λ<sub>{k}</sub> ({stop})" for k, stop in enumerate(stops, start=2)),
         "|R<sub>mass1</sub>|",
         "|R<sub>mass2</sub>|",
     ]
-    # the rope's tension, 2 m1 m2 g/(m1 + m2), on each curve
+    # the rope's tension, 2 m1 m2 g/(m1 + m2), on the rope's curve and each reaction;
+    # no stop touches before the landing at t = 3.36
     tension = 2 * 1.2 * 1.0 * 9.81 / 2.2
-    for series in view._force_series:
+    for k, series in enumerate(view._force_series):
         _, values = series.columns()
-        np.testing.assert_allclose(values, tension, rtol=1e-10)
+        expected = 0.0 if 1 <= k <= 4 else tension
+        np.testing.assert_allclose(values, expected, rtol=1e-10, atol=1e-12)
     before = view._power.rows.data.shape[0]
     store = window.store
     window.controls.reset_requested.emit()

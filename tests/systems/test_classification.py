@@ -41,8 +41,8 @@ T, F, N = True, False, None
 # name: (rheonomic, holonomic, bilateral, conservative, simple,
 #        time_dependent, H conserved, H = T + V, natural, separable), reason
 CATALOGUE = {
-    "atwood_machine":           ((F, T, T, T, T, F, T, T, T, T), "fixed pulley, gravity only: simple; H = T + V"),  # noqa: E501
-    "atwood_rope":              ((F, T, T, T, T, F, T, T, T, T), "y1, y2 tied by the fixed rope -y1 - y2 - L = 0: scleronomic, holonomic, bilateral; gravity only: simple; H = T + V, M = diag(m1, m2)"),  # noqa: E501
+    "atwood_machine":           ((F, T, F, F, F, F, F, T, T, T), "fixed pulley, gravity only, H = T + V between impacts; the masses stop at the floor and the pulley (issue 25: they ran through it), unilateral constraints with restitution e = 0: not bilateral, the landing takes the energy, so not conservative and H not conserved"),  # noqa: E501
+    "atwood_rope":              ((F, T, F, F, F, F, F, T, T, T), "y1, y2 tied by the fixed rope -y1 - y2 - L = 0: scleronomic, holonomic; the floor and the pulley stop the masses (issue 25), unilateral with restitution e = 0: not bilateral, not conservative, H not conserved (H = T + V between impacts), M = diag(m1, m2)"),  # noqa: E501
     "bead_on_rotating_hoop":    ((T, T, T, T, F, F, T, F, F, T), "hoop turned at omega: T0 = m a^2 omega^2 sin^2/2 shows r(q, t); L has no t, so H = T2 - T0 + V is conserved but is not T + V; the t in the drawing changes nothing"),  # noqa: E501
     "cartesian_pendulum":       ((F, T, T, T, T, F, T, T, T, T), "x, y tied by the fixed equation x^2 + y^2 - l^2 = 0: scleronomic, holonomic, bilateral; gravity only: simple; H = T + V, M = m I"),  # noqa: E501
     "bouncing_ball":            ((F, T, F, F, F, F, F, T, T, T), "the floor y >= 0 is unilateral; its impacts keep a fraction e (the restitution slider) of the normal speed and so may take energy away: not conservative, H not conserved (or watched), though between impacts H = T + V"),  # noqa: E501

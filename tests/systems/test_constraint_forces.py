@@ -237,14 +237,18 @@ def test_scenes_without_constraint_forces_say_so():
 def test_the_atwood_rope_s_multiplier_is_its_tension():
     compiled = _compiled("atwood_rope", "constrained_dop853")
     analysis = cf.analyse(compiled.mechanics)
-    assert analysis.k == 1 and analysis.particles == ("mass1", "mass2")
-    assert not analysis.rheonomic and analysis.balance
-    t, y = _run(compiled, 3.0, method="constrained_rk4", dt=0.01)
+    # the rope, then the pulley and the floor for each mass (unilateral: issue 25)
+    assert analysis.k == 5 and analysis.particles == ("mass1", "mass2")
+    assert analysis.kinds == ("holonomic",) + ("unilateral",) * 4
+    assert not analysis.rheonomic and analysis.impacts
+    # the left mass lands at t = 3.36: until then no stop touches and the rope holds alone
+    t, y = _run(compiled, 3.0, method="constrained_dop853", tol=1e-12)
     forces = analysis.evaluate(compiled, t, y)
     m1, m2, g = compiled.parameters[:3]
     tension = 2 * m1 * m2 * g / (m1 + m2)
     # Phi = -y1 - y2 - L: the force -Phi_q^T lambda = (lambda, lambda) pulls both masses up
     assert np.max(np.abs(forces.multipliers[:, 0] - tension)) <= 1e-9
+    assert not forces.multipliers[:, 1:].any()
     assert np.max(np.abs(forces.generalized - tension)) <= 1e-9
     np.testing.assert_allclose(forces.reactions[:, :, 1], tension, rtol=0, atol=1e-9)
     np.testing.assert_allclose(forces.reactions[:, :, 0], 0.0, rtol=0, atol=1e-9)

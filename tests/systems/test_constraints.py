@@ -171,7 +171,8 @@ def test_the_editor_keeps_the_table():
 # degrees of freedom, constraints); every other scene has one per coordinate and none
 CONSTRAINED = {
     NAME: (1, 1, 1),
-    "atwood_rope": (1, 1, 1),
+    "atwood_rope": (1, 1, 5),  # the rope, and the floor and the pulley for each mass
+    "atwood_machine": (1, 1, 4),  # the floor and the pulley for each mass
     "rolling_disk": (2, 4, 2),  # two rolling conditions on x, y, phi, psi: not integrable
     "bouncing_ball": (2, 2, 1),  # a floor y >= 0 restricts where, not how many
     "gas_in_box": (2, 2, 4),

@@ -482,3 +482,29 @@ def test_a_rolling_disk_bounces_off_a_wall_and_keeps_rolling():
     assert compiled.constraints().violation(t, y) <= 1e-12
     H = compiled.hamiltonian(t, y)
     assert np.ptp(H) <= 1e-11 * H[0]
+
+
+# -- the Atwood machines stop at their floor and pulley (issue 25) ----------------------------
+
+
+@pytest.mark.parametrize("name", ["atwood_machine", "atwood_rope"])
+def test_the_atwood_machines_land_on_their_floor_and_stay(name):
+    """Thrown up at 1.2 from x = 1.5 (the left mass's depth below the pulley), the machine
+    accelerates at a = g (m1 - m2)/(m1 + m2) towards the heavier left mass, which lands
+    on the floor h = 2.5 below the pulley at t = (1.2 + sqrt(1.2**2 + 2 a (h - 1.5)))/a
+    and stops there (e = 0), the taut rope stopping the other; they used to run through
+    the pulley to y = +-1000."""
+    compiled = _compiled(load_scene(name))
+    t, y = _trajectory(compiled, t_end=40.0, tol=1e-12)
+    depth = y[:, 0] if name == "atwood_machine" else -y[:, 0]  # the left mass's
+    other = 3.0 - depth if name == "atwood_machine" else -y[:, 1]
+    assert depth.min() >= 0.0 and other.min() >= 0.0  # never above the pulley
+    assert depth.max() <= 2.5 + 1e-12 and other.max() <= 2.5 + 1e-12  # nor below the floor
+    a = G * 0.2 / 2.2
+    landing = (1.2 + math.sqrt(1.2**2 + 2 * a * 1.0)) / a
+    arrived = t[np.argmax(depth >= 2.5 - 1e-12)]
+    assert arrived == pytest.approx(landing, abs=1e-9)
+    after = t >= landing + 1e-6
+    assert np.all(np.abs(depth[after] - 2.5) <= 1e-12)
+    assert np.all(np.abs(y[after, compiled.n :]) <= 1e-12)  # at rest: no momentum
+    assert t[-1] == 40.0

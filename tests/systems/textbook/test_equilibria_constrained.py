@@ -72,10 +72,20 @@ def test_a_bead_on_a_hoop_has_the_same_frequencies_in_x_y_as_in_its_angle():
     assert any(e.stable for e in cartesian.equilibria)
 
 
-def test_atwood_rope_unbalanced_has_none_and_balanced_is_neutral_along_the_rope():
+def test_atwood_rope_unbalanced_rests_on_the_floor_and_balanced_is_neutral_along_the_rope():
     mechanics = derive(load_scene("atwood_rope"))
-    assert search_equilibria(mechanics, symbolic=False).equilibria == []
-    (line,) = search_equilibria(mechanics, parameters={"m1": 1.0}, symbolic=False).equilibria
+    # the heavier left mass rests on the floor (h = 2.5 below the pulley), which pushes
+    # it up with (m1 - m2) g; nowhere else is it at rest (issue 25: it ran through)
+    (floor,) = search_equilibria(mechanics, symbolic=False).equilibria
+    assert floor.contacts == ("lambda_4",) and floor.stable
+    assert floor.q["y1"] == pytest.approx(-2.5, abs=1e-12)
+    assert floor.q["y2"] == pytest.approx(-0.5, abs=1e-12)
+    assert floor.multipliers["lambda_4"] == pytest.approx(-0.2 * 9.81, rel=1e-10)
+    balanced = search_equilibria(mechanics, parameters={"m1": 1.0}, symbolic=False).equilibria
+    # the line of rest, and its ends, where a mass touches the floor without a push
+    (line,) = [e for e in balanced if e.kind == "continuum"]
+    ends = sorted(e.contacts for e in balanced if e.kind != "continuum")
+    assert ends == [("lambda_4",), ("lambda_5",)]
     assert line.kind == "continuum" and line.stable and line.continuum.dimension == 1
     assert "straight line" in line.continuum.description
     assert line.q["y1"] + line.q["y2"] == pytest.approx(-3.0, abs=1e-9)
