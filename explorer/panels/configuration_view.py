@@ -4,14 +4,24 @@ The mechanism's plot has its aspect locked (a circle stays round) and keeps a bo
 the drawing's reach at the start (or ``[view] ranges`` x and y), grown whenever a point or
 trace leaves it. The box is set on both axes at once and again whenever the plot changes
 shape (a dock resized, an export at another size), so the whole mechanism stays visible;
-panning or zooming by hand stops that until the next system. The path plot wraps angle
-coordinates to (-pi, pi] like the phase view.
+panning or zooming by hand stops that until the next system.
+
+Bodies are discs: in a scene given by particles, the particles with a mass (``systems.sketch``),
+their area in proportion to the mass; in a scene that gives T itself, the points a coordinate
+or t moves. Every other point (a pulley's rim, a hoop, a massless pivot, a support) is a small
+grey dot. A scene of particles whose drawing has no links of its own gets the rods of its
+sketch: to the supports, and between particles whose distance the transformation keeps or
+a constraint fixes.
+
+The path plot wraps angle coordinates to (-pi, pi] like the phase view; its aspect is locked
+(a circle stays round) when both coordinates are angles or neither is.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
+import sympy
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.labels import coordinate_label
@@ -26,17 +36,24 @@ from explorer.panels.curves import (
 )
 from explorer.trajectories import backfill_points
 from systems.angles import angle_flags, wrap
+from systems.sketch import Sketch, sketch
 
 REPAINT_GAP_SECONDS = 0.015
 """Time left free after each paint: the mechanism is animated at every redraw (a paint
 costs a few ms), bursts of changes are gathered."""
 ROD_PEN = pg.mkPen("#333333", width=3)
 TRACE_POINTS = 4000
+BODY_PIXELS = 18.0
+"""Diameter of the heaviest body's disc; a lighter one's area is in proportion to its mass."""
+SMALLEST_BODY_PIXELS = 7.0
+POINT_PIXELS = 12.0
+"""Diameter of a moving point of a scene without particles (no mass to size it by)."""
+FIXED_BRUSH = pg.mkBrush("#8c8c8c")
 
 
 def moving_points(scene) -> np.ndarray:
-    """Which drawing points move (depend on a coordinate or on t): drawn as bobs; the
-    fixed ones (walls, pulley rims, ceilings) as small dots."""
+    """Which drawing points move (depend on a coordinate or on t): in a scene without
+    particles, drawn as bodies; the fixed ones (walls, ceilings) as small grey dots."""
     names = set(scene.coordinates) | {"t"}
     flags = []
     for name, _, _ in scene.drawing.points:
@@ -47,6 +64,32 @@ def moving_points(scene) -> np.ndarray:
             }
         flags.append(bool(symbols & names))
     return np.array(flags, dtype=bool)
+
+
+def body_points(scene, sketched: Sketch) -> np.ndarray:
+    """Which drawing points are bodies (discs): the particles with a mass where the scene
+    has particles, else the points that move."""
+    if not scene.particles:
+        return moving_points(scene)
+    return np.array([name in sketched.bodies for name, _, _ in scene.drawing.points], dtype=bool)
+
+
+def disc_sizes(masses: np.ndarray) -> np.ndarray:
+    """Disc diameters in pixels: area in proportion to the mass, the heaviest
+    ``BODY_PIXELS``, none below ``SMALLEST_BODY_PIXELS`` (a mass that is not a positive
+    number: the heaviest's size)."""
+    masses = np.asarray(masses, dtype=float)
+    good = np.isfinite(masses) & (masses > 0)
+    if not good.any():
+        return np.full(len(masses), BODY_PIXELS)
+    ratio = np.where(good, masses / masses[good].max(), 1.0)
+    return np.maximum(BODY_PIXELS * np.sqrt(ratio), SMALLEST_BODY_PIXELS)
+
+
+def path_aspect_locked(angles) -> bool:
+    """The path plot keeps one scale on both axes when its coordinates are alike: both
+    angles or neither (x and y, two lengths): a circle is drawn round."""
+    return bool(angles[0]) == bool(angles[1])
 
 
 class ConfigurationView(QWidget):
@@ -72,12 +115,19 @@ class ConfigurationView(QWidget):
         self._path_plot: pg.PlotItem | None = None
         self._path_keeper: RangeKeeper | None = None
         self._rods = pg.PlotDataItem(pen=ROD_PEN, connect="pairs")
-        self._bobs = pg.ScatterPlotItem(size=16, pen=pg.mkPen("#222"), brush=pg.mkBrush("#1f77b4"))
-        self._fixed = pg.ScatterPlotItem(size=6, pen=None, brush=pg.mkBrush("#555"))
+        self._bobs = pg.ScatterPlotItem(
+            size=BODY_PIXELS, pen=pg.mkPen("#222"), brush=pg.mkBrush("#1f77b4")
+        )
+        self._fixed = pg.ScatterPlotItem(size=6, pen=None, brush=FIXED_BRUSH)
         self._moving = np.zeros(0, dtype=bool)
         self._pivot = pg.ScatterPlotItem(
-            [0], [0], size=9, symbol="s", pen=pg.mkPen("#222"), brush="#777"
+            [0], [0], size=9, symbol="s", pen=pg.mkPen("#555"), brush=FIXED_BRUSH
         )
+        self.sketch = Sketch()
+        self.links: tuple[tuple[str, str], ...] = ()
+        """The rods drawn: the drawing's links, or the sketch's where it has none."""
+        self._support_at = None  # (t, P) -> (supports, 2)
+        self._body_masses = None  # P -> (bodies,)
         self._traces: list[pg.PlotDataItem] = []
         self._path: TrailCurve | None = None
         self._head: pg.ScatterPlotItem | None = None
@@ -97,16 +147,18 @@ class ConfigurationView(QWidget):
         self._traces.clear()
         drawing = scene.drawing
         set_title(self.mechanism, f"{scene.title}: configuration")
+        self.sketch = sketch(scene)
+        self._set_sketch(scene)
         if drawing is None or not drawing.points:
             self._message.setText("This scene has no [drawing] table.")
             self.mechanism.addItem(self._message)
         else:
             self.mechanism.addItem(self._rods)
-            if any("origin" in link for link in drawing.links):
+            if self.sketch.supports or any("origin" in link for link in self.links):
                 self.mechanism.addItem(self._pivot)
             self.mechanism.addItem(self._fixed)
             self.mechanism.addItem(self._bobs)
-            self._moving = moving_points(scene)
+            self._moving = body_points(scene, self.sketch)
             for name in drawing.trace:
                 item = pg.PlotDataItem(pen=pg.mkPen("#d62728", width=1), name=f"trace of {name}")
                 item.setZValue(-5)
@@ -125,6 +177,28 @@ class ConfigurationView(QWidget):
             self._add_path_plot(compiled)
         self._fit_range(compiled)
 
+    def _set_sketch(self, scene) -> None:
+        """The rods to draw and the functions of the supports' places and the bodies'
+        masses (in t and the parameters)."""
+        drawing = scene.drawing
+        own = drawing.links if drawing is not None else ()
+        automatic = bool(scene.particles) and not own
+        self.links = self.sketch.links if automatic else tuple(own)
+        symbols = scene.symbols
+        parameters = [symbols[name] for name, _ in scene.parameters]
+        supports = self.sketch.supports if automatic else ()
+        self._support_names = [name for name, _, _ in supports]
+        self._support_at = None
+        if supports:
+            places = sympy.lambdify(
+                [symbols["t"], parameters], [[x, y] for _, x, y in supports], modules="numpy"
+            )
+            self._support_at = lambda t, P: np.array(places(t, list(P)), dtype=float)
+        self._body_masses = None
+        if self.sketch.masses:
+            masses = sympy.lambdify([parameters], list(self.sketch.masses), modules="numpy")
+            self._body_masses = lambda P: np.array(masses(list(P)), dtype=float)
+
     def _add_path_plot(self, compiled) -> None:
         scene = compiled.mechanics.scene
         q1, q2 = scene.coordinates[:2]
@@ -132,6 +206,7 @@ class ConfigurationView(QWidget):
             self._path_plot = self.layout_widget.addPlot(row=1, col=0)
             style_plot(self._path_plot)
             self._path_keeper = RangeKeeper(self._path_plot)
+            self._path_plot.getViewBox().sigResized.connect(self._on_path_resized)
         elif self.path_plot is None:
             self.layout_widget.addItem(self._path_plot, row=1, col=0)
         self.path_plot = self._path_plot
@@ -148,6 +223,8 @@ class ConfigurationView(QWidget):
                 ANGLE_RANGE if self._path_angles[1] else None,
                 fixed=tuple(a for a, f in zip("xy", self._path_angles, strict=True) if f),
             )
+        # x and y, or two angles, on one scale: the rolling disk's circle is round
+        self.path_plot.setAspectLocked(path_aspect_locked(self._path_angles))
         self._path = TrailCurve(self.path_plot, pg.mkPen("#1f77b4", width=1.2), ranges=keeper)
         self._head = pg.ScatterPlotItem(size=9, brush=pg.mkBrush("#1f77b4"), pen="w")
         self.path_plot.addItem(self._head)
@@ -176,6 +253,12 @@ class ConfigurationView(QWidget):
         # together; setting it again also restores it after a squeeze that hid part of it
         if not self.fit.manual:
             self.fit.apply()
+
+    def _on_path_resized(self) -> None:
+        # an aspect-locked path plot keeps its whole box in view, as the mechanism does
+        keeper = self._path_keeper
+        if self.path_plot is not None and keeper is not None and not keeper.manual:
+            keeper.apply()
 
     def _keep_in_view(self, points: np.ndarray) -> None:
         """Grow the kept box when the mechanism leaves it; never shrink it.
@@ -210,15 +293,31 @@ class ConfigurationView(QWidget):
             names = list(self.compiled.point_names)
             where = {name: current[k] for k, name in enumerate(names)}
             where["origin"] = np.zeros(2)
-            segments = np.array([[where[a], where[b]] for a, b in drawing.links]).reshape(-1, 2)
+            fixed_points = [np.zeros((0, 2))]
+            if self._support_at is not None:
+                with np.errstate(all="ignore"):
+                    at = self._support_at(float(trajectory.t.data[-1]), self.compiled.parameters)
+                where.update(zip(self._support_names, at, strict=True))
+                fixed_points.append(at)
+            if any("origin" in link for link in self.links):
+                fixed_points.append(np.zeros((1, 2)))
+            pivots = np.concatenate(fixed_points)
+            self._pivot.setData(pivots[:, 0], pivots[:, 1])
+            segments = np.array([[where[a], where[b]] for a, b in self.links]).reshape(-1, 2)
             if len(segments):
                 self._rods.setData(segments[:, 0], segments[:, 1])
             else:
                 self._rods.setData([], [])
             moving = self._moving
-            self._bobs.setData(current[moving, 0], current[moving, 1])
+            sizes = POINT_PIXELS
+            if self._body_masses is not None:
+                with np.errstate(all="ignore"):
+                    sizes = disc_sizes(self._body_masses(self.compiled.parameters))
+            self._bobs.setData(current[moving, 0], current[moving, 1], size=sizes)
             self._fixed.setData(current[~moving, 0], current[~moving, 1])
             self._keep_in_view(window if drawing.trace else current[None])
+            if len(pivots):
+                self._keep_in_view(pivots)
             for item, name in zip(self._traces, drawing.trace, strict=True):
                 if name == "origin":
                     continue

@@ -76,6 +76,22 @@ def _compiled(name_or_text):
     return build(scene).compiled
 
 
+def _configuration(qtbot, text_or_name, size=(500, 700)):
+    """A configuration view of the scene, shown at ``size`` with its start drawn."""
+    from explorer.panels.configuration_view import ConfigurationView
+
+    compiled = _compiled(text_or_name)
+    view = ConfigurationView()
+    qtbot.addWidget(view)
+    view.resize(*size)
+    view.show()
+    view.set_system(compiled)
+    store = TrajectoryStore(n_points=len(compiled.point_names))
+    store.add(compiled.initial_state())
+    view.refresh(store)
+    return view, compiled
+
+
 # -- clean starts -------------------------------------------------------------------------
 
 
@@ -269,17 +285,8 @@ def test_double_pendulum_angles_wrap_and_its_section_fills(qtbot, window):
 )
 def test_configuration_keeps_the_mechanism_in_view_when_resized(qtbot, tmp_path, size, angles):
     from explorer.export import export_widget
-    from explorer.panels.configuration_view import ConfigurationView
 
-    compiled = _compiled("double_pendulum")
-    view = ConfigurationView()
-    qtbot.addWidget(view)
-    view.resize(500, 500)
-    view.show()
-    view.set_system(compiled)
-    store = TrajectoryStore(n_points=len(compiled.point_names))
-    store.add(compiled.initial_state())
-    view.refresh(store)
+    view, compiled = _configuration(qtbot, "double_pendulum", (500, 500))
     view.resize(*size)
     qtbot.waitUntil(lambda: view.mechanism.getViewBox().width() > 0, timeout=2000)
     qtbot.wait(50)
@@ -431,3 +438,60 @@ def test_the_pair_list_is_searchable_for_many_coordinates(qtbot):
     combo.setEditText("nonsense")
     combo.lineEdit().editingFinished.emit()
     assert combo.currentText() == combo.itemText(42)
+
+
+# -- drawings a student can read (issue 25 item 6) ---------------------------------------------
+
+HOOKED_DOUBLE_PENDULUM = """
+title = "Double pendulum hung from a hook at (0.5, 1), no [drawing]"
+[system]
+coordinates = ["theta1", "theta2"]
+parameters = { m1 = 2.0, m2 = 0.5, l1 = 1.0, l2 = 0.8, g = 9.81 }
+gravity = "g"
+[particles]
+bob1 = { mass = "m1", position = ["0.5 + l1*sin(theta1)", "1 - l1*cos(theta1)"] }
+[particles.bob2]
+mass = "m2"
+position = ["0.5 + l1*sin(theta1) + l2*sin(theta2)", "1 - l1*cos(theta1) - l2*cos(theta2)"]
+[initial]
+theta1 = 1.0
+"""
+
+
+def test_a_scene_of_particles_without_a_drawing_has_rods_supports_and_sized_bodies(qtbot):
+    from explorer.panels.configuration_view import BODY_PIXELS
+
+    view, compiled = _configuration(qtbot, HOOKED_DOUBLE_PENDULUM)
+    assert view.links == (("support", "bob1"), ("bob1", "bob2"))
+    bob1, bob2 = compiled.drawing(0.0, compiled.initial_state()[None])[0]
+    x, y = view._rods.getData()
+    np.testing.assert_allclose(np.column_stack([x, y]), [[0.5, 1.0], bob1, bob1, bob2])
+    # the hook: a small grey square; the bodies: discs whose area goes with the mass
+    px, py = view._pivot.getData()
+    assert view._pivot in view.mechanism.items and (list(px), list(py)) == ([0.5], [1.0])
+    sizes = [point.size() for point in view._bobs.points()]
+    assert sizes == pytest.approx([BODY_PIXELS, BODY_PIXELS / 2])  # m2 = m1/4
+    # the path in two angles keeps one scale
+    assert view.path_plot.getViewBox().state["aspectLocked"]
+
+
+def test_fixed_and_massless_points_are_small_and_grey(qtbot):
+    from explorer.panels.configuration_view import FIXED_BRUSH
+
+    view, compiled = _configuration(qtbot, "atwood_machine")
+    names = compiled.point_names
+    bodies = [names[k] for k in np.flatnonzero(view._moving)]
+    assert bodies == ["mass1", "mass2"]  # the pulley's spoke and rim, the floor: grey dots
+    assert len(view._fixed.points()) == len(names) - 2
+    assert view._fixed.opts["brush"].color() == FIXED_BRUSH.color()
+    view, _ = _configuration(qtbot, "kapitza_pendulum")
+    assert list(view._moving) == [True, False]  # the pivot has no mass
+
+
+def test_the_rolling_disk_s_path_circle_is_round(qtbot):
+    view, _ = _configuration(qtbot, "rolling_disk")
+    box = view.path_plot.getViewBox()
+    assert box.state["aspectLocked"]
+    (x0, x1), (y0, y1) = box.viewRange()
+    width, height = box.width(), box.height()
+    assert (x1 - x0) / width == pytest.approx((y1 - y0) / height, rel=1e-6)
