@@ -37,6 +37,7 @@ from explorer.panels.curves import (
     set_title,
     style_plot,
 )
+from explorer.panels.log_axis import SparseLogAxis
 from explorer.trajectories import backfill_energy
 from systems.symmetries import ROTATIONS, TRANSLATIONS, charge_functions
 
@@ -93,7 +94,10 @@ class ConservedView(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.layout_widget)
-        self.energy_plot = self.layout_widget.addPlot(row=0, col=0)
+        # the relative error spans a fraction of a decade over a short run: sparse labels
+        self.energy_plot = self.layout_widget.addPlot(
+            row=0, col=0, axisItems={"left": SparseLogAxis("left")}
+        )
         style_plot(self.energy_plot)
         self.energy_plot.setLabel("bottom", "t")
         self.energy_legend = add_outside_legend(

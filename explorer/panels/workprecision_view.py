@@ -110,10 +110,18 @@ class WorkPrecisionView(QWidget):
         self.plot_area = pg.GraphicsLayoutWidget()
         self.plot_area.setBackground("w")
         self.error_plot = style_plot(
-            self.plot_area.addPlot(row=0, col=0, axisItems={"bottom": SparseLogAxis("bottom")})
+            self.plot_area.addPlot(
+                row=0,
+                col=0,
+                axisItems={"bottom": SparseLogAxis("bottom"), "left": SparseLogAxis("left")},
+            )
         )
         self.energy_plot = style_plot(
-            self.plot_area.addPlot(row=0, col=1, axisItems={"bottom": SparseLogAxis("bottom")})
+            self.plot_area.addPlot(
+                row=0,
+                col=1,
+                axisItems={"bottom": SparseLogAxis("bottom"), "left": SparseLogAxis("left")},
+            )
         )
         for plot, what in (
             (self.error_plot, "final-state error"),
