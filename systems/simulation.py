@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from systems.codegen import driver_module
+from systems.growth import UNBOUNDED_GROWTH, GrowthWatch
 from systems.integrators import STEPPERS, choose_method, get_stepper
 from systems.integrators.codes import CLOCK_SIZE, Clock, Status
 from systems.integrators.events import locate_crossings, periodic_brackets
@@ -31,9 +32,11 @@ from systems.integrators.stepsize import drawing_step
 from systems.limits import DEFAULT_ENERGY_TOLERANCE
 
 PROBLEMS = (
-    "non_finite", "singular", "energy_error", "stalled", "budget", "unstable", "inaccurate"
+    "non_finite", "singular", "energy_error", "stalled", "budget", "unstable", "inaccurate",
+    "unbounded",
 )  # fmt: skip
-"""How a run can end other than ok; ``"inaccurate"`` only from ``systems.run_check``."""
+"""How a run can end other than ok; ``"inaccurate"`` only from ``systems.run_check``;
+``"unbounded"``: a coordinate grew steadily by orders of magnitude (``systems.growth``)."""
 STATUS_WORDS = {
     Status.NON_FINITE: "non_finite",
     Status.NOT_CONVERGED: "stalled",
@@ -42,6 +45,12 @@ STATUS_WORDS = {
 }
 SINGULAR_GROWTH = 1e6
 """|dy/dt| this many times its initial size at a stop: the problem is a singularity."""
+TERMS_GROWTH = 10.0
+"""The energy guard measures |H - H0| against |H0| until the energy's terms (sum of
+|p_i dq_i/dt|, 2T where T is quadratic) grow past this times their start (or |H0|);
+beyond, against |H0| times their growth over this. Where the motion runs off, T and V
+grow huge while H stays: their round-off, and a method's error relative to them, would
+trip a guard relative to |H0| (a bead on a rotating wire, H = -1/2 with T ~ 1e11)."""
 
 
 def parse_energy_tolerance(text: str) -> float | None:
@@ -156,10 +165,12 @@ class Run:
         compiled loop then records every step and the crossings are found here.
     energy_tolerance : float or None
         Stop with ``"energy_error"`` when H (if conserved and compiled) drifts by more than
-        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8); where damping can only
-        take energy away (``Classification.dissipative``), when H rises above H(y0) by
-        more than this. None: never, and no ``"unstable"`` either (a demonstration of
-        a method's growth).
+        this, relative to |H(y0)| (absolute when |H(y0)| < 1e-8; relative to the size of
+        the energy's terms once they have grown by ``TERMS_GROWTH``); where damping can
+        only take energy away (``Classification.dissipative``), when H rises above H(y0)
+        by more than this. Stop with ``"unbounded"`` when a coordinate has grown steadily
+        by ``systems.growth.UNBOUNDED_GROWTH``. None: never, and no ``"unstable"`` either
+        (a demonstration of a method's growth).
     compensated : bool
         Kahan-compensated summation of the state in the fixed-step and log-H loops, so
         round-off grows like sqrt(t) (Brouwer's law). Off only for comparisons.
@@ -167,9 +178,10 @@ class Run:
         Stop with ``"budget"`` after this many steps (a fixed-step run that would need
         more is refused at once). None: no budget.
     probe_start : (t, y), optional
-        Where the default step's probe runs from, if not ``(t0, y0)``: a run restarted
-        part way along an orbit (another method) passes where the orbit began, so the
-        probe run there is remembered, not run again (``stepsize.default_step``).
+        Where the orbit began, if not ``(t0, y0)``: a run restarted part way along an
+        orbit (another method) passes it, so the default step's probe run there is
+        remembered, not run again (``stepsize.default_step``), and a conserved energy is
+        measured from H there.
     max_step : float or "drawing"
         The longest step an adaptive method may take (inf: as long as its error control
         allows). A drawing needs a bound: DOP853 crosses motion it integrates exactly,
@@ -233,6 +245,12 @@ class Run:
         self.nsteps = 16 if stepper.family.kernel else 4
         self.setting = stepper.setting
         self.energy_tolerance = math.inf if energy_tolerance is None else energy_tolerance
+        self.guarded = energy_tolerance is not None
+        names = tuple(getattr(getattr(compiled.mechanics, "scene", None), "coordinates", ()))
+        n = len(self.y0) // 2
+        if len(names) != n:
+            names = tuple(f"q{i + 1}" for i in range(n))
+        self.growth = GrowthWatch(names, self.y0)
         self.f0 = _rhs_size(compiled, t0, self.y0)
         self.runner = None
         if not np.isfinite(self.f0) or not np.all(np.isfinite(self.y0)):
@@ -273,9 +291,30 @@ class Run:
             and all(values.get(name, 0.0) > 0 for name in dissipative)
         )
         watched = self.watch_energy or self.watch_rise
-        self.H0 = float(compiled.hamiltonian(t0, self.y0[None, :])[0]) if watched else 0.0
+        # a conserved energy is measured from where the orbit began (a run restarted part
+        # way along it, with another method or guard, goes on measuring the same error)
+        o_t, o_y = (t0, self.y0) if probe_start is None or not self.watch_energy else probe_start
+        o_t, o_y = float(o_t), np.asarray(o_y, dtype=float)
+        self.H0 = float(compiled.hamiltonian(o_t, o_y[None, :])[0]) if watched else 0.0
         self.H_scale = abs(self.H0) if abs(self.H0) > 1e-8 else 1.0
+        self.terms0 = max(self._terms(o_t, o_y), self.H_scale) if watched else 1.0
         self.f0 = max(self.f0, 1e-300)
+
+    def _terms(self, t: float, y: np.ndarray) -> float:
+        """sum |p_i dq_i/dt| at (t, y): twice the kinetic energy where T is quadratic."""
+        n = len(y) // 2
+        try:
+            with np.errstate(all="ignore"):
+                qdot = np.asarray(self.compiled.rhs(t, y), dtype=float)[:n]
+                size = float(np.sum(np.abs(y[n:] * qdot)))
+        except ZeroDivisionError:
+            return 0.0
+        return size if math.isfinite(size) else 0.0
+
+    def energy_scale(self, t: float, y: np.ndarray) -> float:
+        """What the energy guard divides |H - H0| by at (t, y) (see ``TERMS_GROWTH``)."""
+        grown = self._terms(t, y) / (TERMS_GROWTH * self.terms0)
+        return self.H_scale * max(1.0, grown)
 
     @property
     def t(self) -> float:
@@ -389,11 +428,16 @@ class Run:
         diag = _diagnostics(self.compiled, self.diagnostics, t, y)
         if self.watch_energy and status in ("running", "ok", "budget") and len(t):
             H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
-            worst = float(np.max(np.abs(H - self.H0))) / self.H_scale
-            if not worst <= self.energy_tolerance:
+            scale = self.energy_scale(float(t[-1]), y[-1])
+            worst = float(np.max(np.abs(H - self.H0))) / scale
+            if not math.isfinite(worst):
                 status = "energy_error"
+                message = f"the energy became non-finite by t = {t[-1]:.6g} (the numbers overflow)"
+            elif not worst <= self.energy_tolerance:
+                status = "energy_error"
+                against = "" if scale == self.H_scale else f" of the energy's scale {scale:.3g}"
                 message = (
-                    f"the energy error reached {worst:.3g} (tolerance "
+                    f"the energy error reached {worst:.3g}{against} (tolerance "
                     f"{self.energy_tolerance:g}) by t = {t[-1]:.6g}; reduce the step or "
                     "tolerance, or raise the energy tolerance (--energy-tolerance, 'off')"
                 )
@@ -408,9 +452,26 @@ class Run:
                     f"can only take energy away: {self.method} is unstable or inaccurate "
                     "at this step; reduce the step or tolerance"
                 )
+        found = self.growth.update(t, y) if len(t) else None
+        if (
+            found is not None
+            and self.guarded
+            and status in ("running", "ok", "energy_error")
+            and _grows(self.compiled, float(t[found[0]]), y[found[0]], found[1])
+        ):
+            row, growth = found  # the run ends where the growth became plain
+            t, y = t[: row + 1], y[: row + 1]
+            diag = _diagnostics(self.compiled, self.diagnostics, t, y)
+            status, message = "unbounded", _unbounded(growth)
         if status == "ok" and self.unstable is not None:
             status, message = "unstable", self.unstable
-        if status in PROBLEMS and status not in ("singular", "budget", "unstable") and len(t):
+        if status in ("non_finite", "energy_error", "stalled") and len(t):
+            growth = self.growth.grown(float(t[-1]), y[-1])
+            if growth is not None and _grows(self.compiled, float(t[-1]), y[-1], growth):
+                status, message = "unbounded", _unbounded(growth, message)
+        if status in PROBLEMS and status not in (
+            "singular", "budget", "unstable", "unbounded"
+        ) and len(t):  # fmt: skip
             status, message = _diagnose(
                 self.compiled, self.runner, t[-1], y[-1], self.f0, status, message
             )
@@ -685,6 +746,45 @@ def _diagnose(compiled, runner, t: float, y: np.ndarray, f0: float, status: str,
             " an adaptive method such as dop853 follows that)"
         )
     return status, message
+
+
+GROWS_OVER_DECADE = 3.0
+"""An accurate run over one decade's time of a growth: its largest |q| in the last
+third this many times that in the first third (10^(2/3) = 4.6 for e^(rate t)), or the
+growth is the method's."""
+
+
+def _grows(compiled, t: float, y: np.ndarray, growth) -> bool:
+    """Whether the equations themselves carry ``growth`` on from (t, y): a short accurate
+    DOP853 run over the time of one decade (ln 10 / rate)."""
+    if not (math.isfinite(growth.rate) and growth.rate > 0) or not np.all(np.isfinite(y)):
+        return False
+    horizon = math.log(10.0) / growth.rate
+    probe = make_runner(
+        compiled, STEPPERS["dop853"], y, t, t + horizon, 1e-10, None, max_step=horizon / 30
+    )
+    try:
+        with np.errstate(all="ignore"):
+            out = probe.advance(20000, 4096)
+    except ZeroDivisionError:
+        return False
+    if out.code != Status.END:
+        return False
+    size = np.abs(np.concatenate([[y[growth.index]], out.y[:, growth.index]]))
+    times = np.concatenate([[t], out.t])
+    first = size[times <= t + horizon / 3].max()
+    last = size[times >= t + 0.67 * horizon].max(initial=0.0)
+    return bool(last >= GROWS_OVER_DECADE * first)
+
+
+def _unbounded(growth, then: str = "") -> str:
+    """The message of a run stopped as ``"unbounded"``: which coordinate, how far, how fast."""
+    if then:
+        return f"{growth.sentence()}; then {then}"
+    return (
+        f"{growth.sentence()} (stopped at {UNBOUNDED_GROWTH:.0e} times its start scale; "
+        "turn the energy guard off to follow it further: --energy-tolerance off)"
+    )
 
 
 def _division(exc: Exception) -> str:
