@@ -30,6 +30,7 @@ from PySide6.QtWidgets import (
     QMessageBox,
     QProgressBar,
     QPushButton,
+    QVBoxLayout,
     QWidget,
 )
 
@@ -47,6 +48,7 @@ from explorer.panels.presentation import Presentation
 from explorer.panels.window_layout import DockShares, keep_plots_readable
 from explorer.preferences import Preferences
 from explorer.session.script import line
+from explorer.stop_banner import StopBanner, guard_text
 from explorer.trajectories import TrajectoryStore
 from explorer.wheel_guard import install_wheel_guard
 from explorer.worker import RateMeter, RunSettings, SimulationWorker, WorkerThread
@@ -121,7 +123,18 @@ class MainWindow(QMainWindow):
         self.conserved_view = ConservedView()
         self.editor = SystemEditorPanel()
         self.controls = ControlsPanel()
-        self.setCentralWidget(self.phase_view)
+        # why a run stopped: a strip above the plots, never in the status bar's readouts
+        self.stop_banner = StopBanner()
+        self.stop_banner.guard_changed.connect(self.set_energy_tolerance)
+        self.stop_banner.restart_requested.connect(self._on_stop_banner_restart_requested)
+        central = QWidget()
+        central.setObjectName("plots-area")
+        column = QVBoxLayout(central)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.setSpacing(2)
+        column.addWidget(self.stop_banner)
+        column.addWidget(self.phase_view, 1)
+        self.setCentralWidget(central)
         self.panels: dict[str, QWidget] = {
             "phase": self.phase_view,
             "configuration": self.configuration_view,
@@ -339,13 +352,15 @@ class MainWindow(QMainWindow):
             run_menu, "Clear launched orbits", self.controls.clear_button.click, "Ctrl+Shift+K"
         )
         run_menu.addSeparator()
-        self._action(
+        self.energy_guard_action = self._action(
             run_menu,
             "Energy guard…",
             self._on_energy_guard_triggered,
             None,
-            "Stop a run whose relative energy error exceeds a bound",
+            "Stop a run whose relative energy error exceeds a bound, or whose motion grows "
+            "without bound",
         )
+        self._show_energy_guard()
         self.view_menu = menu.addMenu("&View")
         for dock in self.docks.values():
             self.view_menu.addAction(dock.toggleViewAction())
@@ -636,6 +651,7 @@ class MainWindow(QMainWindow):
         self.compiled = compiled
         self._generation += 1
         self._section_continued = 0
+        self.stop_banner.clear()  # a new run: the last one's stop no longer applies
         n_points = len(compiled.point_names)
         self.store = TrajectoryStore(n_points=n_points)
         y0 = compiled.initial_state()
@@ -758,13 +774,59 @@ class MainWindow(QMainWindow):
                 self.statusBar().showMessage(str(exc), 8000)
 
     def set_energy_tolerance(self, value: float | None) -> None:
-        """The energy guard for runs from now on (None: off); applies at once."""
+        """The energy guard for runs from now on (None: off); applies at once. A run that
+        had stopped goes on from where it stopped, under the new guard."""
+        changed = value != self.energy_tolerance
+        stopped = self.run_stopped()
         self.energy_tolerance = value
         self.acted.emit(line("energy-guard", "off" if value is None else float(value)))
+        self._show_energy_guard()
         self._apply_settings()
+        if stopped and changed and self.worker is not None:
+            self._continue_after_stop()
+
+    def _show_energy_guard(self) -> None:
+        text = guard_text(self.energy_tolerance)
+        self.energy_guard_action.setText(f"Energy guard ({text})…")
+        self.stop_banner.set_guard(self.energy_tolerance)
+
+    def run_stopped(self) -> bool:
+        """True when the run has nothing left to do: every orbit stopped for a problem
+        (``systems.simulation.PROBLEMS``) or reached its end, the main one for a problem."""
+        main = self.store.main
+        if main is None or main.status in ("running", "ok"):
+            return False
+        return all(trajectory.finished for trajectory in self.store)
+
+    def _continue_after_stop(self) -> None:
+        """The worker restarts its runs from their last states (new settings): they are
+        running again, and the play button says so."""
+        for trajectory in self.store:
+            if trajectory.status != "ok":
+                trajectory.status, trajectory.message = "running", ""
+        self.stop_banner.clear()
+        self._set_play_shown(True)
+        self.worker.resume()
+
+    def _set_play_shown(self, playing: bool) -> None:
+        """Show the worker's real state on the play button, without a session line."""
+        button = self.controls.play_button
+        if button.isChecked() != playing:
+            button.blockSignals(True)
+            button.setChecked(playing)
+            button.blockSignals(False)
+            self.controls.refresh_play_button()
+
+    def _on_stop_banner_restart_requested(self) -> None:
+        self.controls.reset_button.click()  # the same path, and session line, as Reset
 
     def _on_controls_play_toggled(self, playing: bool) -> None:
         if self.worker is None:
+            return
+        if playing and self.run_stopped():
+            # a run that stopped has nothing to go on with: Play starts it over, as a
+            # player at the end of a film (the banner's guard goes on from the stop)
+            self._start_system(self.compiled, launches=self._launch_states())
             return
         if playing and self._section_run_ended():
             self._section_continued += 1  # Play continues a section run that reached its end
@@ -840,7 +902,9 @@ class MainWindow(QMainWindow):
             return
         self.time_label.setText(f"t = {main.last_t:.4g}")
         rate = self.rate_meter.rate(time.perf_counter())
-        if rate is None:
+        if self.run_stopped():
+            self.rate_label.setText("stopped")  # what ran before the stop is past
+        elif rate is None:
             self.rate_label.setText("" if self.controls.playing else "paused")
         else:
             self.rate_label.setText(f"{rate:.3g} steps/s")
@@ -868,11 +932,15 @@ class MainWindow(QMainWindow):
                 f"the section run reached t = {main.last_t:.6g}; press Play to go on as long again",
                 MESSAGE_MS,
             )
-        stop = (self._generation, main.status) if main.status not in ("running", "ok") else None
+        stopped = main.status not in ("running", "ok")
+        stop = (self._generation, main.status, main.message) if stopped else None
         if stop is not None and stop != self._stop_shown:
-            # once, not at every redraw: it would hide every later message
-            self.statusBar().showMessage(f"stopped: {main.status}: {main.message}", MESSAGE_MS)
+            # once: closed by the user, it stays closed until the next stop
+            self.stop_banner.show_stop(main.status, main.message, self.energy_tolerance)
         self._stop_shown = stop
+        if self.controls.playing and self.run_stopped():
+            self._set_play_shown(False)  # nothing runs: the button offers Play
+            self.worker.pause()
 
     # -- files ---------------------------------------------------------------------------------
 

@@ -525,6 +525,8 @@ class RangeKeeper:
             new_y = self._grow(self.y, *y)
         if new_x == self.x and new_y == self.y:
             return False
+        if not all(math.isfinite(v) for box in (new_x, new_y) if box is not None for v in box):
+            return False  # data near the float limit (an unbounded motion followed): as is
         self.x, self.y = new_x, new_y
         self.apply()
         callback = self._on_grow() if self._on_grow is not None else None

@@ -625,6 +625,11 @@ class _RunUntil:
             return True
         reached = main.last_t if main is not None else 0.0
         if self.deadline is None:
+            if main is not None and main.status not in ("running", "ok"):
+                raise self.player._error(  # stopped (the button then says Play): why
+                    f"the run stopped at t = {reached:.6g}, before t = {self.t:g}: "
+                    f"{main.status}: {main.message}"
+                )
             if not window.controls.playing:
                 raise self.player._error(
                     f"the simulation is paused at t = {reached:.6g}: run-until {self.t:g} "
