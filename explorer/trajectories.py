@@ -26,6 +26,10 @@ its time lies between those of its neighbours, so times never decrease. Panels d
 when at full speed it hands over only the most recent part of what it computed.
 ``is_gap`` tells them apart; ``finite_rows`` gives the rows that are states.
 
+Besides the rows, a trajectory keeps ``envelope`` (``explorer.envelope.Envelope``): H's
+lowest and highest value over every step, in bins of time from the start, merged in
+pairs to stay bounded and never thinned otherwise; the energy plots draw it.
+
 Thinning removes rows, which panels that draw incrementally (O(new rows) per frame) must
 notice: each thinning raises ``Trajectory.revision``, and the store then raises its
 ``generation``, which every panel already treats as "redraw everything".
@@ -38,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from explorer.buffers import GrowingArray
+from explorer.envelope import Envelope
 
 COLOURS = (
     "#1f77b4",
@@ -212,6 +217,8 @@ class Trajectory:
         Drawing points where computed (``backfill_points``).
     events : GrowingArray, rows (2n,)
         Section crossings, all of them (never thinned).
+    envelope : Envelope
+        H's range over every step, per bin of time (where the worker summed it up).
     steps, rhs_evaluations : int
         Integrator steps and right-hand-side evaluations of this orbit so far, over all
         its runs (a method change starts a new run).
@@ -243,6 +250,7 @@ class Trajectory:
     energy: GrowingArray = field(init=False)
     points: GrowingArray = field(init=False)
     events: GrowingArray = field(init=False)
+    envelope: Envelope = field(init=False)
 
     def __post_init__(self) -> None:
         self.y0 = np.asarray(self.y0, dtype=float).copy()
@@ -253,6 +261,7 @@ class Trajectory:
         self.energy = GrowingArray((), capacity=start)
         self.points = GrowingArray((max(self.n_points, 1), 2), capacity=start)
         self.events = GrowingArray((len(self.y0),), capacity=256)
+        self.envelope = Envelope()
         self.t.extend(np.array([self.t0]))
         self.y.extend(self.y0[None, :])
         self.energy.extend_missing(1)
@@ -308,9 +317,12 @@ class Trajectory:
         events = getattr(block, "events_y", None)
         if events is not None and len(events):
             self.events.extend(events)
+        diagnostics = block.diagnostics or {}
+        envelope = diagnostics.get("envelope")
+        if envelope is not None:
+            self.envelope.extend(envelope)
         if not len(t):
             return
-        diagnostics = block.diagnostics or {}
         energy = np.full(len(t), np.nan)
         if "H" in diagnostics:
             energy = np.asarray(diagnostics["H"], dtype=float)[start:]

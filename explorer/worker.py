@@ -35,7 +35,10 @@ Responsive at any speed
   row (``explorer.trajectories``), so no chord is drawn across what was left out.
 - The energy guard and the diagnostics: runs are made without diagnostics (the guard then
   checks the last state of each block); ``H`` and the drawing's points are computed here
-  for the states handed over only.
+  for the states handed over. While ``H`` is wanted, every step is sampled (``stride``
+  stays 1) and H at every step is summed up in min/max bins of time
+  (``explorer.envelope``), handed over with the rows as ``diagnostics["envelope"]`` (an
+  ``Envelope``), whatever the row budget leaves out: the energy plots draw those.
 - Frames carry true counts: each block's ``steps`` and ``rhs_evaluations`` are those
   taken for that block (a ``Run`` block's are totals of its run), and ``Frame.steps``
   their sum, for ``RateMeter``.
@@ -53,6 +56,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+from explorer.envelope import GAP, Envelope, bin_exponent, summarize
 
 FRAME_SECONDS = 0.03
 CHUNK_SECONDS = 0.012
@@ -214,6 +219,9 @@ class _Track:
     owed_evaluations: int = 0
     owed_events: list = dataclasses.field(default_factory=list)
     origin: tuple[float, np.ndarray] | None = None  # where its first run began
+    envelope: Envelope | None = None  # bins of H not handed over yet
+    H0: float = math.nan  # H at ``origin``
+    summed: bool | None = None  # H of the steps so far was summed up (None: never yet)
 
 
 def default_runs() -> Callable:
@@ -558,6 +566,8 @@ class SimulationWorker(QObject):
             )
             track.run_steps = track.run_evaluations = 0
             track.fresh = True
+        if "H" in settings.diagnostics:
+            track.stride = 1  # H is summed up at every step (``_sum_up``)
         if track.seconds_per_step > 0:
             # the states sampled (one every ``stride`` steps) stay under max_points
             points = min(settings.max_points, FINE_VALUES // (len(track.y) + 1))
@@ -589,10 +599,45 @@ class SimulationWorker(QObject):
             )
         if steps > 0:
             track.seconds_per_step = elapsed / steps
+        self._sum_up(track, block, before, settings)
         self._follow(track, block)
         if track.run.finished:
             track.done = True
         return block, before, steps, evaluations
+
+    def _sum_up(self, track: _Track, block, before, settings: RunSettings) -> None:
+        """Sum up H at every state of ``block`` in bins (``explorer.envelope``), owed to
+        the store with the rows; from the state ``before`` too when the steps before it
+        were not summed up (the start, or after H was not wanted: a gap)."""
+        compiled = self.compiled
+        if (
+            "H" not in settings.diagnostics
+            or compiled is None
+            or "hamiltonian" not in getattr(compiled, "wanted", ())
+        ):
+            if track.summed:
+                track.summed = False
+            return
+        t = np.asarray(block.t, dtype=float)
+        if not len(t):
+            return
+        y = np.asarray(block.y, dtype=float).reshape(len(t), -1)
+        t0, y0 = track.origin if track.origin is not None else before
+        with np.errstate(all="ignore"):
+            if not math.isfinite(track.H0):
+                track.H0 = float(compiled.hamiltonian(t0, np.asarray(y0)[None, :])[0])
+            if not track.summed:
+                t = np.concatenate([[before[0]], t])
+                y = np.concatenate([np.asarray(before[1], dtype=float)[None, :], y])
+            H = compiled.hamiltonian(t, y)
+        exponent = bin_exponent(float(t[-1]) - t0)
+        bins = summarize(t, H, t0, track.H0, exponent)
+        if len(bins) and track.summed is False:
+            bins[0, GAP] = 1.0
+        if track.envelope is None:
+            track.envelope = Envelope(capacity=1 << 20)
+        track.envelope.add(exponent, bins)
+        track.summed = True
 
     def _hand_over(self, track: _Track, chunks: list, settings: RunSettings, count: int):
         """The block the store gets for this frame (None: nothing, or it waits).
@@ -638,7 +683,7 @@ class SimulationWorker(QObject):
             t = np.asarray(block.t, dtype=float)
             y = np.asarray(block.y, dtype=float).reshape(len(t), -1)
             keep = arc_keep(t, y, before[1], ARC_RESOLUTION, before_t=before[0])
-            self._adapt_stride(track, keep)
+            self._adapt_stride(track, keep, every_step="H" in settings.diagnostics)
             parts.append((t[keep], y[keep]))
             rows += int(keep.sum())
             if rows >= room:
@@ -655,10 +700,14 @@ class SimulationWorker(QObject):
             y = np.concatenate([np.full((1, y.shape[1]), np.nan), y])
             track.cut = False
         fields = {f.name for f in dataclasses.fields(last)}
+        diagnostics = _diagnostics(self.compiled, settings.diagnostics, t, y)
+        if track.envelope is not None and len(track.envelope):
+            diagnostics["envelope"] = track.envelope
+            track.envelope = None
         changes = dict(
             t=t,
             y=y,
-            diagnostics=_diagnostics(self.compiled, settings.diagnostics, t, y),
+            diagnostics=diagnostics,
             steps=track.owed_steps,
             rhs_evaluations=track.owed_evaluations,
         )
@@ -676,9 +725,13 @@ class SimulationWorker(QObject):
         return replace(last, **changes)
 
     @staticmethod
-    def _adapt_stride(track: _Track, keep: np.ndarray) -> None:
+    def _adapt_stride(track: _Track, keep: np.ndarray, every_step: bool = False) -> None:
         """Sample every ``stride``-th step while the curve keeps at most one state in
-        ``OVERSAMPLING``: cheap steps are not all copied out only to be thinned."""
+        ``OVERSAMPLING``: cheap steps are not all copied out only to be thinned. Every
+        step while H is summed up (a few per cent of the stepping)."""
+        if every_step:
+            track.stride = 1
+            return
         sampled = len(keep)
         if sampled < 64:
             return

@@ -11,10 +11,15 @@ titles, legends, the momentum plot (there is none without a conserved momentum) 
 curves. The time axes fit the data (a few percent of room ahead, so they are not redrawn
 every frame); legends sit beside the plots, never on the curves.
 
-Curves against time are drawn from their finite rows only (``FiniteSeries``), as
-``EnvelopeCurve``: at most four rows per pixel column, so a long energy record costs no
-more to draw than a short one (a gap row of a thinned trajectory, NaN, would spoil its
-column's lowest and highest value).
+The energy curves draw H's range over every step (``Trajectory.envelope``, summed up by
+the worker before it thins the states it hands over): each bin of time a vertical from
+its lowest to its highest value, at most a few bins per pixel column over the whole run,
+so at full speed the plot shows what every step did, not a line through the few states
+kept. Before the envelope begins (H was not wanted while the plot was hidden), and for a
+trajectory without one, the rows' H is drawn. Curves against time are drawn as
+``EnvelopeCurve``: at most four rows per pixel column, so a long record costs no more to
+draw than a short one. Rows that hold no state (gap rows) are breaks in the curve
+(``FiniteSeries``): no line is drawn across what was left out.
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ from explorer.panels.curves import (
     style_plot,
 )
 from explorer.panels.log_axis import SparseLogAxis
-from explorer.trajectories import backfill_energy
+from explorer.trajectories import backfill_energy, is_gap
 from systems.symmetries import ROTATIONS, TRANSLATIONS, charge_functions
 
 FLOOR = 1e-17
@@ -48,8 +53,9 @@ second as at forty."""
 
 
 class FiniteSeries:
-    """(t, value) rows of a trajectory with the non-finite ones left out, built from the
-    rows not seen before (O(new rows) a frame).
+    """(t, value) rows of a trajectory to draw, built from the rows not seen before
+    (O(new rows) a frame): the finite rows, and one NaN row (a break) for each stretch of
+    non-finite values (gap rows) between them, so no line joins the rows across a gap.
 
     ``feed(t, values)`` takes the whole columns, shape (k,), and returns views of the
     kept rows; columns that got shorter start it afresh.
@@ -58,15 +64,23 @@ class FiniteSeries:
     def __init__(self):
         self._rows = GrowingArray((2,))
         self._seen = 0
+        self._finite = False  # the last row kept is finite (a break may follow)
 
     def feed(self, t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if len(t) < self._seen:
             self._rows.clear()
             self._seen = 0
+            self._finite = False
         new_t, new_v = t[self._seen :], values[self._seen :]
-        keep = np.isfinite(new_t) & np.isfinite(new_v)
-        if keep.any():
-            self._rows.extend(np.stack([new_t[keep], new_v[keep]], axis=1))
+        timed = np.isfinite(new_t)
+        new_t, new_v = new_t[timed], new_v[timed]
+        if len(new_t):
+            finite = np.isfinite(new_v)
+            after = np.concatenate([[self._finite], finite[:-1]])
+            keep = finite | after  # a finite row, or the first non-finite one after it
+            rows = np.stack([new_t[keep], np.where(finite[keep], new_v[keep], np.nan)], axis=1)
+            self._rows.extend(rows)
+            self._finite = bool(finite[-1])
         self._seen = len(t)
         data = self._rows.data
         return data[:, 0], data[:, 1]
@@ -110,6 +124,7 @@ class ConservedView(QWidget):
         self._reference: dict[int, float] = {}
         self._values: dict[int, GrowingArray] = {}
         self._energy_series: dict[int, FiniteSeries] = {}
+        self._envelope_drawn: dict[int, tuple] = {}
         self._momentum_series: dict[int, FiniteSeries] = {}
         self.conserved_charges: list[str] = []
         self._charge_functions: dict = {}
@@ -212,6 +227,7 @@ class ConservedView(QWidget):
         self._reference.clear()
         self._values.clear()
         self._energy_series.clear()
+        self._envelope_drawn.clear()
         self._momentum_series.clear()
         self.energy_legend.clear()
         self.energy_range.reset()
@@ -246,6 +262,7 @@ class ConservedView(QWidget):
             self._values.pop(key, None)
             self._reference.pop(key, None)
             self._energy_series.pop(key, None)
+            self._envelope_drawn.pop(key, None)
             changed = True
         n = self.compiled.n
         for trajectory in store:
@@ -262,14 +279,12 @@ class ConservedView(QWidget):
                 self._values[key] = GrowingArray(())
                 self._energy_series[key] = FiniteSeries()
                 changed = True
+            if len(trajectory.envelope):
+                self._draw_envelope(trajectory, energy)
+                continue
             values = self._values[key]
             new = energy[len(values) :]  # only rows not seen before are computed
-            if self.shows_error:
-                h0 = self._reference[key]
-                scale = abs(h0) if abs(h0) > 1e-300 else 1.0
-                values.extend(np.maximum(np.abs(new - h0) / scale, FLOOR))
-            else:
-                values.extend(new)
+            values.extend(self._shown(key, new))
             t, shown = self._energy_series[key].feed(trajectory.t.data, values.data)
             self._energy_curves[key].update(t, shown)
         if changed:
@@ -281,6 +296,41 @@ class ConservedView(QWidget):
                 curve.update(*series.feed(main.t.data, main.y.data[:, n + i]))
             if self._charge_curves:
                 self._update_charges(main)
+
+    def _shown(self, key: int, energy: np.ndarray) -> np.ndarray:
+        """What the upper plot draws of H values: the relative error, or H."""
+        if not self.shows_error:
+            return energy
+        h0 = self._reference[key]
+        return np.maximum(np.abs(energy - h0) / self._scale(key), FLOOR)
+
+    def _scale(self, key: int) -> float:
+        h0 = self._reference[key]
+        return abs(h0) if abs(h0) > 1e-300 else 1.0
+
+    def _draw_envelope(self, trajectory, energy: np.ndarray) -> None:
+        """Draw the trajectory's envelope of H (``explorer.envelope``), after the rows'
+        H before it began (with a break between)."""
+        key = trajectory.key
+        envelope = trajectory.envelope
+        curve = self._energy_curves[key]
+        start = float(envelope.data[0, 1])
+        before = int(np.searchsorted(trajectory.t.data, start, side="left"))
+        state = (envelope.revision, before)
+        drawn = self._envelope_drawn.get(key)
+        if drawn is None or drawn[:2] != state:
+            curve.reset()  # from rows to bins, or the bins were merged in pairs
+        revised = drawn is not None and drawn[2] != envelope.version
+        self._envelope_drawn[key] = (*state, envelope.version)
+        x, y = envelope.polyline(self.shows_error, self._scale(key), FLOOR)
+        if before:
+            rows_t = trajectory.t.data[:before]
+            rows_v = np.where(
+                is_gap(trajectory.y.data[:before]), np.nan, self._shown(key, energy[:before])
+            )
+            x = np.concatenate([rows_t, [start], x])
+            y = np.concatenate([rows_v, [np.nan], y])
+        curve.update(x, y, revised=revised)
 
     def _update_charges(self, main) -> None:
         """Evaluate each Noether charge on the main trajectory's rows not seen before."""

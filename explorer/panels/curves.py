@@ -10,7 +10,8 @@ of thousands of rows takes hundreds of ms); neither may happen every frame.
   or downsampled (pyqtgraph's clipping and downsampling assume sorted x and would drop
   or distort parts of a closed orbit).
 - ``EnvelopeCurve`` (curves against time) draws at most four rows per pixel column
-  (``column_envelope``), which covers the same pixels as every row.
+  (``column_envelope``), which covers the same pixels as every row; a NaN row is a break
+  (``connect="finite"``): no line joins the rows on either side of it.
 """
 
 from __future__ import annotations
@@ -163,12 +164,13 @@ def column_envelope(
     through them covers the same pixels as through every row: within a column it spans
     the same heights, and the lines between columns join the same rows. Of the rows left
     of the view only the last is kept, of those right of it only the first (the lines
-    into the view).
+    into the view). A row whose ``y`` is NaN (a break) is kept, and ends its column's
+    group: the rows before and after it are taken apart.
 
     Parameters
     ----------
     x, y : ndarray, shape (k,)
-        Finite; ``x`` nondecreasing.
+        ``x`` finite and nondecreasing; ``y`` finite or NaN (a break).
     x0, x1 : float
         The view, ``x0 < x1``.
     columns : int
@@ -192,8 +194,13 @@ def column_envelope(
     scale = columns / (x1 - x0)
     column = np.floor((x[first:stop] - x0) * scale)
     np.clip(column, -1, columns, out=column)
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(column)) + 1])
     values = y[first:stop]
+    breaks = np.isnan(values)
+    # a new group where the column changes, at a break and after it
+    new = np.diff(column) != 0
+    if breaks.any():
+        new |= breaks[1:] | breaks[:-1]
+    starts = np.concatenate([[0], np.flatnonzero(new) + 1])
     lows = np.minimum.reduceat(values, starts)
     highs = np.maximum.reduceat(values, starts)
     group = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(values))))
@@ -201,6 +208,8 @@ def column_envelope(
     beyond = len(values)
     low_at = np.minimum.reduceat(np.where(values == lows[group], index, beyond), starts)
     high_at = np.minimum.reduceat(np.where(values == highs[group], index, beyond), starts)
+    low_at = np.where(low_at == beyond, starts, low_at)  # a break: its own row
+    high_at = np.where(high_at == beyond, starts, high_at)
     ends = np.append(starts[1:], len(values)) - 1
     kept = np.sort(np.stack([starts, low_at, high_at, ends], axis=1), axis=1).ravel()
     rows = kept[np.append(True, kept[1:] != kept[:-1])]
@@ -208,7 +217,8 @@ def column_envelope(
 
 
 class EnvelopeCurve:
-    """A curve against time (x nondecreasing, finite) drawn at the view's resolution.
+    """A curve against time (x nondecreasing and finite; y finite, or NaN for a break)
+    drawn at the view's resolution.
 
     What is handed to pyqtgraph is ``column_envelope`` of the data: at most four rows per
     pixel column, however many rows the curve has. New rows redo only the last column; a
@@ -240,10 +250,10 @@ class EnvelopeCurve:
         self.plot = plot
         self.pen = pen
         self.ranges = ranges
-        self.settled = pg.PlotDataItem(pen=pen)
+        self.settled = pg.PlotDataItem(pen=pen, connect="finite")
         self.settled.curve.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         reserve_pixmap_cache()
-        self.tail = pg.PlotDataItem(pen=pen, name=name)
+        self.tail = pg.PlotDataItem(pen=pen, name=name, connect="finite")
         for item in self.items:
             item.curve.opts["segmentedLineMode"] = "on"
             plot.addItem(item)
@@ -274,8 +284,10 @@ class EnvelopeCurve:
         if not self._updating and self._current_grid() != self._grid:
             self._redo(0)
 
-    def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Show ``x[i], y[i]`` for all i (``x`` nondecreasing, every row finite)."""
+    def update(self, x: np.ndarray, y: np.ndarray, revised: bool = False) -> None:
+        """Show ``x[i], y[i]`` for all i (``x`` nondecreasing and finite, ``y`` finite or
+        NaN: a break). ``revised``: the last rows changed in place (those of the last
+        column drawn)."""
         size = len(x)
         seen = len(self._x)
         replaced = size < seen
@@ -291,7 +303,7 @@ class EnvelopeCurve:
         self._x, self._y = x, y
         if replaced or self._current_grid() != self._grid:
             self._redo(0)
-        elif size > seen:
+        elif size > seen or revised:
             self._redo(self._open_row)
 
     def _redo(self, start: int) -> None:

@@ -629,3 +629,127 @@ def test_a_paced_plot_leaves_the_gap_free_after_each_paint_and_paints_the_last_c
     # and the end is stamped after the paint armed the next one
     for (_, end, _), (start, _, _) in zip(paints[:-1], paints[1:], strict=True):
         assert start - end >= 0.9 * gap
+
+
+# -- energy plots show every step's H (issue 25 item 6) ------------------------------------
+
+
+@pytest.fixture(scope="module")
+def double_pendulum():
+    from explorer.builder import build
+    from systems.scene import load_scene
+
+    built = build(load_scene("double_pendulum"))
+    return built, built.compiled
+
+
+def every_step(compiled, trajectory, settings):
+    """Times and H at every step of a run equal to the trajectory's, to its last time."""
+    from systems.simulation import Run
+
+    run = Run(
+        compiled,
+        method=trajectory.method,
+        y0=trajectory.y0,
+        t0=trajectory.t0,
+        energy_tolerance=settings.energy_tolerance,
+        max_step=settings.max_step,
+        max_points=1 << 22,
+        **{trajectory.setting: trajectory.setting_value},
+    )
+    ts, ys = [np.array([trajectory.t0])], [trajectory.y0[None, :]]
+    while run.t < trajectory.last_t and not run.finished:
+        block = run.advance(0.05, until=trajectory.last_t)
+        ts.append(block.t)
+        ys.append(block.y)
+    t, y = np.concatenate(ts), np.concatenate(ys)
+    return t, y, compiled.hamiltonian(t, y)
+
+
+def test_the_energy_plot_at_max_speed_holds_every_steps_h_in_bins_under_a_pixel(
+    qtbot, double_pendulum
+):
+    from explorer.envelope import ERROR_HIGH, ERROR_LOW, H_HIGH, H_LOW, INDEX
+    from explorer.panels.conserved_view import FLOOR, ConservedView
+
+    built, compiled = double_pendulum
+    # a row budget far below what the run computes: most of it is left out of the rows
+    settings = RunSettings(
+        method=built.method, speed=math.inf, diagnostics=("H",), rows_per_second=64.0
+    )
+    with Feed(compiled, settings) as feed:
+        main = feed.store.main
+        qtbot.waitUntil(lambda: is_gap(main.y.data).sum() >= 3 and main.last_t > 40, timeout=60000)
+    t, y, H = every_step(compiled, main, settings)
+    real = ~is_gap(main.y.data)
+    assert np.array_equal(main.y.data[real], y[np.searchsorted(t, main.t.data[real])])
+    envelope = main.envelope
+    bins = envelope.data
+    # every step's H, and its distance from H0, lies in its bin's range
+    index = np.floor(np.ldexp(t - main.t0, -envelope.exponent))
+    at = np.searchsorted(bins[:, INDEX], index)
+    assert np.array_equal(bins[at, INDEX], index)
+    error = np.abs(H - H[0])
+    assert (bins[at, H_LOW] <= H).all() and (H <= bins[at, H_HIGH]).all()
+    assert (bins[at, ERROR_LOW] <= error).all() and (error <= bins[at, ERROR_HIGH]).all()
+    # the plot draws those bins, each a vertical from its lowest to its highest error,
+    # narrower than a pixel, with no break (nothing was left out)
+    view = ConservedView()
+    qtbot.addWidget(view)
+    view.resize(1400, 300)
+    view.show()
+    qtbot.waitExposed(view)
+    view.set_system(compiled)
+    view.refresh(feed.store)
+    curve = view._energy_curves[0]
+    scale = abs(H[0])
+    assert np.array_equal(curve._x, np.repeat(bins[:, 1], 2))
+    drawn = np.maximum(np.stack([bins[:, ERROR_LOW], bins[:, ERROR_HIGH]], 1) / scale, FLOOR)
+    assert np.array_equal(curve._y, drawn.ravel())
+    (x0, x1), _ = view.energy_plot.getViewBox().viewRange()
+    assert envelope.width() < (x1 - x0) / view.energy_plot.getViewBox().width()
+    assert np.isfinite(curve._y).all()
+
+
+def test_an_envelope_merges_pairs_of_bins_and_keeps_every_value_inside():
+    from explorer.envelope import ERROR_HIGH, H_HIGH, H_LOW, INDEX, Envelope, summarize
+
+    rng = np.random.default_rng(5)
+    envelope = Envelope(capacity=64)
+    t = np.sort(rng.uniform(0.0, 100.0, 5000))
+    H = rng.normal(size=5000)
+    for piece in np.array_split(np.arange(5000), 37):
+        # finer bins early, coarser later: both are merged into the envelope's grid
+        exponent = -6 if piece[0] < 2500 else -2
+        envelope.add(exponent, summarize(t[piece], H[piece], 0.0, 0.0, exponent))
+    bins = envelope.data
+    assert len(bins) <= 64 and envelope.revision > 0
+    assert (np.diff(bins[:, INDEX]) > 0).all()
+    index = np.floor(np.ldexp(t, -envelope.exponent))
+    at = np.searchsorted(bins[:, INDEX], index)
+    assert np.array_equal(bins[at, INDEX], index)
+    assert (bins[at, H_LOW] <= H).all() and (H <= bins[at, H_HIGH]).all()
+    assert (np.abs(H) <= bins[at, ERROR_HIGH]).all()
+    assert bins[:, H_HIGH].max() == H.max() and bins[:, H_LOW].min() == H.min()
+
+
+def test_a_time_series_is_broken_at_a_gap_never_joined_across_it(qtbot):
+    from explorer.panels.conserved_view import FiniteSeries
+
+    t = np.array([0.0, 1.0, 2.0, 2.0, 2.0, 5.0, 6.0])
+    v = np.array([1.0, 2.0, np.nan, np.nan, np.nan, 3.0, 4.0])
+    series = FiniteSeries()
+    x, y = series.feed(t[:3], v[:3])
+    x, y = series.feed(t, v)
+    assert np.array_equal(x, [0.0, 1.0, 2.0, 5.0, 6.0])
+    assert np.array_equal(y, [1.0, 2.0, np.nan, 3.0, 4.0], equal_nan=True)
+    # the drawn rows keep the break, at any resolution
+    rows, _ = column_envelope(x, y, 0.0, 6.0, 2)
+    assert np.isnan(y[rows]).sum() == 1
+    assert 2 in rows and rows.tolist() == sorted(rows.tolist())
+    curve_plot = PacedLayoutWidget()
+    qtbot.addWidget(curve_plot)
+    plot = curve_plot.addPlot()
+    curve = EnvelopeCurve(plot, None)
+    curve.update(x, y)
+    assert all(item.opts["connect"] == "finite" for item in curve.items)
