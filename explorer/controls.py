@@ -95,7 +95,9 @@ class ControlsPanel(QWidget):
         self.step_button = QPushButton(
             style.standardIcon(QStyle.StandardPixmap.SP_MediaSeekForward), ""
         )
-        self.step_button.setToolTip("Single step: advance one frame while paused (Ctrl+.)")
+        self.step_button.setToolTip(
+            "Single step: advance one frame while paused; at max speed, one frame of 1× (Ctrl+.)"
+        )
         self.step_button.clicked.connect(self.single_step_requested)
         self.reset_button = QPushButton(
             style.standardIcon(QStyle.StandardPixmap.SP_MediaSkipBackward), ""

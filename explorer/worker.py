@@ -222,6 +222,7 @@ class _Track:
     envelope: Envelope | None = None  # bins of H not handed over yet
     H0: float = math.nan  # H at ``origin``
     summed: bool | None = None  # H of the steps so far was summed up (None: never yet)
+    withheld: tuple | None = None  # the last chunk whose states waited for the row budget
 
 
 def default_runs() -> Callable:
@@ -427,7 +428,8 @@ class SimulationWorker(QObject):
             return tuple(self._tracks)
 
     def step(self) -> None:
-        """While paused: advance one frame."""
+        """While paused: advance one frame (at full speed, one frame of 1x: the first
+        step at or past ``frame_seconds`` of simulated time)."""
         with self._lock:
             self._steps_requested += 1
         self._wake.set()
@@ -464,6 +466,7 @@ class SimulationWorker(QObject):
                     stepping = self._steps_requested > 0
                     self._steps_requested = max(0, self._steps_requested - 1)
                 if not stepping:
+                    self._flush_withheld()
                     self._idle(0.05)
                     continue
             active = [track for track in self._tracks.values() if not track.done]
@@ -476,28 +479,51 @@ class SimulationWorker(QObject):
             if stepping:
                 for track in active:
                     track.target = None  # a single step always moves
+                if not paced:
+                    # one frame of 1x, whatever the speed: at full speed a chunk's steps
+                    # are planned for its wall time (tens of time units)
+                    settings, paced = settings.with_(speed=1.0), True
             chunks = self._frame(active, settings, paced, start)
             blocks = []
             for track in active:
                 block = self._hand_over(track, chunks.get(track.key, []), settings, len(active))
                 if block is not None:
                     blocks.append((track.key, block))
-            ready = time.perf_counter()
-            if blocks and not self._abort:
-                self._wait_for_room()
-                if not self._abort:
-                    self.frames += 1
-                    frame = Frame(
-                        self.generation,
-                        tuple(blocks),
-                        ready - start,
-                        self.iterations,
-                        time.perf_counter(),
-                        ready,
-                    )
-                    self.blocks_ready.emit(frame)
+            self._emit(blocks, start)
             if paced:
                 self._wait_out(start + settings.frame_seconds)
+
+    def _emit(self, blocks: list, start: float) -> None:
+        """Send a frame of ``blocks`` (if any) once the GUI has room for it."""
+        ready = time.perf_counter()
+        if blocks and not self._abort:
+            self._wait_for_room()
+            if not self._abort:
+                self.frames += 1
+                frame = Frame(
+                    self.generation,
+                    tuple(blocks),
+                    ready - start,
+                    self.iterations,
+                    time.perf_counter(),
+                    ready,
+                )
+                self.blocks_ready.emit(frame)
+
+    def _flush_withheld(self) -> None:
+        """Paused: hand over the latest states of the runs whose last chunks waited for
+        the row budget, so that what is shown is where the runs are (a single step then
+        moves on from there, not from where the last rows handed over were)."""
+        start = time.perf_counter()
+        blocks = []
+        for track in list(self._tracks.values()):
+            if track.withheld is not None:
+                block, before, _, _ = track.withheld
+                chunk = (block, before, 0, 0)
+                handed = self._hand_over(track, [chunk], self._settings, len(self._tracks), True)
+                if handed is not None:
+                    blocks.append((track.key, handed))
+        self._emit(blocks, start)
 
     def _interrupted(self) -> bool:
         return self._abort or self._paused or self._changed
@@ -639,7 +665,9 @@ class SimulationWorker(QObject):
         track.envelope.add(exponent, bins)
         track.summed = True
 
-    def _hand_over(self, track: _Track, chunks: list, settings: RunSettings, count: int):
+    def _hand_over(
+        self, track: _Track, chunks: list, settings: RunSettings, count: int, flush: bool = False
+    ):
         """The block the store gets for this frame (None: nothing, or it waits).
 
         The chunks' states are thinned along the curve (``arc_keep``) from the newest
@@ -647,17 +675,21 @@ class SimulationWorker(QObject):
         goes after a gap row, and when the bucket holds less than ``MIN_FRAGMENT`` rows
         the frame's states wait out (their counts and section crossings never do), unless
         they all fit and either follow on from the last rows handed over or are paced
-        playback, or the run is new (a launch or a change of method shows at once).
+        playback, or the run is new (a launch or a change of method shows at once), or the
+        worker is paused. ``flush``: the chunks waited before (their counts and crossings
+        are owed already); they go over now.
         """
         if not chunks:
             return None
         last = chunks[-1][0]
-        track.owed_steps += sum(c[2] for c in chunks)
-        track.owed_evaluations += sum(c[3] for c in chunks)
-        for block, _, _, _ in chunks:
-            events_t = getattr(block, "events_t", None)
-            if events_t is not None and len(events_t):
-                track.owed_events.append((np.asarray(events_t), np.asarray(block.events_y)))
+        if not flush:
+            track.owed_steps += sum(c[2] for c in chunks)
+            track.owed_evaluations += sum(c[3] for c in chunks)
+            for block, _, _, _ in chunks:
+                events_t = getattr(block, "events_t", None)
+                if events_t is not None and len(events_t):
+                    track.owed_events.append((np.asarray(events_t), np.asarray(block.events_y)))
+        track.withheld = None
         now = time.perf_counter()
         rate = settings.rows_per_second / count
         burst = max(rate * BURST_SECONDS, MIN_FRAGMENT)
@@ -672,8 +704,9 @@ class SimulationWorker(QObject):
         # paced playback hands its few rows over at once (they fit)
         cut = track.cut and not paced
         short = track.tokens < MIN_FRAGMENT and (cut or sampled > track.tokens)
-        if short and not fresh and last.status == "running":
+        if short and not fresh and last.status == "running" and not (flush or self._paused):
             track.cut = True
+            track.withheld = chunks[-1]
             return None  # this frame's states are left out; the counts wait
         room = max(int(track.tokens), 1)
         parts = []

@@ -753,3 +753,23 @@ def test_a_time_series_is_broken_at_a_gap_never_joined_across_it(qtbot):
     curve = EnvelopeCurve(plot, None)
     curve.update(x, y)
     assert all(item.opts["connect"] == "finite" for item in curve.items)
+
+
+def test_single_step_at_max_speed_advances_one_frame_of_1x(qtbot, pendulum):
+    built, compiled = pendulum
+    settings = RunSettings(method=built.method, speed=math.inf)
+    with Feed(compiled, settings) as feed:
+        main = feed.store.main
+        # long enough that a full-speed chunk plans many time units of steps
+        qtbot.waitUntil(lambda: main.last_t > 100, timeout=60000)
+        feed.worker.pause()
+        count = -1
+        while count != len(feed.frames):  # frames on their way arrive
+            count = len(feed.frames)
+            qtbot.wait(300)
+        for _ in range(3):
+            before, count = main.last_t, len(feed.frames)
+            feed.worker.step()
+            qtbot.waitUntil(lambda count=count: len(feed.frames) > count, timeout=5000)
+            advance = main.last_t - before
+            assert 0 < advance <= settings.frame_seconds + main.setting_value * 1.0001
