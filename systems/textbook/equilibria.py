@@ -1624,6 +1624,10 @@ class _Problem:
                 return False
             direction = kernel[0][index_r] * self.scales
             line = point[: self.mq] + np.linspace(-math.pi, math.pi, 1441)[:, None] * direction
+            # with the point's multipliers, where U is W = U + lambda . c (constraints)
+            line = np.hstack(
+                [line, np.broadcast_to(point[self.mq :], (len(line), self.m - self.mq))]
+            )
             if not all(self._one_configuration(point, p) for p in line[::160]):
                 return False  # not a straight line of the chart's singular set
             return bool(min(self.distance(p, curve).min() for p in line) <= 2 * self.trace_step)
