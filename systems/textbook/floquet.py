@@ -54,6 +54,10 @@ SECONDS = 15.0
 """CPU seconds the analysis of one system may take (like the equilibrium search)."""
 MAX_DENOMINATOR = 64
 """Frequency ratios are commensurate when a fraction with at most this denominator fits."""
+MAX_EVALUATIONS = 20_000
+"""Right-hand side evaluations one monodromy matrix may take (a regular constant solution
+needs a few thousand): beyond them the equations are stiff or singular near the solution,
+which is then reported undecided, leaving the others their share of ``SECONDS``."""
 
 
 class NotPeriodic(ValueError):
@@ -388,8 +392,10 @@ def monodromy(
     rtol: float = RTOL,
     atol: float = ATOL,
     cancel=None,
+    max_evaluations: int | None = None,
 ) -> Monodromy:
-    """Integrate the solution from ``y0`` and its variational equations over one period."""
+    """Integrate the solution from ``y0`` and its variational equations over one period
+    (``RuntimeError`` if that fails, or takes more than ``max_evaluations``)."""
     m = 2 * system.n
     y0 = np.asarray(y0, dtype=float)
     P = np.asarray(P, dtype=float)
@@ -403,9 +409,21 @@ def monodromy(
         J = np.asarray(system.jacobian(t, *y, *P), dtype=float).reshape(m, m)
         return np.concatenate([f, (J @ phi).ravel(), [np.trace(J)]])
 
+    evaluations = 0
+
+    def counted(t, z):
+        nonlocal evaluations
+        evaluations += 1
+        if max_evaluations is not None and evaluations > max_evaluations:
+            raise RuntimeError(
+                f"the variational equations took more than {max_evaluations} evaluations "
+                "over one period (stiff or singular near the solution)"
+            )
+        return rhs(t, z)
+
     z0 = np.concatenate([y0, np.eye(m).ravel(), [0.0]])
     solution = scipy.integrate.solve_ivp(
-        rhs, (t0, t0 + period), z0, method="DOP853", rtol=rtol, atol=atol
+        counted, (t0, t0 + period), z0, method="DOP853", rtol=rtol, atol=atol
     )
     if not solution.success:
         raise RuntimeError(f"the variational equations could not be integrated: {solution.message}")
@@ -646,6 +664,9 @@ class FloquetAnalysis:
     symplectic : bool
     system : VariationalSystem or None
         For a stability chart (None where the analysis did not get that far).
+    undecided : tuple of (q, reason)
+        Constant solutions whose multipliers could not be computed (at a singular point
+        of the coordinates, or too stiff), with the reason.
     """
 
     periodicity: Periodicity
@@ -653,6 +674,7 @@ class FloquetAnalysis:
     note: str
     symplectic: bool = True
     system: VariationalSystem | None = None
+    undecided: tuple[tuple[dict[str, float], str], ...] = ()
 
     def as_json(self) -> dict:
         """``derive --json``'s ``floquet``."""
@@ -662,6 +684,10 @@ class FloquetAnalysis:
             "frequencies": list(self.periodicity.frequencies),
             "hamiltonian_flow": self.symplectic,
             "constant_solutions": [s.as_json() for s in self.solutions],
+            "undecided_solutions": [
+                {"q": dict(q), "stability": "undecided", "reason": reason}
+                for q, reason in self.undecided
+            ],
             "note": self.note or self.periodicity.reason,
         }
 
@@ -681,6 +707,9 @@ class FloquetAnalysis:
                 else f" (Liouville: exp ∫tr J dt = {s.liouville:.{digits}g})"
             )
             lines.append(f"{where}: {s.verdict.word}; multipliers {mus}{extra}; {check}")
+        for q, reason in self.undecided:
+            where = ", ".join(f"{shown.get(k, k)} = {v:.{digits}g}" for k, v in q.items())
+            lines.append(f"{where}: stability undecided; {reason}")
         return lines
 
 
@@ -727,10 +756,23 @@ def _analyse(mechanics, parameters, period_info, cancel) -> FloquetAnalysis:
     period = float(period_info.period)
     ranges = mechanics.scene.view.get("ranges") if mechanics.scene.view else None
     roots = constant_solutions(system, P, period, ranges=ranges, cancel=cancel)
-    solutions = []
+    solutions, undecided = [], []
     for q in roots:
         y0 = system.state_at_rest(q, P)
-        result = monodromy(system, y0, period, P, cancel=cancel)
+        reason = _singular_at(mechanics, parameters, system, q, y0, P)
+        if reason is None:
+            try:
+                result = monodromy(
+                    system, y0, period, P, cancel=cancel, max_evaluations=MAX_EVALUATIONS
+                )
+                if not np.all(np.isfinite(result.multipliers)):
+                    reason = "the monodromy matrix is not finite"
+            except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+                reason = str(exc)
+        if reason is not None:  # reported undecided, the others still analysed
+            where = {name: float(v) for name, v in zip(system.names, q, strict=True)}
+            undecided.append((where, reason))
+            continue
         solutions.append(
             ConstantSolution(
                 q={name: float(v) for name, v in zip(system.names, q, strict=True)},
@@ -745,13 +787,38 @@ def _analyse(mechanics, parameters, period_info, cancel) -> FloquetAnalysis:
     free = [system.names[i] for i in range(system.n) if i not in system.searched]
     if free:
         notes.append(f"the equations do not depend on {', '.join(free)}: free, shown at 0")
-    if not solutions:
+    if not solutions and not undecided:
         notes.append("no constant solution: rest at any q is pushed away at some t")
     if not system.symplectic:
         notes.append("effects act: the flow is not Hamiltonian, det M < 1 under damping")
     return FloquetAnalysis(
-        period_info, tuple(solutions), "; ".join(notes), system.symplectic, system
+        period_info,
+        tuple(solutions),
+        "; ".join(notes),
+        system.symplectic,
+        system,
+        tuple(undecided),
     )
+
+
+def _singular_at(mechanics, parameters, system, q, y0, P) -> str | None:
+    """Why the multipliers of the constant solution ``q`` cannot be computed in these
+    coordinates (None: they can): the equations not finite there, or the chart failing
+    (the mass matrix singular, as at a pole of polar angles)."""
+    from systems.textbook.equilibria import _mass_function, _regular
+
+    with np.errstate(all="ignore"):
+        f = np.asarray(system.rhs(0.0, *y0, *P), dtype=float)
+        J = np.asarray(system.jacobian(0.0, *y0, *P), dtype=float)
+        M = _mass_function(mechanics, parameters)(np.asarray(q, dtype=float))
+    if not _regular(np.asarray(M, dtype=float)):
+        return (
+            "the mass matrix is singular there (a singular point of the coordinates, "
+            "like the pole of polar angles): the multipliers are not computed in this chart"
+        )
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(J))):
+        return "the equations of motion are not finite there"
+    return None
 
 
 # -- stability charts -----------------------------------------------------------------------

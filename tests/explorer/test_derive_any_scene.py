@@ -106,3 +106,19 @@ def test_a_chart_singular_equilibrium_on_a_constraint_is_held_against_the_set(tm
             "[initial]\nr = 1.0\ntheta = 1.0\n",
         )
         assert "a curve of equilibria" in shown
+
+
+def test_driven_constant_solutions_at_a_pole_are_undecided_not_integrated(tmp_path):
+    # a spherical pendulum whose gravity is modulated: its constant solutions are the
+    # poles theta = 0, pi, where the chart's mass matrix is singular; the monodromy there
+    # ran DOP853 into ever smaller steps until the analysis' 15 s were gone ('none: the
+    # Floquet analysis took longer than 15 s'), in each of derive's three searches
+    shown = _derives(
+        tmp_path,
+        'title = "driven sphere"\n[system]\ncoordinates = ["theta", "phi"]\n'
+        "parameters = { m = 1.0, g = 9.81, l = 1.0, a = 0.4, w = 0.7 }\n"
+        'kinetic = "m*l**2*(theta_dot**2 + sin(theta)**2*phi_dot**2)/2"\n'
+        'potential = "-m*g*l*cos(theta)*(1 + a*cos(w*t))"\n',
+    )
+    assert "was stopped" not in shown
+    assert shown.count("stability undecided; the mass matrix is singular there") == 2
