@@ -31,7 +31,8 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=No
     """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``.
 
     The trajectory is sampled at ``times`` (default: ``EXPORT_SAMPLES`` evenly spaced
-    times; each sample is the state of the first step at or after its time) and keeps
+    times; each sample is the state at exactly its time, ``systems.simulation.Sampler``)
+    and keeps
     every section crossing, so memory does not grow with ``t_end``; the run has the
     command line's step budget.
 
@@ -160,8 +161,8 @@ def render_panel(
 
 def write_csv(scene, out: str | Path, t_end: float, times: np.ndarray) -> tuple[Path, object]:
     """Build ``scene``, integrate it to ``t_end`` and write its main trajectory to the CSV
-    ``out``: one row per time of ``times``, shape (k,), each the state of the first step
-    at or after it. Returns the path and the trajectory."""
+    ``out``: one row per time of ``times``, shape (k,), each the state at that time
+    (``systems.simulation.Sampler``). Returns the path and the trajectory."""
     from explorer.builder import build
     from explorer.export import write_trajectories_csv
 

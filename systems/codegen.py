@@ -101,7 +101,8 @@ def template_source() -> str:
     named codes of ``systems.integrators.codes`` and followed by
     ``systems.matrix_solve.solve_augmented``, with the driver templates (functions
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
-    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step`` and ``WORK`` ``X_work``.
+    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work``, ``SAMPLE``
+    ``X_sample`` and ``SWORK`` ``X_sample_work``.
     """
     from systems import constraints, matrix_solve
     from systems.integrators import kernels
@@ -122,6 +123,8 @@ def template_source() -> str:
     for family in STEP_DEF.findall(shared):
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
+        instance = re.sub(r"\bSAMPLE\(", f"{family}_sample(", instance)
+        instance = re.sub(r"\bSWORK\(", f"{family}_sample_work(", instance)
         parts.append(re.sub(r"\bWORK\(", f"{family}_work(", instance))
     return "\n\n".join(part.strip() + "\n" for part in parts)
 

@@ -15,6 +15,7 @@ compiled loop and located by cubic Hermite interpolation.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Iterator, Sequence
@@ -95,6 +96,9 @@ class Block:
         ``"dt"``, ``"ds"`` or ``"tol"``: what ``setting_value`` is.
     setting_value : float
         The step or tolerance in use (the default rule's when none was given).
+    samples : int
+        ``Run.advance(samples=...)``: the first ``samples`` rows are the states at the
+        sample times asked for, at exactly those times (the rest: the latest state).
     """
 
     t: np.ndarray
@@ -109,6 +113,7 @@ class Block:
     events_y: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
     setting: str = ""
     setting_value: float = math.nan
+    samples: int = 0
 
     @property
     def finished(self) -> bool:
@@ -320,19 +325,25 @@ class Run:
     def t(self) -> float:
         return self.good[0] if self.runner is None else self.runner.t
 
+    def answer(self, samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The states at ``samples`` (ascending times inside the last step, which reached
+        the end time: times a last ``advance(samples=...)`` did not have), as exactly as
+        ``advance`` gives them. Only where ``takes_samples``."""
+        return self.runner.answer(samples)
+
     @property
     def takes_samples(self) -> bool:
         """True if ``advance(samples=...)`` finds the sample states in the compiled loop."""
         return self.stepper.family.kernel is not None and self.section_period is None
 
-    def _block(self, t, y, status, message, diag=None, events=None) -> Block:
+    def _block(self, t, y, status, message, diag=None, events=None, samples=0) -> Block:
         if status != "running":
             self.finished = True
         ev_t, ev_y = events if events is not None else (np.empty(0), np.empty((0, len(self.y0))))
         return Block(
             t=t, y=y, diagnostics=diag or {}, status=status, message=message, steps=self.steps,
             rhs_evaluations=self.evals, method=self.method, events_t=ev_t, events_y=ev_y,
-            setting=self.setting, setting_value=self.setting_value,
+            setting=self.setting, setting_value=self.setting_value, samples=samples,
         )  # fmt: skip
 
     def stop(self, status: str, message: str) -> Block:
@@ -368,10 +379,12 @@ class Run:
         """The next block: about ``seconds`` of computing, ending early after the first
         step that reaches ``until``.
 
-        ``samples`` (ascending times, ndarray): the block holds the states of the first
-        steps at or after them, found inside the compiled loop, which returns after the
-        last (the latest state ends the block, as always); ignored where the method has
-        no compiled loop or a section on an angle needs every step (``takes_samples``).
+        ``samples`` (ascending times, ndarray): the block's first ``Block.samples`` rows
+        are the states at exactly those times, found inside the compiled loop (each
+        family's ``X_sample`` in ``systems.integrators.kernels``: a shortened step of the
+        method, or DOP853's dense output), which returns after the last (the latest state
+        ends the block, as always); ignored where the method has no compiled loop or a
+        section on an angle needs every step (``takes_samples``).
         """
         if self.finished:
             raise RuntimeError("this run has finished")
@@ -480,7 +493,8 @@ class Run:
                 self.compiled, out.events[0], out.events[1], int(self.section[0]),
                 float(self.section[1]), dense=self.stepper.family.name == "dop853",
             )  # fmt: skip
-        block = self._block(t, y, status, message, diag, events)
+        sampled = out.sampled if samples is not None and self.takes_samples else 0
+        block = self._block(t, y, status, message, diag, events, sampled)
         if len(t):
             self.good = (float(t[-1]), np.array(y[-1]))
         if out.steps > 0:
@@ -594,8 +608,11 @@ def stream(compiled, *, block_seconds: float = 0.03, **options) -> Iterator[Bloc
 class Sampler:
     """A run's states at given simulation times, one at a time, for any length of run.
 
-    Iterating yields ``(t, y)``: the start, then the state of the first step at or after
-    each of ``times`` (an iterable, possibly endless). The samples depend on the times
+    Iterating yields ``(t, y)``: the start, then the state at each of ``times`` (an
+    iterable, possibly endless): with a compiled loop at exactly that time, as accurate
+    as the steps (``Run.advance``); with scipy's solvers or a section on an angle, the
+    state of the first step at or after it. A run that stops early (a problem) ends with
+    its last state, before the next time. The samples depend on the times
     only, never on how fast the machine is, and nothing else is kept but the events, so
     memory does not grow with the length of the run. Ctrl+C (SIGINT) ends the iteration
     between blocks with ``interrupted`` set.
@@ -629,15 +646,23 @@ class Sampler:
         self._H0: float | None = None
 
     def __iter__(self) -> Iterator[tuple[float, np.ndarray]]:
+        for t, y in self.chunks():
+            for i in range(len(t)):
+                yield float(t[i]), y[i]
+
+    def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """What iterating yields, a block at a time: (t (k,), y (k, 2n)), fresh arrays
+        (a caller that keeps thousands of samples needs no Python step per row)."""
         run = self.run
         if self.constraints is not None:
             self.violation = self.constraints.violation(run.t0, run.y0[None])
-        yield run.t0, run.y0.copy()
+        yield np.array([run.t0]), run.y0[None].copy()
         try:
             if run.takes_samples:
                 yield from self._sampled()
             else:
-                yield from self._paused()
+                for t, y in self._paused():
+                    yield np.array([t]), y[None]
         except KeyboardInterrupt:
             self.interrupted = True
             return
@@ -660,35 +685,55 @@ class Sampler:
             worst = self.constraints.violation(block.t, block.y)
             self.violation = max(self.violation, worst)
 
-    def _sampled(self) -> Iterator[tuple[float, np.ndarray]]:
+    def _sampled(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """The samples found by the compiled loop, ``SAMPLE_CHUNK`` times a call at most:
         one Python block for thousands of samples."""
         run = self.run
         times = iter(self.times)
         t_last = run.t0
-        pending: list[float] = []
+        pending = np.empty(0)
         exhausted = False
+        block = None
+
+        def pull(pending):
+            """``pending`` and up to ``SAMPLE_CHUNK`` more times, each after all before it."""
+            more = np.fromiter(itertools.islice(times, SAMPLE_CHUNK), dtype=float)
+            floor = pending[-1] if len(pending) else t_last
+            above = np.maximum.accumulate(np.concatenate([[floor], more]))[:-1]
+            return np.concatenate([pending, more[more > above]]), len(more) < SAMPLE_CHUNK
+
         while not run.finished:
-            while not exhausted and len(pending) < SAMPLE_CHUNK:
-                target = next(times, None)
-                if target is None:
-                    exhausted = True
-                elif target > t_last and (not pending or target > pending[-1]):
-                    pending.append(float(target))
-            if not pending:
+            if not exhausted and len(pending) < SAMPLE_CHUNK:
+                pending, exhausted = pull(pending)
+            if not len(pending):
                 break
-            block = run.advance(0.25, samples=np.array(pending))
+            block = run.advance(0.25, samples=pending[:SAMPLE_CHUNK])
             self._record(block)
-            for t, y in zip(block.t, block.y, strict=True):
-                if not pending or t < pending[0]:
-                    continue  # the latest state, before the next sample time
-                while pending and pending[0] <= t:
-                    pending.pop(0)
-                if t > t_last:
-                    t_last = float(t)
-                    yield t_last, np.array(y)
-            if run.finished and len(block.t) and block.t[-1] > t_last:
-                yield float(block.t[-1]), np.array(block.y[-1])  # stopped before a sample
+            answered = block.samples  # one row each, in order; the last row: the latest state
+            pending = pending[answered:]
+            if answered:
+                t_last = float(block.t[answered - 1])
+                yield block.t[:answered].copy(), block.y[:answered].copy()
+        if block is None or not run.finished:
+            return
+        end = float(block.t[-1])
+        while block.status == "ok":
+            # the last step reached the end past times the last call did not have
+            if not exhausted and (not len(pending) or pending[-1] < end):
+                pending, exhausted = pull(pending)
+            inside = int(np.searchsorted(pending, end))  # the times before the end
+            if inside:
+                t, y = run.answer(pending[:inside])
+                pending = pending[len(t) :]
+                if len(t):
+                    t_last = float(t[-1])
+                    yield t, y
+                if len(t) < inside:
+                    break  # not found in the last step (none should be): the end follows
+            if exhausted or len(pending):
+                break
+        if len(block.t) and end > t_last:
+            yield block.t[-1:].copy(), block.y[-1:].copy()  # the end, or where it stopped
 
     def _paused(self) -> Iterator[tuple[float, np.ndarray]]:
         """The samples by runs paused at each time (scipy's solvers, angle sections)."""

@@ -283,7 +283,7 @@ def collect(sampler) -> tuple[np.ndarray, np.ndarray]:
     ``explorer.commands.stopping``) keeps those so far."""
     ts, ys = [], []
     try:
-        for t, y in sampler:
+        for t, y in sampler.chunks():  # thousands of rows a chunk
             ts.append(t)
             ys.append(y)
             check()
@@ -293,8 +293,10 @@ def collect(sampler) -> tuple[np.ndarray, np.ndarray]:
         if not requested():
             raise
         sampler.interrupted = True  # the signal's exception was lost (``stopping``)
-    sampler.count = len(ts)
-    return np.array(ts), np.array(ys)
+    sampler.count = sum(len(t) for t in ts)
+    if not ts:
+        return np.empty(0), np.empty((0, len(sampler.run.y0)))
+    return np.concatenate(ts), np.concatenate(ys)
 
 
 def stream_trajectory(path: str, scene, compiled, sampler):

@@ -22,15 +22,24 @@ A family ``X`` provides two functions:
   state ``y`` (shape ``(m,)``, advanced in place, with Kahan compensation terms ``comp``
   where ``coef`` asks for them) at ``clock[CLOCK_T]`` with step ``clock[CLOCK_H]``; it
   advances the clock itself (fixed steps as ``T0 + K H``, others by compensated sums).
-  ``coef`` is the family's tuple of constants (tableau, tolerances, switches).
+  ``coef`` is the family's tuple of constants (tableau, tolerances, switches);
+- ``X_sample(fns, prev, state, s, P, coef, work, swork, scratch, first) -> (status,
+  evaluations)``: the state at time ``s`` inside the step just taken (from ``prev =
+  (y, comp, clock)`` at its start to ``state`` at its end) into ``scratch[0]``, as
+  accurate as the step itself, without changing ``state`` or ``work`` (``work`` is only
+  read: what the step carried over stays); ``swork = X_sample_work(coef, m)`` and
+  ``scratch = (y, comp, clock)`` are its own scratch. ``first``: the first sample inside
+  this step (what is shared between the samples of a step is computed then).
 
-The driver templates ``DRIVER_run`` and ``DRIVER_ensemble_parallel`` are instantiated per
-family by ``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` -> ``X_step``, ``WORK`` ->
-``X_work``), so numba compiles each as a plain function calling globals (which it can cache
-on disk); the ``fns`` argument is the same type for every scene, so the machine code
-is too. The driver owns what every method shares: rollback of a step that failed or
+The driver templates ``DRIVER_run``, ``DRIVER_ensemble_parallel`` and
+``DRIVER_fictitious`` (the samples of the families that step in a fictitious time) are
+instantiated per family by ``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` ->
+``X_step``, ``WORK`` -> ``X_work``, ``SAMPLE`` -> ``X_sample``, ``SWORK`` ->
+``X_sample_work``), so numba compiles each as a plain function calling globals (which it
+can cache on disk); the ``fns`` argument is the same type for every scene, so the machine
+code is too. The driver owns what every method shares: rollback of a step that failed or
 went non-finite, the end time (never passed) and the pause time, section crossings,
-strided output and the counters.
+strided output, the states at requested times (``X_sample``) and the counters.
 """
 
 import math
@@ -89,6 +98,52 @@ def _combine(M, Z, out):
             out[j, k] = acc
 
 
+def _restart(prev, s, scratch):
+    """Copy the state at the start of the last step (``prev = (y, comp, clock)``) into
+    ``scratch`` with its clock set for one fixed step from there to the time ``s``."""
+    yprev, cprev, kprev = prev
+    ys, cs, ks = scratch
+    for k in range(yprev.shape[0]):
+        ys[k] = yprev[k]
+        cs[k] = cprev[k]
+    for k in range(kprev.shape[0]):
+        ks[k] = kprev[k]
+    ks[CLOCK_T0] = kprev[CLOCK_T]
+    ks[CLOCK_K] = 0.0
+    ks[CLOCK_H] = s - kprev[CLOCK_T]
+
+
+def _elapsed(kprev, ks):
+    """The physical time from ``kprev`` to ``ks`` of clocks advanced by ``_tick``
+    (compensated sums: the true time is T - TC)."""
+    return (ks[CLOCK_T] - kprev[CLOCK_T]) - (ks[CLOCK_TC] - kprev[CLOCK_TC])
+
+
+TT_ITERATIONS = 40
+
+
+def _illinois(bracket, sigma, f):
+    """One regula falsi (Illinois) update of ``bracket = [lo, f(lo), hi, f(hi), side]``
+    with the value ``f`` at ``sigma``; returns the next trial."""
+    if f > 0.0:
+        bracket[2] = sigma
+        bracket[3] = f
+        if bracket[4] == 1.0:
+            bracket[1] *= 0.5
+        bracket[4] = 1.0
+    else:
+        bracket[0] = sigma
+        bracket[1] = f
+        if bracket[4] == -1.0:
+            bracket[3] *= 0.5
+        bracket[4] = -1.0
+    lo, flo, hi, fhi = bracket[0], bracket[1], bracket[2], bracket[3]
+    nxt = lo - flo * (hi - lo) / (fhi - flo)
+    if not (lo < nxt and nxt < hi):
+        nxt = 0.5 * (lo + hi)
+    return nxt
+
+
 # -- explicit Runge-Kutta (Euler, classical RK4: teaching methods) -----------------------
 
 
@@ -135,6 +190,17 @@ def erk_step(fns, y, comp, clock, P, coef, work):
     return STATUS_RUNNING, s
 
 
+def erk_sample_work(coef, m):
+    return erk_work(coef, m)
+
+
+def erk_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: one step of the same method from the start of the last step,
+    of length ``s - t`` (the method's own accuracy)."""
+    _restart(prev, s, scratch)
+    return erk_step(fns, scratch[0], scratch[1], scratch[2], P, coef, swork)
+
+
 # -- compositions of the kick-drift-kick leapfrog, H = T(p) + V(q, t) ----------------------
 
 
@@ -175,6 +241,18 @@ def compose_step(fns, y, comp, clock, P, coef, work):
             evals += 1
     _tick_fixed(clock)
     return STATUS_RUNNING, evals
+
+
+def compose_sample_work(coef, m):
+    return compose_work(coef, m)
+
+
+def compose_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: one composition step of length ``s - t`` from the start of the
+    last step (its gradient computed afresh in ``swork``)."""
+    _restart(prev, s, scratch)
+    swork[-1][0] = 0.0
+    return compose_step(fns, scratch[0], scratch[1], scratch[2], P, coef, swork)
 
 
 # -- logarithmic-Hamiltonian compositions (Mikkola-Tanikawa, Preto-Tremaine) ---------------
@@ -218,6 +296,18 @@ def logh_step(fns, y, comp, clock, P, coef, work):
             for k in range(n):
                 _add(y, comp, n + k, -h * F[k], kahan)
     return STATUS_RUNNING, evals
+
+
+def logh_sample_work(coef, m):
+    return (compose_work(coef, m), np.zeros(5))
+
+
+def logh_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: the fictitious step from the start of the last step whose
+    physical duration is ``s - t`` (``logh_fictitious``): each trial is one step of the
+    method, so the sample has the method's accuracy, at a time within a few units of
+    round-off of ``s``."""
+    return logh_fictitious(fns, prev, state, s, P, coef, swork, scratch)
 
 
 # -- Gauss-Legendre collocation, any rhs -----------------------------------------------------
@@ -420,6 +510,75 @@ def gauss_step(fns, y, comp, clock, P, coef, work):
     return STATUS_RUNNING, evals
 
 
+def gauss_sample_work(coef, m):
+    return _collocation_work(coef, m)
+
+
+def gauss_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: one collocation step of length ``s - t`` from the start of the
+    last step (the method's own accuracy), its stages started from the last step's
+    collocation polynomial (``Zold`` in ``work``, only read) at ``c_i (s - t)``. Unlike a
+    step of the trajectory, nothing is carried on from it: the fixed-point iteration
+    stops at round-off with plain sums (no error-free ones: the sample is not stepped
+    from) and the update takes the stage rates of the last iterate."""
+    rhs = fns[0]
+    MU, b, c, E, maxit, kahan = coef
+    Zold = work[9]
+    Z, _, F, Yst, hb, _, _, _, _, _, _, _ = swork
+    yprev, _, kprev = prev
+    t0 = kprev[CLOCK_T]
+    h = s - t0
+    theta = h / kprev[CLOCK_H]
+    ns = b.shape[0]
+    m = yprev.shape[0]
+    for i in range(ns):
+        x = c[i] * theta
+        for k in range(m):
+            Z[i, k] = 0.0
+        for j in range(ns):
+            w = x / c[j]  # Lagrange basis on the nodes 0, c_1 .. c_s (the polynomial is 0 at 0)
+            for l in range(ns):
+                if l != j:
+                    w *= (x - c[l]) / (c[j] - c[l])
+            for k in range(m):
+                Z[i, k] += w * Zold[j, k]
+        hb[i] = h * b[i]
+    evals = 0
+    previous = np.inf
+    converged = False
+    for _ in range(maxit):
+        for i in range(ns):
+            for k in range(m):
+                Yst[k] = yprev[k] + Z[i, k]
+            rhs(t0 + c[i] * h, Yst, P, F[i])
+        evals += ns
+        diff = 0.0
+        for i in range(ns):
+            for k in range(m):
+                acc = 0.0
+                for j in range(ns):
+                    acc += MU[i, j] * (hb[j] * F[j, k])
+                d = abs(acc - Z[i, k]) / (1.0 + abs(yprev[k]))
+                if d > diff:
+                    diff = d
+                Z[i, k] = acc
+        if not diff == diff:
+            break
+        if diff <= 1e-15 or (diff >= previous and diff < 1e-10):
+            converged = True
+            break
+        previous = diff
+    if not converged:
+        return STATUS_NOT_CONVERGED, evals
+    ys = scratch[0]
+    for k in range(m):
+        acc = 0.0
+        for j in range(ns):
+            acc += hb[j] * F[j, k]
+        ys[k] = yprev[k] + acc
+    return STATUS_RUNNING, evals
+
+
 # -- Gauss-Legendre on the Sundman-transformed system ----------------------------------------
 
 
@@ -479,6 +638,18 @@ def gauss_tt_step(fns, y, comp, clock, P, coef, work):
     _combine(E, Told, T)
     valid[0] = 1.0
     return STATUS_RUNNING, evals
+
+
+def gauss_tt_sample_work(coef, m):
+    return (_collocation_work(coef, m), np.zeros(5))
+
+
+def gauss_tt_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: the fictitious step from the start of the last step whose
+    physical duration is ``s - t`` (``gauss_tt_fictitious``); every trial is a step of
+    the method from a fresh guess, so the sample has the method's accuracy, at a time
+    within a few units of round-off of ``s``."""
+    return gauss_tt_fictitious(fns, prev, state, s, P, coef, swork, scratch)
 
 
 # -- Dormand-Prince 8(5,3), adaptive ---------------------------------------------------------
@@ -560,6 +731,36 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
     clock[CLOCK_T] = t_end if last else t + h
     clock[CLOCK_H] = min(h * factor, hmax)
     flags[1] = 0.0
+    return STATUS_RUNNING, evals
+
+
+def dop853_sample_work(coef, m):
+    S = coef[1].shape[0]
+    return (np.empty((S, m)), np.empty(m))
+
+
+def dop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: a DOP853 step of length ``s - t`` from the start of the last
+    step (f there computed once per step). The error control accepted the longer step, so
+    the sample is as accurate as the steps; DOP853's 7th-order dense output is cheaper
+    but was up to 16 times less accurate than the steps around it (an oscillator at
+    tol 1e-8), so it is not used."""
+    rhs = fns[0]
+    A, B, C = coef[0], coef[1], coef[2]
+    K, Yst = swork
+    yprev, _, kprev = prev
+    t0 = kprev[CLOCK_T]
+    m = yprev.shape[0]
+    S = B.shape[0]
+    evals = S - 1
+    if first:
+        rhs(t0, yprev, P, K[0])
+        evals += 1
+    h = s - t0
+    _rk_stages(rhs, t0, yprev, P, h, (A, C), (K, Yst), (1, S))
+    ys = scratch[0]
+    for k in range(m):
+        ys[k] = yprev[k] + h * _rk_sum(K, B, k)
     return STATUS_RUNNING, evals
 
 
@@ -1180,6 +1381,35 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     return STATUS_RUNNING, evals
 
 
+def cdop853_sample_work(coef, m):
+    return cdop853_work(coef, m)
+
+
+def cdop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: a DOP853 trial of length ``s - t`` from the start of the last
+    step with the rows that acted in it (``act0`` in ``work``), projected onto the
+    constraints as every step is. The step's own error control passed a longer trial, so
+    the sample is as accurate; an event ends a step, so no sample crosses one."""
+    yprev, _, kprev = prev
+    ys = scratch[0]
+    K, ynew, act = swork[0], swork[1], swork[4]
+    t0 = kprev[CLOCK_T]
+    evals = 0
+    if first:
+        act0 = work[5]
+        for i in range(act.shape[0]):
+            act[i] = act0[i]
+        c_rhs(fns, t0, yprev, P, act, K[0])
+        evals += 1
+    _c_trial(fns, t0, yprev, P, act, s - t0, coef, swork)
+    evals += coef[1].shape[0]
+    for k in range(ys.shape[0]):
+        ys[k] = ynew[k]
+    if not c_project(fns, s, ys, P, act):
+        return STATUS_NOT_CONVERGED, evals
+    return STATUS_RUNNING, evals
+
+
 def cerk_work(coef, m):
     s = coef[0].shape[0]
     return (np.empty((s, m)), np.empty(m), np.empty(coef[4][0]), np.zeros(1))
@@ -1204,6 +1434,17 @@ def cerk_step(fns, y, comp, clock, P, coef, work):
     for k in range(m):
         comp[k] = 0.0
     return STATUS_RUNNING, s
+
+
+def cerk_sample_work(coef, m):
+    return cerk_work(coef, m)
+
+
+def cerk_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s``: one step of the method (projected) of length ``s - t`` from
+    the start of the last step."""
+    _restart(prev, s, scratch)
+    return cerk_step(fns, scratch[0], scratch[1], scratch[2], P, coef, swork)
 
 
 # -- many states at once: a scene's function over the rows of an array ------------------------
@@ -1253,10 +1494,20 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
     """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP`` from
     ``state = (y, comp, clock)``.
 
-    With ``samples`` (times, ascending; None: numba compiles the loop without them) the
-    output is the state of the first step at or after each time instead of every
-    ``stride``-th (one row for several times a step passes), and the call returns after
-    the last of them (``info[INFO_SAMPLED]``: how many were passed).
+    With ``samples = (times, y, comp, clock)`` (times ascending, and the start of the last
+    step a former call took, its clock's time nan if none; None: numba compiles the loop
+    without them) the output is one row per time instead of every ``stride``-th state:
+    the state at
+    exactly that time, from the family's ``SAMPLE`` inside the step that contains it (a
+    shortened step of the method, or a dense output), never changing the trajectory;
+    a time at the end of a step is answered by the next step that moves in time (the
+    state after an impact applied there), or by the last state at the end time. Times
+    before the current one, inside the last step of a former call (which returned after
+    the last time it had, and could not know the next), are answered first from the
+    start of that step, kept in ``samples`` (the work still holds that step's). The
+    call returns after the last of them (``info[INFO_SAMPLED]``: how many were answered,
+    each one row). A sample that fails (a shortened implicit step that does not
+    converge) undoes the step and ends the call with its status.
 
     ``out = (out_t (k,), out_y (k, m), ev_t (e, 2), ev_y (e, 2, m))`` receives every
     ``stride``-th state, both states of a jump (a step that applies an event without
@@ -1285,6 +1536,8 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
         ev_dir = section[2]
     t_end = clock[CLOCK_T_END]
     slack = 1e-12 * max(abs(t_end), abs(clock[CLOCK_H]))
+    swork = SWORK(coef, m)
+    scratch = (np.empty(m), np.empty(m), np.empty(clock.shape[0]))
     status = STATUS_RUNNING
     steps = 0
     evals = 0
@@ -1292,6 +1545,19 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
     events = 0
     count = 0
     sampled = 0
+    if samples is not None:
+        times, last_y, last_c, last_k = samples
+        if last_k[CLOCK_T] == last_k[CLOCK_T]:  # the start of a former call's last step
+            code, used, sampled, outputs = DRIVER_answer(
+                fns, (last_y, last_c, last_k), (y, comp, clock), P, coef, work,
+                (swork, scratch), times, (sampled, outputs), (out_t, out_y),
+            )  # fmt: skip
+            evals += used
+            if code != STATUS_RUNNING:
+                status = code
+                nsteps = 0  # nothing more: the call ends here with the problem
+        if sampled > 0 and sampled >= times.shape[0]:
+            nsteps = 0  # all answered: a step now would lose the start of the last one
     wrote = True  # the state before the first step: the caller has it
     while steps < nsteps:
         for k in range(m):
@@ -1307,6 +1573,23 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
             code = STATUS_NON_FINITE
         if code == STATUS_RUNNING and clock[CLOCK_T] > t_end + slack:
             code = STATUS_OVERSHOT
+        answered = outputs
+        if samples is not None and code == STATUS_RUNNING:
+            if clock[CLOCK_T] > kprev[CLOCK_T]:  # a jump (an impact) answers none
+                code, used, sampled, outputs = DRIVER_answer(
+                    fns, (yprev, cprev, kprev), (y, comp, clock), P, coef, work,
+                    (swork, scratch), samples[0], (sampled, outputs), (out_t, out_y),
+                )  # fmt: skip
+                evals += used
+            if code != STATUS_RUNNING:  # the step is undone: so are its samples
+                sampled -= outputs - answered
+                outputs = answered
+            else:  # the start of the step, for the times after the call's last
+                for k in range(m):
+                    samples[1][k] = yprev[k]
+                    samples[2][k] = cprev[k]
+                for k in range(clock.shape[0]):
+                    samples[3][k] = kprev[k]
         if code != STATUS_RUNNING:
             for k in range(m):
                 y[k] = yprev[k]
@@ -1332,18 +1615,20 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
                     ev_y[events, 1, k] = y[k]
                 events += 1
         if samples is not None:
-            if sampled < samples.shape[0] and t >= samples[sampled]:
-                if outputs < out_t.shape[0]:
-                    out_t[outputs] = t
+            if t >= t_end - slack:  # the times at the end: its state
+                while (
+                    sampled < samples[0].shape[0]
+                    and samples[0][sampled] <= t_end + slack
+                    and outputs < out_t.shape[0]
+                ):
+                    out_t[outputs] = samples[0][sampled]
                     for k in range(m):
                         out_y[outputs, k] = y[k]
                     outputs += 1
-                while sampled < samples.shape[0] and samples[sampled] <= t:
                     sampled += 1
-            if t >= t_end - slack:
                 status = STATUS_END
                 break
-            if t >= clock[CLOCK_T_PAUSE] or sampled >= samples.shape[0]:
+            if t >= clock[CLOCK_T_PAUSE] or sampled >= samples[0].shape[0]:
                 break
             continue
         count += 1
@@ -1376,6 +1661,79 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
     info[INFO_EVENTS] = events
     info[INFO_EVALUATIONS] = evals
     info[INFO_SAMPLED] = sampled
+
+
+def DRIVER_answer(fns, prev, state, P, coef, work, scratch, times, counts, out):
+    """The rows for the times ``times[sampled:]`` before the time of ``state`` (the end of
+    the step from ``prev``; ``counts = (sampled, outputs)``): a time at the step's start
+    gets its state (after any jump applied there), the others ``SAMPLE``'s, into
+    ``out = (out_t, out_y)`` from row ``outputs``. ``scratch = (swork, (y, comp,
+    clock))``. Returns (status, evaluations, sampled, outputs); a sample that fails ends
+    it with the problem's status."""
+    yprev, _, kprev = prev
+    swork, states = scratch
+    out_t, out_y = out
+    sampled, outputs = counts
+    t = state[2][CLOCK_T]
+    first = True
+    evals = 0
+    while sampled < times.shape[0] and times[sampled] < t and outputs < out_t.shape[0]:
+        s = times[sampled]
+        row = yprev
+        if s > kprev[CLOCK_T]:
+            code, used = SAMPLE(fns, prev, state, s, P, coef, work, swork, states, first)
+            first = False
+            evals += used
+            if code == STATUS_RUNNING and not _finite(states[0]):
+                code = STATUS_NON_FINITE
+            if code != STATUS_RUNNING:
+                return code, evals, sampled, outputs
+            row = states[0]
+        out_t[outputs] = s
+        for k in range(yprev.shape[0]):
+            out_y[outputs, k] = row[k]
+        outputs += 1
+        sampled += 1
+    return STATUS_RUNNING, evals, sampled, outputs
+
+
+def DRIVER_fictitious(fns, prev, state, s, P, coef, swork, scratch):
+    """The state at ``s`` inside the last step of a family that steps in fictitious time
+    (``STEP`` advances the clock by the physical time of a fictitious step
+    ``clock[CLOCK_H]``): the fictitious step from the last step's start (``prev``) whose
+    physical duration is ``s - t``, by regula falsi (Illinois) between 0 and the last
+    step's, each trial one ``STEP`` on ``scratch`` with its own work (``swork = (work,
+    bracket)``; the work's flag cleared: nothing carried over). Ends when the duration
+    is within a few units of round-off of ``s``."""
+    scr, bracket = swork
+    ys, cs, ks = scratch
+    kprev = prev[2]
+    goal = s - kprev[CLOCK_T]
+    full = _elapsed(kprev, state[2])
+    bracket[0] = 0.0
+    bracket[1] = -goal
+    bracket[2] = kprev[CLOCK_H]
+    bracket[3] = full - goal
+    bracket[4] = 0.0
+    sigma = kprev[CLOCK_H] * goal / full
+    tol = 4e-16 * max(abs(s), abs(kprev[CLOCK_T]))
+    evals = 0
+    f = math.inf
+    for _ in range(TT_ITERATIONS):
+        _restart(prev, s, scratch)
+        ks[CLOCK_H] = sigma
+        scr[-1][0] = 0.0
+        code, used = STEP(fns, ys, cs, ks, P, coef, scr)
+        evals += used
+        if code != STATUS_RUNNING:
+            return code, evals
+        f = _elapsed(kprev, ks) - goal
+        if abs(f) <= tol:
+            return STATUS_RUNNING, evals
+        sigma = _illinois(bracket, sigma, f)
+    if abs(f) <= 1e-13 * max(abs(s), full):
+        return STATUS_RUNNING, evals
+    return STATUS_NOT_CONVERGED, evals
 
 
 def DRIVER_ensemble_parallel(fns, Y, clock0, P, coef, limits, out, status):

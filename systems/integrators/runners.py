@@ -44,11 +44,15 @@ def _as_python(function):
 
 
 class Outcome:
-    __slots__ = ("t", "y", "code", "events", "steps", "evals")
+    """A runner's advance: states ``t``, ``y`` (the first ``sampled`` rows are the states
+    at the sample times asked for, the last row the latest state), how it ended, the
+    section crossings and the counters."""
 
-    def __init__(self, t, y, code, events, steps, evals):
+    __slots__ = ("t", "y", "code", "events", "steps", "evals", "sampled")
+
+    def __init__(self, t, y, code, events, steps, evals, sampled=0):
         self.t, self.y, self.code, self.events = t, y, code, events
-        self.steps, self.evals = steps, evals
+        self.steps, self.evals, self.sampled = steps, evals, sampled
 
 
 class KernelRunner:
@@ -99,7 +103,10 @@ class KernelRunner:
             self.fns = compiled.functions(family.functions)
         self.loop = getattr(drivers, family.run_kernel)
         self._entries = {}  # the loop's machine code for this run's argument types
-        self.sampled = 0  # sample times the last call passed
+        self.sampled = 0  # sample times the last call answered (one row each)
+        # the start of the last step a call with samples took (y, comp, clock; nan time:
+        # none): the next call answers the times inside that step from there
+        self.last_step = (np.empty(self.m), np.empty(self.m), np.full(CLOCK_SIZE, math.nan))
 
     @property
     def t(self) -> float:
@@ -118,6 +125,10 @@ class KernelRunner:
         state = (self.y, self.comp, self.clock)
         limits = (int(nsteps), int(stride))
         args = (self.fns, state, self.c.parameters, self.coef, self.work, limits, self.section)
+        if samples is None:
+            self.last_step[2][Clock.T] = math.nan  # steps without samples: not kept
+        else:
+            samples = (samples, *self.last_step)
         args += (samples, out, info)
         key = samples is None
         entry = self._entries.get(key)
@@ -140,8 +151,10 @@ class KernelRunner:
     ) -> Outcome:
         """Up to ``nsteps`` steps, stopping after the first that reaches ``until``.
 
-        With ``samples`` (ndarray of ascending times): the states of the first steps at
-        or after them, instead of ``max_points`` evenly spaced; stops after the last.
+        With ``samples`` (ndarray of ascending times): the states at exactly those times
+        (the family's ``X_sample`` in the compiled loop), instead of ``max_points``
+        evenly spaced; stops after the last. The outcome's first ``sampled`` rows are
+        they, the last row is the latest state.
         """
         stride = max(1, math.ceil(nsteps / max(max_points - 1, 1)))
         t_before = self.t
@@ -150,39 +163,64 @@ class KernelRunner:
             samples = np.ascontiguousarray(samples, dtype=float)
         t, y, code, events, steps, evals = self._call(nsteps, stride, until, samples)
         ts, ys, evs = [t], [y], [events]
+        sampled = self.sampled
         if code == Status.OVERSHOT:
-            code, more_steps, more_evals = self._land(ts, ys, evs, steps, t_before)
+            rest = None if samples is None else samples[sampled:]
+            code, more_steps, more_evals, more = self._land(ts, ys, evs, steps, t_before, rest)
             steps += more_steps
             evals += more_evals
+            sampled += more
+        self.sampled = sampled
         t = np.concatenate(ts)
         y = np.concatenate(ys) if ys else np.empty((0, self.m))
         if code == Status.END:
             self.clock[Clock.T] = self.t_end
-        t, y = _with_last(t, y, self.t, self.y)  # the driver leaves y at the last good state
-        return Outcome(t, y, code, _merge_events(evs, self.m), steps, evals)
+        if samples is not None:  # the samples, then the latest state, always
+            t = np.append(t, self.t)
+            y = np.vstack([y, self.y[None, :]])
+        else:
+            t, y = _with_last(t, y, self.t, self.y)  # the driver leaves y at the last good state
+        return Outcome(t, y, code, _merge_events(evs, self.m), steps, evals, sampled)
 
-    def _land(self, ts, ys, evs, steps, t_before) -> tuple[Status, int, int]:
-        """The next step would pass ``t_end``: reach it exactly. Returns the new status and
-        the steps and evaluations it took. Adaptive steps never pass it (the step clamps
-        itself to the end), so here it has been reached."""
-        return Status.END, 0, 0
+    def answer(self, samples) -> tuple[np.ndarray, np.ndarray]:
+        """The states at ``samples`` (ascending times before the current one, inside the
+        last step a call with samples took: those after that call's last time, which a
+        step reaching the end time passed), without stepping."""
+        samples = np.ascontiguousarray(samples, dtype=float)
+        t, y, *_ = self._call(0, 1, math.inf, samples)
+        return t, y
+
+    def _land(self, ts, ys, evs, steps, t_before, samples) -> tuple[Status, int, int, int]:
+        """The next step would pass ``t_end``: reach it exactly, answering the sample
+        times left (``samples``, or None). Returns the new status, the steps and
+        evaluations it took and the samples it answered (rows appended to ``ys``).
+        Adaptive steps never pass it (the step clamps itself to the end), so here it has
+        been reached."""
+        return Status.END, 0, 0, 0
 
 
 class FixedStepRunner(KernelRunner):
     """Fixed steps ``dt``; t = t0 + k dt exactly. One shorter step lands on ``t_end``."""
 
-    def _land(self, ts, ys, evs, steps, t_before):
+    def _land(self, ts, ys, evs, steps, t_before, samples):
         remaining = self.t_end - self.t
         if remaining <= 1e-12 * max(abs(self.t_end), self.value):
-            return Status.END, 0, 0
+            if samples is None or not len(samples):
+                return Status.END, 0, 0, 0
+            # already there: the times left at the end get the last state
+            at_end = samples[samples <= self.t_end * (1 + 1e-12) + 1e-300]
+            ts.append(at_end.copy())
+            ys.append(np.repeat(self.y[None, :], len(at_end), axis=0))
+            return Status.END, 0, 0, len(at_end)
         self.clock[Clock.T0] = self.t
         self.clock[Clock.K] = 0.0
         self.clock[Clock.H] = remaining
-        t, y, code, events, more, evals = self._call(1, 1, math.inf)
+        # with samples (none left, too): the landing step's start is kept for ``answer``
+        t, y, code, events, more, evals = self._call(1, 1, math.inf, samples)
         ts.append(t)
         ys.append(y)
         evs.append(events)
-        return code, more, evals
+        return code, more, evals, self.sampled if samples is not None else 0
 
 
 class TimeTransformedRunner(KernelRunner):
@@ -195,6 +233,12 @@ class TimeTransformedRunner(KernelRunner):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.recent_dt = math.inf
+        self.finishing = None  # the finisher's run that landed on t_end
+
+    def answer(self, samples) -> tuple[np.ndarray, np.ndarray]:
+        if self.finishing is not None:
+            return self.finishing.answer(samples)
+        return super().answer(samples)
 
     def advance(
         self, nsteps: int, max_points: int, until: float = math.inf, samples=None
@@ -205,25 +249,42 @@ class TimeTransformedRunner(KernelRunner):
             self.recent_dt = (self.t - t_before) / outcome.steps
         return outcome
 
-    def _land(self, ts, ys, evs, steps, t_before):
+    def _land(self, ts, ys, evs, steps, t_before, samples):
         if steps:
             self.recent_dt = (self.t - t_before) / steps
         remaining = self.t_end - self.t
         if remaining <= 0.0:
-            return Status.END, 0, 0
+            return Status.END, 0, 0, 0
         nsub = max(2, math.ceil(2.0 * remaining / min(self.recent_dt, remaining)))
         sub = FixedStepRunner(
             self.c, self.finisher, self.y, self.t, self.t_end, remaining / nsub, self.section,
             self.compensated,
         )  # fmt: skip
         sub.comp[:] = self.comp
-        outcome = sub.advance(nsub + 1, 2)
+        self.finishing = sub
+        answered = steps = evals = 0
+        if samples is None:
+            outcome = sub.advance(nsub + 1, 2)
+            evs.append(outcome.events)
+            steps, evals = outcome.steps, outcome.evals
+        while samples is not None:
+            # the times left, answered by the finisher's samples: a call stops after its
+            # last time (without times, after a step), keeping that step's start for
+            # ``answer``
+            outcome = sub.advance(nsub + 1 - steps, 2, samples=samples[answered:])
+            ts.append(outcome.t[: outcome.sampled])
+            ys.append(outcome.y[: outcome.sampled])
+            evs.append(outcome.events)
+            answered += outcome.sampled
+            steps += outcome.steps
+            evals += outcome.evals
+            if outcome.code != Status.RUNNING or not (outcome.steps or outcome.sampled):
+                break
         self.y[:] = sub.y
         self.comp[:] = sub.comp
         if outcome.code == Status.END:
             self.clock[Clock.T] = self.t_end
-        evs.append(outcome.events)
-        return outcome.code, outcome.steps, outcome.evals
+        return outcome.code, steps, evals, answered
 
 
 class AdaptiveRunner(KernelRunner):

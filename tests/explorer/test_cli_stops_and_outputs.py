@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from explorer.cli import main
@@ -72,9 +73,9 @@ def _interrupted_after_a_few_samples(monkeypatch) -> None:
     """Ctrl+C while the sampler integrates: where the signal lands in a real run."""
     from systems.simulation import Sampler
 
-    def interrupted(self):
+    def interrupted(self):  # both yield (t (k,), y (k, 2n)), a block of rows at a time
         run = self.run
-        yield run.t0, run.y0.copy()
+        yield np.array([run.t0]), run.y0[None].copy()
         raise KeyboardInterrupt
 
     monkeypatch.setattr(Sampler, "_sampled", interrupted)
