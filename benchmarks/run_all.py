@@ -20,6 +20,7 @@ SCRIPTS = (
     "compile_latency",
     "gui_latency",
     "max_speed",
+    "run_output",
     "large_systems",
     "scene_switches",
     "worker_latency",

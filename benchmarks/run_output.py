@@ -1,0 +1,96 @@
+"""`run --json` against its own integration (issue 23, item 4): the rows at the requested
+times cost little beside the steps.
+
+On the warm double pendulum (its default method and step, t_end from the scene, the
+default 10 000 output times), in one process, best of ``REPEATS``:
+
+- the integration alone: the same ``Run`` (its default step chosen as the command
+  chooses it, by a short probe run) advanced to the end, no output times; and, for
+  reading, its steps alone (the step given) and the same steps through the ``Sampler``
+  with the command's 10 000 times;
+- ``python main.py run double_pendulum --json`` called in-process: its ``wall_s`` (the
+  run, the rows at exactly the requested times from the compiled loop, H and the
+  velocities at them), without the scene's preparation (``prepare_s``: derivation and
+  kernels from the caches, the same with or without output).
+
+Target: ``wall_s`` within 1.5x of the integration time. The drivers are warmed first in a
+child process (``warm_drivers``: about a minute on an empty cache, a second otherwise), as
+``python main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the
+cache. Timings on a shared machine vary: read the numbers, not only PASS.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import time
+
+import numpy as np
+from _common import report, warm_drivers
+
+SCENE = "double_pendulum"
+REPEATS = 5
+
+
+def main() -> bool:
+    from explorer.cli import main as cli
+    from explorer.commands.run_cmd import DEFAULT_SAMPLES, prepare
+    from systems.simulation import Run, Sampler
+
+    print("run --json against its integration")
+    warm_drivers()
+
+    def command() -> dict:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            status = cli(["run", SCENE, "--json"])
+        assert status == 0, out.getvalue()
+        return json.loads(out.getvalue())
+
+    first = command()  # loads the scene's kernels and the driver
+    method, setting, t_end = first["method"], first["setting"], first["t_end"]
+    times = np.linspace(0.0, t_end, DEFAULT_SAMPLES + 1)
+
+    def integrate(sampled: bool, chosen: bool) -> float:
+        """The command's run without its output (``sampled``: with it, through the same
+        ``Sampler``); ``chosen``: the default step chosen here (a fresh system, as the
+        command's, so its probe runs again), else given."""
+        compiled = prepare(SCENE, method)[4]
+        start = time.perf_counter()
+        given = {} if chosen else setting
+        run = Run(
+            compiled, method=method, y0=compiled.initial_state(), t_end=t_end,
+            diagnostics=("H",), **given,
+        )  # fmt: skip
+        assert run.setting_value == next(iter(setting.values()))
+        if sampled:
+            for _ in Sampler(run, times).chunks():
+                pass
+        else:
+            while not run.finished:
+                run.advance(0.25)
+        assert run.finished
+        return time.perf_counter() - start
+
+    integration = min(integrate(False, True) for _ in range(REPEATS))
+    stepping = min(integrate(False, False) for _ in range(REPEATS))
+    sampled = min(integrate(True, False) for _ in range(REPEATS))
+    runs = [command() for _ in range(REPEATS)]
+    wall = min(r["wall_s"] for r in runs)
+    print(f"  {SCENE}: {method} {setting}, t_end {t_end:g}, {runs[0]['steps']} steps")
+    print(
+        f"  integration {integration * 1e3:.1f} ms (of which the steps {stepping * 1e3:.1f} ms,"
+        f" the rest choosing the step); run --json wall_s {wall * 1e3:.1f} ms"
+    )
+    print(
+        f"  the steps with the {DEFAULT_SAMPLES} rows at exact times (Sampler) "
+        f"{sampled * 1e3:.1f} ms: {sampled / stepping:.2f}x the steps alone"
+    )
+    ratio = wall / integration if integration > 0 else math.inf
+    return report("run --json wall_s / integration time", ratio, "<= 1.5", ratio <= 1.5)
+
+
+if __name__ == "__main__":
+    raise SystemExit(0 if main() else 1)
