@@ -1489,6 +1489,21 @@ class _Problem:
             return "falls", order
         return "mixed", order
 
+    def _singular_constraints(self, x: np.ndarray) -> bool:
+        """True where the rows c_q lose rank (a cusp or crossing of the constraint set,
+        the origin of ``sqrt(x**2 + y**2) - l``): compared with their size at the starts."""
+        if self._row_scale is None:
+            grid = _Problem.starts(self)
+            with np.errstate(all="ignore"):
+                rows = self._jacobian(*grid.T).reshape(self.k, self._mq, -1)
+            self._row_scale = _typical(np.linalg.norm(rows, axis=1))
+        with np.errstate(all="ignore"):
+            J = np.asarray(self._jacobian(*x[: self.mq]), dtype=float).reshape(self.k, self.mq)
+        if not np.all(np.isfinite(J)):
+            return True
+        smallest = np.linalg.svd(J, compute_uv=False)[-1] if self.k <= self.mq else 0.0
+        return bool(smallest <= 1e-6 * self._row_scale)
+
     def _slope(self, x, v, s, R) -> float:
         """dU/ds at ``x + s v`` with the directions ``R`` (columns) relaxed to dU = 0 there
         (Newton); by the envelope theorem the slope of U along the reduced path."""
@@ -1919,6 +1934,7 @@ class _ConstrainedProblem(_Problem):
         self._jacobian = vectorize(jacobian, unknowns)
         self._force = vectorize([sympy.diff(U, u) for u in unknowns], unknowns)
         self.k, self._mq = k, mq
+        self._row_scale: float | None = None
         super().__init__(
             mechanics, W, [*unknowns, *multipliers], searched, free, periodic, region, parameters
         )
@@ -1969,6 +1985,16 @@ class _ConstrainedProblem(_Problem):
     def equilibrium(self, x: np.ndarray, exact: dict[str, str]) -> tuple[Equilibrium, int]:
         equilibrium, flat = super().equilibrium(x, exact)
         multipliers = {label: _clean(v) for label, v in zip(self.labels, x[self.mq :], strict=True)}
+        if self._singular_constraints(x):  # no multipliers, no tangent space there
+            equilibrium = replace(
+                equilibrium,
+                stable=False,
+                kind="degenerate",
+                verdict="undecided",
+                frequencies=[],
+                decided_by=SINGULAR_CONSTRAINTS,
+            )
+            return equilibrium, 0
         if equilibrium.chart:  # a chart singularity: said as it is
             decided, verdict = equilibrium.decided_by, equilibrium.verdict
         elif equilibrium.hessian.size == 0:  # nothing left to move
@@ -1979,6 +2005,21 @@ class _ConstrainedProblem(_Problem):
             equilibrium, multipliers=multipliers, decided_by=decided, verdict=verdict
         )
         return equilibrium, flat
+
+    def _singular_constraints(self, x: np.ndarray) -> bool:
+        """True where the rows c_q lose rank (a cusp or crossing of the constraint set,
+        the origin of ``sqrt(x**2 + y**2) - l``): compared with their size at the starts."""
+        if self._row_scale is None:
+            grid = _Problem.starts(self)
+            with np.errstate(all="ignore"):
+                rows = self._jacobian(*grid.T).reshape(self.k, self._mq, -1)
+            self._row_scale = _typical(np.linalg.norm(rows, axis=1))
+        with np.errstate(all="ignore"):
+            J = np.asarray(self._jacobian(*x[: self.mq]), dtype=float).reshape(self.k, self.mq)
+        if not np.all(np.isfinite(J)):
+            return True
+        smallest = np.linalg.svd(J, compute_uv=False)[-1] if self.k <= self.mq else 0.0
+        return bool(smallest <= 1e-6 * self._row_scale)
 
     def _slope(self, x, v, s, R) -> float:
         """dU/ds at ``q0 + s v`` moved back onto ``c = 0`` along the normals Y of the
@@ -2019,6 +2060,12 @@ class _ConstrainedProblem(_Problem):
         y = q0 + s * v + R @ r + Y @ w
         return float(v @ self.gradient(*np.concatenate([y, lam]))[:mq])
 
+
+SINGULAR_CONSTRAINTS = (
+    "the constraints' gradients vanish or are dependent there (a singular point of the "
+    "constraint set, such as a cusp or a crossing): no multipliers \u03bb hold it and there is "
+    "no tangent space, so the linearisation does not decide"
+)
 
 _VERDICTS = {
     "stable: minimum": "U has a strict minimum (K positive definite)",

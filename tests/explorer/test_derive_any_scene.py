@@ -122,3 +122,18 @@ def test_driven_constant_solutions_at_a_pole_are_undecided_not_integrated(tmp_pa
     )
     assert "was stopped" not in shown
     assert shown.count("stability undecided; the mass matrix is singular there") == 2
+
+
+def test_an_equilibrium_where_the_constraints_lose_rank_is_undecided(tmp_path):
+    # U = k r on the cusp y**2 = x**3: the minimum is the cusp's tip, where the gradient
+    # of the constraint vanishes; it was called 'unstable (maximum)' with a multiplier of
+    # -2.6e8 (none exists there, nor a tangent space to linearise on)
+    shown = _derives(
+        tmp_path,
+        'title = "cusp"\n[system]\ncoordinates = ["x", "y"]\nparameters = { m = 1.0, k = 2.0 }\n'
+        'kinetic = "m*(x_dot**2 + y_dot**2)/2"\npotential = "k*sqrt(x**2 + y**2)"\n'
+        '[constraints]\nholonomic = ["y**2 - x**3"]\n[initial]\nx = 1.0\ny = 1.0\n',
+    )
+    equilibria = shown.split("Equilibria (virtual work", 1)[1]
+    assert "stability undecided; the constraints' gradients vanish" in equilibria
+    assert "maximum" not in equilibria and "constraint force" not in equilibria
