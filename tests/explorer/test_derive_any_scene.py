@@ -68,7 +68,7 @@ def window_layout(text: str) -> None:
 
 
 @settings(
-    max_examples=examples(25, 200),
+    max_examples=examples(40, 300),
     deadline=None,
     derandomize=True,
     database=None,

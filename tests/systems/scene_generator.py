@@ -8,9 +8,9 @@ derivative, a Hamiltonian), and around it constraints (holonomic ones with singu
 gradients vanish on them, a moving support; nonholonomic and unilateral ones), effects
 (Rayleigh dissipation, a workless gyroscopic force ``{ x = "G*y_dot", y = "-G*x_dot" }``,
 a drive, a circulatory force, effects switched off), symmetries, initial states at chart
-singularities, and parameters that make a mass zero, negative or tiny. Most scenes derive;
-some must be refused (a zero mass, constraints as many as the coordinates): what a test
-may not see is a traceback or a hang.
+singularities, view ranges (the search box) and angles, a drawing, and parameters that
+make a mass zero, negative or tiny. Most scenes derive; some must be refused (a zero mass,
+constraints as many as the coordinates): what a test may not see is a traceback or a hang.
 """
 
 from __future__ import annotations
@@ -25,7 +25,13 @@ CHARTS = {
     "sphere": ("theta", "phi"),
 }
 KINETIC = {
-    "line": ["m*x_dot**2/2", "m*(1 + x**2)*x_dot**2/2", "m*x_dot**2/2 + a*x*x_dot"],
+    "line": [
+        "m*x_dot**2/2",
+        "m*(1 + x**2)*x_dot**2/2",
+        "m*x_dot**2/2 + a*x*x_dot",
+        "m*x_dot**2/(2*x)",
+        "m*x**2*x_dot**2/2",
+    ],
     "plane": [
         "m*(x_dot**2 + y_dot**2)/2",
         "m*(x_dot**2 + (1 + x**2)*y_dot**2)/2",
@@ -38,10 +44,12 @@ KINETIC = {
 }
 POTENTIAL = {
     "line": ["k*x**2/2", "k*(x**2 - 1)**2/4", "-k*cos(x)", "0", "k*x**4", "m*g*x",
-             "k*x**2/2 + a*x*cos(w*t)", "k*Abs(x)", "k*sqrt(x**2 + l**2)"],
+             "k*x**2/2 + a*x*cos(w*t)", "k*Abs(x)", "k*sqrt(x**2 + l**2)", "k*sqrt(x)",
+             "k/x", "k*log(x**2)", "k*tan(x)", "k*x*log(Abs(x))"],
     "plane": ["k*(x**2 + y**2)/2", "m*g*y", "-k/sqrt(x**2 + y**2)", "k*x*y", "0",
               "k*(x**2 + y**2 - 1)**2", "k*x**2/2", "-k*cos(x) - k*cos(y)",
-              "k*(x**2 + y**2)/2 + a*x*cos(w*t)"],
+              "k*(x**2 + y**2)/2 + a*x*cos(w*t)", "k*atan2(y, x)", "k*sqrt(x*y)",
+              "k*log(x**2 + y**2)", "k*(x**2 + y**2)**(1/3)"],
     "space": ["m*g*z", "k*(x**2 + y**2 + z**2)/2", "-k/sqrt(x**2 + y**2 + z**2)", "0",
               "k*z**2/2 + m*g*y"],
     "polar": ["-k/r", "k*(r - l)**2/2", "k*r**2*cos(theta)**2", "0", "m*g*r*sin(theta)"],
@@ -61,7 +69,8 @@ PARTICLES = {
 HOLONOMIC = {
     "line": ["x - l", "x**2"],  # as many as the coordinates: refused
     "plane": ["x**2 + y**2 - l**2", "sqrt(x**2 + y**2) - l", "y**2 - x**3", "x*y", "x - y",
-              "y - a*sin(w*t)", "x**2 + y**2", "x*y - a", "y - x**2"],
+              "y - a*sin(w*t)", "x**2 + y**2", "x*y - a", "y - x**2", "atan2(y, x) - a",
+              "Abs(x) + Abs(y) - l", "sqrt(x) - y", "log(x) - y", "(x**2 + y**2 - l**2)**2"],
     "space": ["x**2 + y**2 + z**2 - l**2", "sqrt(x**2 + z**2) - l", "z - x*y", "z**2 - x**3",
               "x*y", "z - a*cos(w*t)", "z - x**2 - y**2"],
     "polar": ["r - l", "r*cos(theta) - l", "r*sin(theta)", "r - l - a*sin(w*t)"],
@@ -76,7 +85,15 @@ NONHOLONOMIC = {
 }
 UNILATERAL = {
     "line": ["x", "l - x", "l**2 - x**2", "x - a*cos(w*t)"],
-    "plane": ["y", "l**2 - x**2 - y**2", "x*y", "y - a*cos(w*t)", "y + l"],
+    "plane": [
+        "y",
+        "l**2 - x**2 - y**2",
+        "x*y",
+        "y - a*cos(w*t)",
+        "y + l",
+        "y - Abs(x)",
+        "sqrt(x**2 + y**2) - l",
+    ],
     "space": ["z", "l**2 - x**2 - y**2 - z**2", "z - x**2"],
     "polar": ["l - r", "r*sin(theta)"],
     "sphere": ["theta", "pi/2 - theta"],
@@ -171,7 +188,11 @@ def scenes(draw) -> str:
     if draw(st.booleans()):
         effects.append(f"forces = {draw(st.sampled_from(FORCES[chart]))}")
     if effects and draw(st.integers(0, 3)) == 0:
-        effects.append('disabled = ["dissipation"]' if "dissipation" in effects[0] else "")
+        on = [f"forces.{q}" for q in coordinates if f"{q} = " in effects[-1]]
+        on += ["dissipation"] if "dissipation" in effects[0] else []
+        if on:
+            off = draw(st.lists(st.sampled_from(on), min_size=1, unique=True))
+            effects.append(f"disabled = {off!r}".replace("'", '"'))
     if effects:
         sections.append("[effects]\n" + "\n".join(e for e in effects if e))
     if draw(st.integers(0, 2)) == 0:
@@ -186,6 +207,19 @@ def scenes(draw) -> str:
     ]
     if initial:
         sections.append("[initial]\n" + "\n".join(initial))
+    view = []
+    if draw(st.booleans()):  # the search box follows the ranges
+        q = draw(st.sampled_from(coordinates))
+        low, high = draw(st.sampled_from([(-1.0, 1.0), (0.0, 1e-6), (-1e6, 1e6), (2.0, 3.0)]))
+        view.append(f"ranges = {{ {q} = [{low}, {high}] }}")
+    if draw(st.booleans()):  # the periodic coordinates, as the scene says
+        angles = draw(st.lists(st.sampled_from(coordinates), unique=True))
+        view.append(f"angles = {angles!r}".replace("'", '"'))
+    if view:
+        sections.append("[view]\n" + "\n".join(view))
+    if draw(st.booleans()):
+        point = ", ".join(f'"{q}"' for q in (coordinates * 2)[:2])
+        sections.append(f'[drawing]\npoints = {{ bob = [{point}] }}\nlinks = [["origin", "bob"]]')
     values = ", ".join(f"{k} = {v}" for k, v in parameters.items())
     return (
         f'title = "generated {chart} {way}"\n[system]\n'
