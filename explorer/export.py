@@ -287,7 +287,8 @@ def csv_rows(t: np.ndarray, every: float | None = None, points: int | None = Non
     """Which samples of times ``t`` (non-decreasing, shape (k,)) a thinned table keeps.
 
     With ``every``: the first sample at or after each of 0, DT, 2 DT, ... from the first
-    time, and the last sample (the meaning of ``run --every``). With ``points``: the first
+    time, and the last sample (``run --every`` integrates again and gives rows at exactly
+    those times; a window only has the samples it holds). With ``points``: the first
     sample at or after each of ``points`` times evenly spaced from the first time to the
     last. Neither: all. Returns increasing indices, each sample at most once (where
     samples are sparser than the times asked for, as in the thinned past of a long run,

@@ -123,7 +123,8 @@ class ExportDialog(QDialog):
         self.all_rows.setToolTip("One row per sample the window holds (recent ones are dense)")
         self.every_rows = QRadioButton("One row every Δt of simulated time")
         self.every_rows.setToolTip(
-            "The first sample at or after 0, Δt, 2Δt, ... and the last one (as run --every)"
+            "The first sample the window holds at or after 0, Δt, 2Δt, ... and the last one "
+            "(run --every and export --every integrate again for rows at exactly those times)"
         )
         self.points_rows = QRadioButton("A number of rows evenly spaced in time")
         self.points_rows.setToolTip("The first sample at or after each of N evenly spaced times")
