@@ -127,6 +127,9 @@ SOAK = frozenset(SLOW_FIRST) | {
     "tests/explorer/test_hostile_cli.py",
     "tests/explorer/test_window_fits_screen.py",
     "tests/explorer/test_xvfb.py",
+    # property corpora over the catalogue, the users' scenes and generated ones
+    "tests/systems/test_statements_agree.py",
+    "tests/explorer/test_derive_any_scene.py",
 }
 """Model-based, soak, robustness and property files marked ``soak``: ``make test-quick``
 leaves them (and ``slow``) out for everyday work; ``make test``, what CI runs, takes

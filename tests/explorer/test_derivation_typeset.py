@@ -245,6 +245,7 @@ def screenshots(tmp_path_factory):
     return {size: measure_on_screen(__file__, arguments, size, folder) for size in SCREENS}
 
 
+@pytest.mark.soak  # screen-size tests, as tests/explorer/test_window_fits_screen.py
 @pytest.mark.parametrize("size", SCREENS, ids=lambda s: f"{s[0]}x{s[1]}")
 def test_the_window_shows_the_derivation_as_images_of_equations(screenshots, size):
     report = screenshots[size]

@@ -666,6 +666,7 @@ def every_step(compiled, trajectory, settings):
     return t, y, compiled.hamiltonian(t, y)
 
 
+@pytest.mark.soak  # a long run at max speed, every step's H recomputed (20 s)
 def test_the_energy_plot_at_max_speed_holds_every_steps_h_in_bins_under_a_pixel(
     qtbot, double_pendulum
 ):

@@ -289,6 +289,7 @@ y_dot = 0.3
 """
 
 
+@pytest.mark.soak  # busy loops beside a derivation: a load test
 def test_a_derivation_on_a_saturated_machine_is_not_refused(monkeypatch):
     """The limit counts the derivation's own CPU time: two busy loops beside it (a shared
     machine) do not make a small relativistic Lagrangian fail, as they did with a
