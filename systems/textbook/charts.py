@@ -182,7 +182,10 @@ def covariant_limit(
     steps = np.array([4e-3, 2e-3, 1e-3])
     limits = []
     for ray in rays:
-        ray = ray / np.linalg.norm(ray) * scales
+        length = np.linalg.norm(ray)
+        if not length > 0.0:  # M vanishes in every direction: no ray leaves the point
+            continue
+        ray = ray / length * scales
         spectra = []
         for s in steps:
             point = q + s * ray
