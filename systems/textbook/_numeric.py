@@ -108,16 +108,30 @@ class Vectorized:
         shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else ()
         if not shape:  # one point (a root finder's call): no broadcasting loop
             with np.errstate(all="ignore"):
-                return np.array(self.raw(*arrays), dtype=float)
+                return _real(self.raw(*arrays))
         with np.errstate(all="ignore"):
             values = self.raw(*arrays)
         out = np.empty((self.count, *shape))
         for i, value in enumerate(values):
-            out[i] = np.broadcast_to(np.asarray(value, dtype=float), shape)
+            out[i] = np.broadcast_to(_real(value), shape)
         return out
 
     def __reduce__(self):
         return (Vectorized, (self.raw, self.count))
+
+
+def _real(value) -> np.ndarray:
+    """``value`` as floats; a complex value (an expression with I, a power of a negative
+    number) is NaN wherever its imaginary part is not round-off, never silently cut to
+    its real part."""
+    value = np.asarray(value)
+    if not np.iscomplexobj(value):
+        return value.astype(float)
+    with np.errstate(all="ignore"):
+        real = np.where(
+            np.abs(value.imag) <= 1e-12 * (1.0 + np.abs(value.real)), value.real, np.nan
+        )
+    return real.astype(float)
 
 
 def is_periodic(expr: sympy.Expr, symbol: sympy.Symbol, others: Sequence[sympy.Symbol]) -> bool:

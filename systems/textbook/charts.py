@@ -103,6 +103,8 @@ def local_chart(
     h = 1e-6 * scales
     J = np.column_stack([(position(q + h[j] * e) - position(q - h[j] * e)) / (2 * h[j])
                          for j, e in enumerate(np.eye(n))])  # fmt: skip
+    if not np.all(np.isfinite(J)):  # a position that is not real there (sqrt of a mass < 0)
+        return LocalChart(np.zeros((0, 0)), "the particles' positions are not finite near it")
     _, singular, Vt = np.linalg.svd(J / np.maximum(1.0, np.abs(J).max()))
     rank = int(np.count_nonzero(singular > 1e-8))
     kernel = Vt[rank:]
