@@ -1489,21 +1489,6 @@ class _Problem:
             return "falls", order
         return "mixed", order
 
-    def _singular_constraints(self, x: np.ndarray) -> bool:
-        """True where the rows c_q lose rank (a cusp or crossing of the constraint set,
-        the origin of ``sqrt(x**2 + y**2) - l``): compared with their size at the starts."""
-        if self._row_scale is None:
-            grid = _Problem.starts(self)
-            with np.errstate(all="ignore"):
-                rows = self._jacobian(*grid.T).reshape(self.k, self._mq, -1)
-            self._row_scale = _typical(np.linalg.norm(rows, axis=1))
-        with np.errstate(all="ignore"):
-            J = np.asarray(self._jacobian(*x[: self.mq]), dtype=float).reshape(self.k, self.mq)
-        if not np.all(np.isfinite(J)):
-            return True
-        smallest = np.linalg.svd(J, compute_uv=False)[-1] if self.k <= self.mq else 0.0
-        return bool(smallest <= 1e-6 * self._row_scale)
-
     def _slope(self, x, v, s, R) -> float:
         """dU/ds at ``x + s v`` with the directions ``R`` (columns) relaxed to dU = 0 there
         (Newton); by the envelope theorem the slope of U along the reduced path."""

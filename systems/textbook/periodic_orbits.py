@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.integrate
-import sympy
 
+from systems.expressions import as_expr
 from systems.mechanics import Mechanics
 from systems.textbook._numeric import fold_angle
 from systems.textbook.floquet import (
@@ -321,7 +321,8 @@ def start_state(mechanics: Mechanics, values: Mapping[str, float] | None = None)
         mechanics.t: 0.0,
         **{mechanics.params[k]: v for k, v in scene.parameter_values.items()},
     }
-    p = np.array([float(sympy.sympify(m).xreplace(point)) for m in mechanics.momenta])
+    # the derivation's momenta (symengine or sympy expressions, never text)
+    p = np.array([float(as_expr(m).xreplace(point)) for m in mechanics.momenta])
     return np.concatenate([q, p])
 
 
