@@ -77,6 +77,11 @@ SIGNATURES: dict[str, str] = {
     "c_momenta": f"void({_F}, {_V}, {_V}, {_V}, {_V})",
     "c_saddle": f"void({_F}, {_V}, {_V}, {_M})",
     "c_gamma": f"void({_F}, {_V}, {_V}, {_V})",
+    # the variational equations on the extended state (``systems.chaos.variational``):
+    # the same types as rhs, grad_kinetic and grad_potential, so the drivers take them
+    "tangent_rhs": f"void({_F}, {_V}, {_V}, {_V})",
+    "tangent_grad_kinetic": f"void({_V}, {_V}, {_V})",
+    "tangent_grad_potential": f"void({_F}, {_V}, {_V}, {_V})",
 }
 """The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
 with C-contiguous float arrays. A scene's module compiles each it defines for exactly
