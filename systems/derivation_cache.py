@@ -51,6 +51,7 @@ def _code_version() -> str:
     digest = hashlib.sha256(MAGIC + sympy.__version__.encode())  # MAGIC: the file format
     for module in (
         systems.expressions,
+        systems.legendre,
         systems.scene,
         systems.mechanics,
         systems.calculus,

@@ -22,6 +22,7 @@ from systems.cpu_limit import TimeLimitExceeded, cpu_limit, limit_seconds
 from systems.display import EXPANSION_LIMIT, expanded_terms
 from systems.display import tidied as _tidy
 from systems.expressions import as_expr
+from systems.legendre import SquareRootTransform, square_root_transform
 from systems.scene import Scene
 from systems.symmetries import ENERGY, conserved_charges, pushes_along
 
@@ -297,7 +298,7 @@ class _Context:
         zero_velocity = dict.fromkeys(qd, sympy.S.Zero)
         L0 = L.xreplace(zero_velocity)
         quadratic = _degree_at_most(L, qd, 2)
-        matrix_form = None
+        matrix_form = energy = transform = None
         if quadratic:
             a = sympy.Matrix([m.xreplace(zero_velocity) for m in momenta])
             if self.needs_matrix_form(M):
@@ -307,6 +308,8 @@ class _Context:
                 H = sum(s * v for s, v in zip(shifted, qd, strict=True)) / 2 - L0
             else:
                 velocities, H = self.legendre_quadratic(M, a, L0)
+        elif (transform := self.square_root(L, momenta)) is not None:
+            velocities, H, energy = transform.velocities, transform.hamiltonian, transform.energy
         else:
             velocities = self.solve_velocities(momenta)
             H = as_expr(
@@ -314,7 +317,11 @@ class _Context:
                 - L.xreplace(dict(zip(qd, velocities, strict=True)))
             )
         to_velocities = dict(zip(qd, velocities, strict=True))
-        if matrix_form is None:
+        if transform is not None:  # dL/dq at qdot(p) would repeat the root's inverse
+            pdot = tuple(
+                transform.force[i] + replaced(forces[i], to_velocities) for i in range(self.n)
+            )
+        elif matrix_form is None:
             pdot = tuple(replaced(gradient[i] + forces[i], to_velocities) for i in range(self.n))
         else:  # the kernels' input, never shown at length: no simplification
             pdot = tuple(gradient[i] + forces[i] for i in range(self.n))
@@ -342,6 +349,7 @@ class _Context:
             cyclic=cyclic,
             natural=natural,
             matrix_form=matrix_form,
+            energy=energy,
         )
 
     def lagrangian_parts(self, L) -> tuple[tuple, list[list], list, list]:
@@ -414,6 +422,21 @@ class _Context:
         quadratic = sympy.Add(*[shifted[i] * rows[i] for i in range(n)])
         H = sympy.Mul(sympy.S.Half, scale, quadratic, evaluate=False) - L0
         return velocities, H
+
+    def square_root(self, L, momenta) -> SquareRootTransform | None:
+        """The closed-form transform of a square-root Lagrangian (``systems.legendre``),
+        its parameters positive in the scene taken as positive, or None if L is not one
+        or the inverse does not give back the momenta at random states."""
+        values = self.scene.parameter_values
+        positive = tuple(
+            symbol for name, symbol in self.scene.symbols.items() if values.get(name, 0) > 0
+        )
+        transform = square_root_transform(L, self.q, self.qd, self.p, positive)
+        if transform is None:
+            return None
+        to_velocities = dict(zip(self.qd, transform.velocities, strict=True))
+        back = [replaced(m, to_velocities) - pi for m, pi in zip(momenta, self.p, strict=True)]
+        return transform if all(self.vanishes(e) for e in back) else None
 
     def solve_velocities(self, momenta):
         equations = [sympy.Eq(m, pi) for m, pi in zip(momenta, self.p, strict=True)]
@@ -555,6 +578,7 @@ class _Context:
         cyclic,
         natural,
         matrix_form=None,
+        energy=None,
     ) -> Mechanics:
         from systems.constraints import declared
 
@@ -594,7 +618,9 @@ class _Context:
         H_conserved = classification.hamiltonian_conserved
         conserved: dict[str, sympy.Expr] = {}
         if H_conserved:
-            if momenta is not None:
+            if energy is not None:  # H(q, p(qdot)) as the textbook writes it
+                conserved["H"] = energy
+            elif momenta is not None:
                 to_p = dict(zip(p, momenta, strict=True))
                 conserved["H"] = replaced(H, to_p)
             else:
