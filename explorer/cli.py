@@ -21,7 +21,9 @@ import signal
 import sys
 from contextlib import nullcontext
 
-COMMANDS = ("list", "derive", "run", "bench", "methods", "periodic", "open", "export", "warm")
+COMMANDS = (
+    "list", "derive", "run", "bench", "methods", "periodic", "lyapunov", "open", "export", "warm",
+)  # fmt: skip
 
 
 def _load(name: str):

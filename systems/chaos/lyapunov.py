@@ -45,17 +45,22 @@ import numpy as np
 
 from systems.chaos.variational import NotApplicable, Tangent, extended, load_tangent, refusal, split
 
-GROWTH = 2.0
+GROWTH = 5.0
 """Growth (a logarithm) of the fastest tangent vector, and spread of the spectrum set's
 (the largest log R_ii less the smallest), aimed at in one interval: the spectrum set's
 condition number stays about e^GROWTH before each QR. With 3 and the growth alone, the
-driven damped pendulum's exponents summed to -0.486 instead of tr J = -0.5."""
+driven damped pendulum's exponents summed to -0.486 instead of tr J = -0.5 (a spread
+of e^19 before each QR); with the spread held to e^5 the sum is within 5e-10, and the
+intervals are long enough that their cost in Python (about 0.3 ms each) stays below
+the steps'."""
 STEPS_PER_INTERVAL = 1000
 """Most steps in one interval (fewer for large extended states: ``ROWS_BUDGET``)."""
 ROWS_BUDGET = 2_000_000
 """Numbers of the extended states one interval keeps (every step's state, for MEGNO)."""
 DEFAULT_METHOD = "dop853"
 DEFAULT_TOL = 1e-12
+CHAOTIC_MEGNO = 4.0
+"""A mean MEGNO above this is called chaotic (``megno_verdict``): twice a regular orbit's."""
 SEED = 20260
 """The random start of the tangent vectors: the same for every run."""
 
@@ -241,10 +246,12 @@ class LyapunovRun:
             self.tau = min(self.tau, (t_end - t0) / 4)
         self.rows = max(16, min(STEPS_PER_INTERVAL, ROWS_BUDGET // len(self.runner.y)))
         # MEGNO: the last row's time, f, f', Y, Y', and the integrals of f and Y so far
-        self._last = (self.t0, 0.0, self._rate_of_growth(np.array([t0]), self.runner.y[None])[0])
+        start = self._first_vector(self.runner.y[None])
+        self._last = (self.t0, 0.0, self._rate_of_growth(np.array([t0]), start)[0])
         self._last_y = (0.0, self._last[2])
         self._integrals = [0.0, 0.0]
         self.status, self.message = "running", ""
+        self._alignment_indices(alignment)
         self.estimate = self._estimate()
         self.history = History()
 
@@ -300,29 +307,32 @@ class LyapunovRun:
         if outcome.steps:
             self.history.append(self.estimate)
 
-    def _rate_of_growth(self, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
-        """f' = (J v . v) / |v|^2 of the first vector at the rows ``(t, Y)``."""
+    def _first_vector(self, Y: np.ndarray) -> np.ndarray:
+        """The extended states of the orbit and its first vector alone, (q, dq_1, p,
+        dp_1), of the rows ``Y`` (N, m); returns (N, 4n)."""
+        n, half = self.n, Y.shape[1] // 2
+        return np.concatenate([Y[:, : 2 * n], Y[:, half : half + 2 * n]], axis=1)
+
+    def _rate_of_growth(self, t: np.ndarray, one: np.ndarray) -> np.ndarray:
+        """f' = (J v . v) / |v|^2 of the first vector at the rows ``(t, one)`` of
+        ``_first_vector``."""
         n = self.n
-        rows = len(Y)
-        half = Y.shape[1] // 2
-        # the extended states of the orbit and its first vector alone: (q, dq_1, p, dp_1)
-        one = np.concatenate([Y[:, : 2 * n], Y[:, half : half + 2 * n]], axis=1)
-        _, Jv = split(self.tangent.rhs_rows(np.broadcast_to(t, (rows,)), one), n)
-        _, V = split(one, n)
-        v = V[:, :, 0]
-        return np.einsum("ij,ij->i", Jv[:, :, 0], v) / np.einsum("ij,ij->i", v, v)
+        rates = self.tangent.rhs_rows(np.broadcast_to(t, (len(one),)), one)
+        v = np.concatenate([one[:, n : 2 * n], one[:, 3 * n :]], axis=1)
+        Jv = np.concatenate([rates[:, n : 2 * n], rates[:, 3 * n :]], axis=1)
+        return np.einsum("ij,ij->i", Jv, v) / np.einsum("ij,ij->i", v, v)
 
     def _megno(self, t: np.ndarray, Y: np.ndarray) -> None:
         """Carry the MEGNO integrals over the rows of one interval."""
-        _, V = split(Y, self.n)
-        f = self.logs[0] + np.log(np.linalg.norm(V[:, :, 0], axis=1))
-        df = self._rate_of_growth(t, Y)
+        n = self.n
+        one = self._first_vector(Y)
+        squares = np.einsum("ij,ij->i", one[:, n : 2 * n], one[:, n : 2 * n])
+        squares += np.einsum("ij,ij->i", one[:, 3 * n :], one[:, 3 * n :])
+        f = self.logs[0] + 0.5 * np.log(squares)
+        df = self._rate_of_growth(t, one)
         t_prev, f_prev, df_prev = self._last
-        ts = np.concatenate([[t_prev], t])
-        fs = np.concatenate([[f_prev], f])
-        dfs = np.concatenate([[df_prev], df])
-        h = np.diff(ts)
-        first = _hermite(h, fs, dfs)
+        h = np.diff(np.concatenate([[t_prev], t]))
+        first = _hermite(h, np.concatenate([[f_prev], f]), np.concatenate([[df_prev], df]))
         integral_f = self._integrals[0] + np.cumsum(first)
         s = t - self.t0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -336,23 +346,24 @@ class LyapunovRun:
         self._last_y = (float(Yn[-1]), float(dY[-1]))
 
     def _renormalise(self) -> None:
-        """QR of the spectrum set, unit length for the alignment set; the logarithms of
-        R's diagonal summed; the next interval's length from the growth."""
+        """QR of the spectrum set, unit length for the alignment set (SALI and GALI
+        measured on it); the logarithms of R's diagonal summed; the next interval's
+        length from the growth."""
         runner = self.runner
         y, V = split(runner.y, self.n)
         spectrum, alignment = V[:, : self.k_s], V[:, self.k_s :]
         Q, R = np.linalg.qr(spectrum)
         diagonal = np.diag(R)
-        self.logs += np.log(np.abs(diagonal))
-        Q = Q * np.sign(diagonal)
-        norms = np.linalg.norm(alignment, axis=0)
         logs = np.log(np.abs(diagonal))
+        self.logs += logs
+        Q = Q * np.sign(diagonal)
+        norms = np.sqrt(np.einsum("ij,ij->j", alignment, alignment))
         # the fastest growth, and the spread of the spectrum set: the error of a step
         # goes with the largest vector, the volumes the smaller exponents come from
         # with the smallest
         growth = max(float(np.max(np.log(norms))), float(logs[0]), float(np.ptp(logs)))
         alignment = alignment / norms
-        self._alignment = alignment
+        self._alignment_indices(alignment)
         runner.y[:] = extended(y, np.hstack([Q, alignment]))
         half = len(runner.y) // 2
         runner.comp[self.n : half] = 0.0  # the Kahan terms of the vectors rescaled
@@ -361,18 +372,19 @@ class LyapunovRun:
         factor = GROWTH / growth if growth > 0 else 2.0
         self.tau *= min(2.0, max(0.5, factor))
 
+    def _alignment_indices(self, unit: np.ndarray) -> None:
+        """SALI of the first two unit vectors of ``unit`` (2n, k), GALI_k of all."""
+        a, b = unit[:, 0], unit[:, 1]
+        self._sali = float(min(np.sqrt(np.dot(a + b, a + b)), np.sqrt(np.dot(a - b, a - b))))
+        self._gali = float(np.prod(np.linalg.svd(unit, compute_uv=False)))
+
     def _estimate(self) -> Estimate:
         elapsed = self.t - self.t0
         if elapsed > 0:
             exponents = np.sort(self.logs / elapsed)[::-1]
         else:
             exponents = np.zeros(self.k_s)
-        _, V = split(self.runner.y, self.n)
-        alignment = V[:, self.k_s :]
-        alignment = alignment / np.linalg.norm(alignment, axis=0)
-        a, b = alignment[:, 0], alignment[:, 1]
-        sali = float(min(np.linalg.norm(a + b), np.linalg.norm(a - b)))
-        gali = float(np.prod(np.linalg.svd(alignment, compute_uv=False)))
+        sali, gali = self._sali, self._gali
         megno = self._integrals[1] / elapsed if elapsed > 0 else 0.0
         return Estimate(
             t=self.t, exponents=exponents, megno=float(megno), megno_now=self._last_y[0],
@@ -380,6 +392,22 @@ class LyapunovRun:
             message=self.message, intervals=self.intervals, steps=self.steps,
             evaluations=self.evaluations,
         )  # fmt: skip
+
+
+def megno_verdict(megno: float) -> str:
+    """What the mean MEGNO says of an orbit, in words: ``"periodic"`` (|<Y>| < 0.5: an
+    isochronous periodic orbit), ``"regular"`` (within 0.5 of 2: quasi-periodic, or
+    deviations growing linearly), ``"chaotic"`` (above ``CHAOTIC_MEGNO``), otherwise
+    ``"undecided"`` (a longer run decides)."""
+    if not math.isfinite(megno):
+        return "undecided"
+    if abs(megno) < 0.5:
+        return "periodic"
+    if abs(megno - 2.0) < 0.5:
+        return "regular"
+    if megno > CHAOTIC_MEGNO:
+        return "chaotic"
+    return "undecided"
 
 
 def _hermite(h: np.ndarray, f: np.ndarray, df: np.ndarray) -> np.ndarray:
@@ -421,6 +449,7 @@ class Spectrum:
             "sum": float(np.sum(e.exponents)),
             "megno": e.megno,
             "megno_now": e.megno_now,
+            "verdict": megno_verdict(e.megno),
             "sali": e.sali,
             "gali": e.gali,
             "gali_order": e.gali_order,
@@ -473,4 +502,7 @@ def lyapunov(
     )  # fmt: skip
 
 
-__all__ = ["Estimate", "LyapunovRun", "NotApplicable", "Spectrum", "lyapunov", "method_refusal"]
+__all__ = [
+    "Estimate", "LyapunovRun", "NotApplicable", "Spectrum", "lyapunov", "megno_verdict",
+    "method_refusal",
+]  # fmt: skip

@@ -13,6 +13,17 @@ potential = "k*x**2/2"
 x = 1.0
 """
 
+INVERTED_OSCILLATOR = """
+title = "Inverted oscillator"
+[system]
+coordinates = ["q"]
+hamiltonian = "(p_q**2 - q**2)/2"
+[initial]
+q = 0.0
+p_q = 0.0
+"""
+"""H = (p^2 - q^2)/2 at its saddle: Lyapunov exponents +1 and -1 exactly."""
+
 DAMPED_OSCILLATOR = """
 title = "damped oscillator"
 [system]

@@ -15,16 +15,7 @@ from systems.chaos.variational import NotApplicable, load_tangent
 from systems.compiled import compile_system
 from systems.mechanics import derive
 from systems.scene import load_scene, parse_scene
-
-SADDLE = """
-title = "Inverted oscillator"
-[system]
-coordinates = ["q"]
-hamiltonian = "(p_q**2 - q**2)/2"
-[initial]
-q = 0.0
-p_q = 0.0
-"""
+from tests.systems.scenes import INVERTED_OSCILLATOR
 
 
 def _compiled(scene):
@@ -48,7 +39,7 @@ def _henon_heiles_start(energy, y, p_y=0.0):
 
 
 def test_the_inverted_oscillator_has_exponents_plus_and_minus_one():
-    result = ly.lyapunov(_compiled(SADDLE), t_end=2000.0)
+    result = ly.lyapunov(_compiled(INVERTED_OSCILLATOR), t_end=2000.0)
     assert result.estimate.status == "ok"
     assert abs(result.estimate.maximal - 1.0) < 1e-3
     assert abs(result.estimate.exponents[1] + 1.0) < 1e-3
@@ -156,7 +147,7 @@ def test_the_running_estimates_do_not_depend_on_how_the_run_is_split(henon_heile
     while not pieces.done:
         pieces.advance(seconds=0.0)  # one interval a call
         blocks += 1
-    assert blocks == pieces.intervals > 10
+    assert blocks == pieces.intervals > 5
     assert np.array_equal(whole.estimate.exponents, pieces.estimate.exponents)
     assert whole.estimate.megno == pieces.estimate.megno
     assert whole.history.t == pieces.history.t

@@ -1,0 +1,68 @@
+"""``lyapunov SCENE``: the spectrum, max, MEGNO, SALI and the end time, as text and
+JSON; what it refuses, and why, with status 2."""
+
+import json
+
+import pytest
+
+from explorer.cli import main
+from tests.systems.scenes import INVERTED_OSCILLATOR
+
+
+def _json(capsys, *argv) -> dict:
+    assert main(["lyapunov", *argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_the_json_has_the_exponents_largest_first_max_megno_sali_and_t_end(tmp_path, capsys):
+    path = tmp_path / "saddle.toml"
+    path.write_text(INVERTED_OSCILLATOR)
+    report = _json(capsys, str(path), "--t-end", "2000")
+    assert report["t_end"] == 2000.0 and report["status"] == "ok"
+    assert report["exponents"] == sorted(report["exponents"], reverse=True)
+    assert abs(report["max"] - 1.0) < 1e-3 and report["max"] == report["exponents"][0]
+    assert abs(report["exponents"][1] + 1.0) < 1e-3
+    assert report["megno"] > 100 and report["verdict"] == "chaotic"
+    assert report["sali"] < 1e-12
+    assert report["method"] == "dop853" and report["tol"] == 1e-12
+
+
+def test_a_regular_orbit_by_a_symplectic_method(capsys):
+    report = _json(capsys, "henon_heiles", "--t-end", "3000", "--method", "yoshida8", "--dt",
+                   "0.05")  # fmt: skip
+    assert report["method"] == "yoshida8" and report["dt"] == 0.05
+    assert len(report["exponents"]) == 4
+    assert abs(report["megno"] - 2.0) < 0.1 and report["verdict"] == "regular"
+    assert report["max"] < 3e-3
+
+
+def test_the_text_names_every_number(capsys):
+    assert main(["lyapunov", "harmonic_oscillator", "--t-end", "500", "--exponents", "1"]) == 0
+    out = capsys.readouterr().out
+    for word in ("exponents (largest first):", "max:", "megno:", "periodic", "sali:"):
+        assert word in out
+    assert "from t = 0 to 500" in out
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["cartesian_pendulum"], ["not available", "[constraints]"]),
+        (["pendulum_chain"], ["not available", "coupled coordinates"]),
+        (["henon_heiles", "--method", "logh_yoshida6"], ["logh_yoshida6", "fictitious time"]),
+        (["henon_heiles", "--method", "radau"], ["scipy"]),
+        (["double_pendulum", "--method", "yoshida8"], ["separable"]),
+        (["henon_heiles", "--method", "nope"], ["unknown method"]),
+        (["henon_heiles", "--t-end", "inf"], ["--t-end"]),
+        (["henon_heiles", "--t-end", "-1"], ["--t-end"]),
+        (["henon_heiles", "--exponents", "9"], ["exponents", "1 to 4"]),
+        (["henon_heiles", "--tol", "1e-9", "--method", "rk4"], ["rk4", "--dt"]),
+        (["no_such_scene"], ["no_such_scene"]),
+    ],
+)
+def test_what_cannot_be_measured_is_refused_with_the_reason(capsys, argv, words):
+    assert main(["lyapunov", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1
+    for word in words:
+        assert word in err
