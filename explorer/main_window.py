@@ -39,6 +39,7 @@ from explorer.controls import ControlsPanel
 from explorer.editor.editor_panel import SystemEditorPanel
 from explorer.error_report import ErrorReporter
 from explorer.gui_gc import GuiThreadCollector
+from explorer.panels.chaos_view import attach as attach_chaos_view
 from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
 from explorer.panels.constraint_forces_view import attach as attach_constraint_view
@@ -159,6 +160,8 @@ class MainWindow(QMainWindow):
         self.mode_view = attach_mode_view(self)
         # the constraint forces, in a dock offered for scenes with constraints or particles
         self.constraint_view = attach_constraint_view(self)
+        # Lyapunov exponents, MEGNO and SALI as the run plays (View > Chaos)
+        self.chaos_view = attach_chaos_view(self)
 
         toolbar = self.addToolBar("Run")
         toolbar.setObjectName("run-toolbar")
@@ -660,6 +663,7 @@ class MainWindow(QMainWindow):
         self.conserved_view.set_system(compiled)
         self.mode_view.set_system(compiled, y0)
         self.constraint_view.set_system(compiled)
+        self.chaos_view.set_system(compiled, y0)
         self.settings = self._current_settings()
         worker = SimulationWorker(compiled, self.settings, self._generation, runs=self._runs)
         worker.blocks_ready.connect(self._on_worker_blocks_ready)

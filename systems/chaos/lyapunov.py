@@ -188,6 +188,9 @@ class LyapunovRun:
         The step of a fixed-step method, the tolerance of DOP853 (default 1e-12).
     exponents : int, optional
         How many exponents (largest first): 1 to 2n, default 2n.
+    max_interval : float
+        The longest interval between two QR decompositions (and estimates): the window
+        follows the main orbit with intervals of a few ``time_scale``.
 
     Raises
     ------
@@ -207,6 +210,7 @@ class LyapunovRun:
         dt: float | None = None,
         tol: float | None = None,
         exponents: int | None = None,
+        max_interval: float = math.inf,
     ):
         from systems.integrators.registry import STEPPERS, make_runner
 
@@ -241,7 +245,10 @@ class LyapunovRun:
         self.logs = np.zeros(k_s)  # sums of ln R_ii
         self.steps = self.evaluations = self.intervals = 0
         rate = _fastest_rate(tangent, t0, y0)
-        self.tau = GROWTH / rate if rate > 0 else 1.0
+        # 1 / the largest |eigenvalue| of J at the start: the fastest motion's time
+        self.time_scale = 1.0 / rate if rate > 0 else 1.0
+        self.max_interval = float(max_interval)
+        self.tau = min(GROWTH * self.time_scale, self.max_interval)
         if math.isfinite(t_end):
             self.tau = min(self.tau, (t_end - t0) / 4)
         self.rows = max(16, min(STEPS_PER_INTERVAL, ROWS_BUDGET // len(self.runner.y)))
@@ -263,14 +270,14 @@ class LyapunovRun:
     def done(self) -> bool:
         return self.status != "running"
 
-    def advance(self, seconds: float = 0.03) -> Estimate:
-        """Whole intervals for about ``seconds`` of computing (at least one); returns
-        the estimate at the end of the last. The intervals do not depend on
-        ``seconds``."""
+    def advance(self, seconds: float = 0.03, until: float = math.inf) -> Estimate:
+        """Whole intervals for about ``seconds`` of computing (at least one), ending
+        after the first that reaches ``until``; returns the estimate at the end of the
+        last. The intervals depend on neither."""
         start = time.perf_counter()
         while not self.done:
             self._interval()
-            if time.perf_counter() - start >= seconds:
+            if time.perf_counter() - start >= seconds or self.t >= until:
                 break
         return self.estimate
 
@@ -370,7 +377,7 @@ class LyapunovRun:
         runner.comp[half + self.n :] = 0.0
         runner.work[-1][0] = 0.0  # nothing carried over (a derivative, stage guesses)
         factor = GROWTH / growth if growth > 0 else 2.0
-        self.tau *= min(2.0, max(0.5, factor))
+        self.tau = min(self.tau * min(2.0, max(0.5, factor)), self.max_interval)
 
     def _alignment_indices(self, unit: np.ndarray) -> None:
         """SALI of the first two unit vectors of ``unit`` (2n, k), GALI_k of all."""

@@ -181,8 +181,9 @@ def test_reset_layout_brings_every_dock_that_applies_back(qtbot, window):
     window.docks["configuration"].setFloating(True)
     window.reset_layout()
     for key, dock in window.docks.items():
-        # the pendulum has no normal modes to show (one coordinate) nor constraint forces
-        assert dock.isHidden() == (key in ("modes", "constraints")), key
+        # the pendulum has no normal modes to show (one coordinate) nor constraint forces;
+        # the chaos estimates come only when asked for (View > Chaos)
+        assert dock.isHidden() == (key in ("modes", "constraints", "chaos")), key
         assert not dock.isFloating(), key
 
 
