@@ -44,6 +44,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     step.add_argument("--dt", type=float, default=None, help="step of a fixed-step method")
     step.add_argument("--tol", type=float, default=None, help="tolerance of dop853")
     parser.add_argument(
+        "--start", default="",
+        help="the start, e.g. x=0,y=0.1,p_x=0.45,p_y=0 (coordinates, <q>_dot velocities or "
+        "p_<q> momenta; default: the scene's initial state)",
+    )  # fmt: skip
+    parser.add_argument(
         "--exponents", type=int, default=None,
         help="how many exponents, largest first (default all 2n)",
     )  # fmt: skip
@@ -52,6 +57,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from explorer.commands import stopping
+    from explorer.commands.periodic_cmd import _start as parse_start
     from systems.chaos.lyapunov import DEFAULT_METHOD, LyapunovRun, Spectrum, method_refusal
     from systems.chaos.variational import NotApplicable, load_tangent, refusal
     from systems.compiled import compile_system
@@ -59,7 +65,9 @@ def run(args: argparse.Namespace) -> int:
     from systems.mechanics import derive
     from systems.scene import load_scene
     from systems.start_check import check_start
+    from systems.textbook.periodic_orbits import start_state
 
+    values = parse_start(args.start)
     t_end = args.t_end
     if not (math.isfinite(t_end) and t_end > 0):
         raise UserError(f"--t-end must be a positive finite number, not {t_end!r}")
@@ -79,7 +87,11 @@ def run(args: argparse.Namespace) -> int:
     wants = STEPPERS[method].wants | {"hamiltonian"}
     with user_errors():
         compiled = compile_system(mechanics, wants)
-        y0 = check_start(compiled)
+        try:
+            given = start_state(mechanics, values) if values else None
+        except ValueError as exc:
+            raise UserError(f"--start: {exc}") from None
+        y0 = check_start(compiled, given)
     try:
         tangent = load_tangent(compiled)
         compile_s = compiled.build_seconds + tangent.build_seconds
@@ -96,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
         estimate=chaos.estimate, history=chaos.history.arrays(), method=method,
         setting=chaos.setting, setting_value=chaos.setting_value, t0=chaos.t0, t_end=t_end,
         compile_s=compile_s, wall_s=time.perf_counter() - start,
+        energy_error=chaos.energy_error(),
     )  # fmt: skip
     report = result.as_json()
     report = {"scene": scene.name or args.scene, **report}
@@ -120,6 +133,8 @@ def _lines(scene, report: dict) -> list[str]:
         f"and isochronous, max*t/2 = {report['max'] * report['t_end'] / 2:.3g} if chaotic)",
         f"sali: {report['sali']:.3g}  gali_{report['gali_order']}: {report['gali']:.3g}",
     ]
+    if report["energy_error"] is not None:
+        lines.append(f"relative energy error of the orbit: {report['energy_error']:.2g}")
     if report["status"] != "ok":
         lines.append(f"stopped ({report['status']}): {report['message']}")
     return lines

@@ -229,6 +229,7 @@ class LyapunovRun:
             raise NotApplicable(wrong)
         y0 = compiled.initial_state(t0) if y0 is None else np.asarray(y0, dtype=float)
         self.t0, self.t_end = float(t0), float(t_end)
+        self.y0 = np.array(y0, dtype=float)
         self.k_s, self.k_g = k_s, max(2, n)
         rng = np.random.default_rng(SEED)
         basis, _ = np.linalg.qr(rng.standard_normal((dimension, dimension)))
@@ -265,6 +266,18 @@ class LyapunovRun:
     @property
     def t(self) -> float:
         return self.runner.t
+
+    def energy_error(self) -> float | None:
+        """|H - H0| / |H0| of the orbit now (|H - H0| where H0 = 0), or None where H is
+        not conserved or was not compiled: how well the orbit itself was kept."""
+        compiled = self.tangent.compiled
+        if "hamiltonian" not in compiled.wanted:
+            return None
+        if not compiled.mechanics.classification.hamiltonian_conserved:
+            return None
+        y, _ = split(self.runner.y, self.n)
+        H0, H = compiled.hamiltonian(np.array([self.t0, self.t]), np.stack([self.y0, y]))
+        return float(abs(H - H0) / abs(H0) if H0 != 0 else abs(H - H0))
 
     @property
     def done(self) -> bool:
@@ -446,6 +459,7 @@ class Spectrum:
     t_end: float
     compile_s: float
     wall_s: float
+    energy_error: float | None = None
 
     def as_json(self) -> dict:
         e = self.estimate
@@ -469,6 +483,7 @@ class Spectrum:
             "steps": e.steps,
             "evaluations": e.evaluations,
             "intervals": e.intervals,
+            "energy_error": self.energy_error,
             "megno_convention": "Cincotta-Simo: <Y> -> 2 quasi-periodic, 0 periodic "
             "(isochronous), ~ max*t/2 chaotic",
             "compile_s": self.compile_s,
@@ -506,6 +521,7 @@ def lyapunov(
         estimate=estimate, history=run.history.arrays(), method=method,
         setting=run.setting, setting_value=run.setting_value, t0=run.t0, t_end=t_end,
         compile_s=compile_s, wall_s=time.perf_counter() - start,
+        energy_error=run.energy_error(),
     )  # fmt: skip
 
 

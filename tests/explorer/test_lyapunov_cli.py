@@ -25,6 +25,7 @@ def test_the_json_has_the_exponents_largest_first_max_megno_sali_and_t_end(tmp_p
     assert report["megno"] > 100 and report["verdict"] == "chaotic"
     assert report["sali"] < 1e-12
     assert report["method"] == "dop853" and report["tol"] == 1e-12
+    assert report["energy_error"] < 1e-12  # H0 = 0 at the saddle: the absolute error
 
 
 def test_a_regular_orbit_by_a_symplectic_method(capsys):
@@ -34,6 +35,15 @@ def test_a_regular_orbit_by_a_symplectic_method(capsys):
     assert len(report["exponents"]) == 4
     assert abs(report["megno"] - 2.0) < 0.1 and report["verdict"] == "regular"
     assert report["max"] < 3e-3
+    assert report["energy_error"] < 1e-8  # the orbit itself, by the same steps
+
+
+def test_a_chaotic_start_given_on_the_command_line(capsys):
+    # E = 1/6 on the x = 0 section: p_x = sqrt(2 E - p_y^2) at y = 0
+    start = f"x=0,y=0,p_x={(1 / 3) ** 0.5!r},p_y=0"
+    report = _json(capsys, "henon_heiles", "--t-end", "2000", "--start", start)
+    assert report["max"] > 0.05 and report["megno"] > 20 and report["verdict"] == "chaotic"
+    assert abs(report["megno"] - report["max"] * 2000 / 2) < 0.2 * report["megno"]
 
 
 def test_the_text_names_every_number(capsys):
@@ -58,6 +68,8 @@ def test_the_text_names_every_number(capsys):
         (["henon_heiles", "--exponents", "9"], ["exponents", "1 to 4"]),
         (["henon_heiles", "--tol", "1e-9", "--method", "rk4"], ["rk4", "--dt"]),
         (["no_such_scene"], ["no_such_scene"]),
+        (["henon_heiles", "--start", "z=1"], ["--start", "unknown name 'z'"]),
+        (["henon_heiles", "--start", "x"], ["--start", "name=value"]),
     ],
 )
 def test_what_cannot_be_measured_is_refused_with_the_reason(capsys, argv, words):
