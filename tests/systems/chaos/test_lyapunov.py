@@ -174,6 +174,28 @@ p_z = 0.0
     assert abs(estimate.megno - 2.0) < 0.3 or abs(estimate.megno) < 0.3
 
 
+def test_gali_of_a_chaotic_orbit_with_three_degrees_of_freedom_falls_to_round_off():
+    p_x = math.sqrt(2 * 0.15 - 0.01 + 2 * 0.001 / 6)  # E = 0.15
+    scene = f"""
+title = "Henon-Heiles in three dimensions"
+[system]
+coordinates = ["x", "y", "z"]
+hamiltonian = "(p_x**2 + p_y**2 + p_z**2)/2 + (x**2 + y**2 + z**2)/2 + x**2*y - y**3/3 + 0.5*x**2*z - z**3/6"
+[initial]
+x = 0.0
+y = 0.0
+z = 0.1
+p_x = {p_x!r}
+p_y = 0.0
+p_z = 0.0
+"""  # noqa: E501
+    estimate = ly.lyapunov(_compiled(scene), t_end=2000.0).estimate
+    assert estimate.gali_order == 3 and estimate.status == "ok"
+    assert estimate.maximal > 0.01 and estimate.megno > 8
+    assert estimate.gali < 1e-15  # GALI_3 ~ exp(-(2 l1 - l2 - l3) t): the vectors align
+    np.testing.assert_allclose(estimate.exponents + estimate.exponents[::-1], 0.0, atol=1e-3)
+
+
 def test_fewer_exponents_give_the_largest_ones(henon_heiles):
     compiled, tangent = henon_heiles
     y0 = _henon_heiles_start(1 / 6, 0.0)
