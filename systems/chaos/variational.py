@@ -363,13 +363,6 @@ class Tangent:
     def parameters(self) -> np.ndarray:
         return self.compiled.parameters
 
-    def with_system(self, compiled) -> Tangent:
-        """The same machine code for ``compiled`` (other parameter values)."""
-        other = object.__new__(Tangent)
-        other.__dict__.update(self.__dict__)
-        other.compiled = compiled
-        return other
-
     def functions(self, names) -> tuple:
         """The tangent functions standing for the system functions ``names``."""
         missing = [name for name in names if TANGENT_NAMES.get(name) not in self.code.names]
