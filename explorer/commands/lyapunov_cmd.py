@@ -16,6 +16,7 @@ import math
 import time
 
 from explorer.commands.errors import UserError, user_errors
+from systems.limits import MIN_T_END
 
 DEFAULT_T_END = 1e4
 
@@ -69,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
 
     values = parse_start(args.start)
     t_end = args.t_end
-    if not (math.isfinite(t_end) and t_end > 0):
-        raise UserError(f"--t-end must be a positive finite number, not {t_end!r}")
+    if not (math.isfinite(t_end) and t_end >= MIN_T_END):
+        raise UserError(f"--t-end must be a finite number of at least {MIN_T_END:g}, not {t_end!r}")
     method = args.method or DEFAULT_METHOD
     if method not in STEPPERS:
         raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
@@ -124,14 +125,15 @@ def _lines(scene, report: dict) -> list[str]:
     exponents = ", ".join(f"{x:.6g}" for x in report["exponents"])
     megno = report["megno"]
     lines = [
-        f"{scene.title}: Lyapunov spectrum from t = {report['t0']:g} to {report['t_end']:g}",
+        f"{scene.title}: Lyapunov spectrum and fast indicators",
         f"method: {report['method']} ({setting} {report[setting]:g}), {report['steps']} "
         f"steps, {report['intervals']} QR re-orthonormalisations, {report['wall_s']:.2f} s",
-        f"exponents (largest first): {exponents}  (sum {report['sum']:.3g})",
+        f"exponents: {exponents}  (largest first; sum {report['sum']:.3g})",
         f"max: {report['max']:.6g}",
         f"megno: {megno:.6g}, {report['verdict']} (mean <Y>: 2 quasi-periodic, 0 periodic "
         f"and isochronous, max*t/2 = {report['max'] * report['t_end'] / 2:.3g} if chaotic)",
         f"sali: {report['sali']:.3g}  gali_{report['gali_order']}: {report['gali']:.3g}",
+        f"t_end: {report['t_end']:g}",
     ]
     if report["energy_error"] is not None:
         lines.append(f"relative energy error of the orbit: {report['energy_error']:.2g}")

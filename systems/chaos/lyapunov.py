@@ -223,7 +223,9 @@ class LyapunovRun:
         dimension = 2 * n
         k_s = dimension if exponents is None else int(exponents)
         if not 1 <= k_s <= dimension:
-            raise NotApplicable(f"exponents: give 1 to {dimension} (2n), not {exponents}")
+            raise NotApplicable(
+                f"the number of exponents must be from 1 to {dimension} (2n), not {exponents}"
+            )
         wrong = stepper.setting_error(dt, tol, (t0, t_end))
         if wrong:
             raise NotApplicable(wrong)
