@@ -82,15 +82,15 @@ def test_the_gradients_of_a_separable_hamiltonian_carry_the_hessians():
     assert np.array_equal(out, [0.4, 0.1, 2.0, 5.0, 3.0, 7.0])  # T = |p|^2/2: T_pp dp = dp
 
 
-def _differences(compiled, stepper, y0, setting, t_end, steps, eps=1e-6):
-    """Central differences of the end states of runs from y0 +- eps e_i."""
+def _differences(compiled, stepper, y0, setting, t_end, steps, eps=1e-6, t0=0.0):
+    """Central differences of the end states of runs from y0 +- eps e_i at t0."""
     columns = []
     for i in range(len(y0)):
         ends = []
         for sign in (1, -1):
             start = y0.copy()
             start[i] += sign * eps
-            runner = make_runner(compiled, stepper, start, 0.0, t_end, setting, None)
+            runner = make_runner(compiled, stepper, start, t0, t_end, setting, None)
             runner.advance(steps, 2)
             ends.append(runner.y.copy())
         columns.append((ends[0] - ends[1]) / (2 * eps))
@@ -156,3 +156,24 @@ def test_constraints_and_the_matrix_form_are_refused_with_the_reason():
     assert chain.matrix_form is not None
     assert "not supported yet" in va.refusal(chain)
     assert va.refusal(derive(load_scene("fpu_chain"))) is None  # diagonal M: closed form
+
+
+@pytest.mark.parametrize(
+    "name, method, dt",
+    [("mathieu_oscillator", "yoshida6", 0.01), ("kapitza_pendulum", "gauss_legendre4", 0.001),
+     ("bead_on_rotating_hoop", "rk4", 0.01)],
+)  # fmt: skip
+def test_driven_and_rheonomic_systems_from_a_later_start(name, method, dt):
+    """t in V (a splitting's kicks take it), a shaken support, a rotating wire."""
+    compiled = _compiled(name)
+    stepper = STEPPERS[method]
+    if stepper.needs_separable:
+        compiled = compile_system(compiled.mechanics, {"rhs", "hamiltonian", "separable"})
+    tangent = va.load_tangent(compiled)
+    y0 = compiled.initial_state() + 0.05
+    m = len(y0)
+    run = make_runner(tangent, stepper, va.extended(y0, np.eye(m)), 0.3, 1e3, dt, None)
+    run.advance(300, 2)
+    _, V_end = va.split(run.y, m // 2)
+    expected = _differences(compiled, stepper, y0, dt, 1e3, 300, t0=0.3)
+    np.testing.assert_allclose(V_end, expected, atol=1e-8 * np.abs(V_end).max())
