@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 from explorer.builder import BuildService, Built
 from explorer.controls import ControlsPanel
 from explorer.editor.editor_panel import SystemEditorPanel
+from explorer.envelope import MOMENTA
 from explorer.error_report import ErrorReporter
 from explorer.gui_gc import GuiThreadCollector
 from explorer.panels.chaos_view import attach as attach_chaos_view
@@ -632,7 +633,7 @@ class MainWindow(QMainWindow):
     def _wanted_diagnostics(self) -> tuple[str, ...]:
         wanted = []
         if self._panel_visible("conserved"):
-            wanted.append("H")
+            wanted += ["H", MOMENTA]  # MOMENTA: their range over every step
         drawing = self.compiled is not None and "drawing" in self.compiled.wanted
         if drawing and self._panel_visible("configuration"):
             wanted.append("points")

@@ -28,7 +28,9 @@ when at full speed it hands over only the most recent part of what it computed.
 
 Besides the rows, a trajectory keeps ``envelope`` (``explorer.envelope.Envelope``): H's
 lowest and highest value over every step, in bins of time from the start, merged in
-pairs to stay bounded and never thinned otherwise; the energy plots draw it.
+pairs to stay bounded and never thinned otherwise; the energy plots draw it. Likewise
+``momenta`` (None until the worker sums them up): the conserved momenta's ranges, in the
+order of ``explorer.envelope.conserved_quantities``, which their plot draws.
 
 Thinning removes rows, which panels that draw incrementally (O(new rows) per frame) must
 notice: each thinning raises ``Trajectory.revision``, and the store then raises its
@@ -219,6 +221,8 @@ class Trajectory:
         Section crossings, all of them (never thinned).
     envelope : Envelope
         H's range over every step, per bin of time (where the worker summed it up).
+    momenta : Envelope or None
+        The conserved momenta's ranges over every step, likewise.
     steps, rhs_evaluations : int
         Integrator steps and right-hand-side evaluations of this orbit so far, over all
         its runs (a method change starts a new run).
@@ -251,6 +255,7 @@ class Trajectory:
     points: GrowingArray = field(init=False)
     events: GrowingArray = field(init=False)
     envelope: Envelope = field(init=False)
+    momenta: Envelope | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         self.y0 = np.asarray(self.y0, dtype=float).copy()
@@ -321,6 +326,11 @@ class Trajectory:
         envelope = diagnostics.get("envelope")
         if envelope is not None:
             self.envelope.extend(envelope)
+        momenta = diagnostics.get("momenta_envelope")
+        if momenta is not None:
+            if self.momenta is None or self.momenta.quantities != momenta.quantities:
+                self.momenta = Envelope(quantities=momenta.quantities)
+            self.momenta.extend(momenta)
         if not len(t):
             return
         energy = np.full(len(t), np.nan)

@@ -57,7 +57,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
-from explorer.envelope import GAP, Envelope, bin_exponent, summarize
+from explorer.envelope import (
+    GAP,
+    MOMENTA,
+    Envelope,
+    bin_exponent,
+    conserved_quantities,
+    summarize,
+    summarize_series,
+)
 
 FRAME_SECONDS = 0.03
 CHUNK_SECONDS = 0.012
@@ -220,6 +228,7 @@ class _Track:
     owed_events: list = dataclasses.field(default_factory=list)
     origin: tuple[float, np.ndarray] | None = None  # where its first run began
     envelope: Envelope | None = None  # bins of H not handed over yet
+    momenta: Envelope | None = None  # bins of the conserved momenta not handed over yet
     H0: float = math.nan  # H at ``origin``
     summed: bool | None = None  # H of the steps so far was summed up (None: never yet)
     withheld: tuple | None = None  # the last chunk whose states waited for the row budget
@@ -377,6 +386,8 @@ class SimulationWorker(QObject):
         self._made_run = False  # a run was made in this turn of the loop
         self._receipt = _Receipt(self._wake)  # in the creating (GUI) thread
         self._connected = False
+        self._quantities: list | None = None  # the conserved momenta (``_want_momenta``)
+        self._want_momenta(settings)
         self.frames = 0
         self.iterations = 0
 
@@ -394,9 +405,19 @@ class SimulationWorker(QObject):
             self._changed = True
         self._wake.set()
 
+    def _want_momenta(self, settings: RunSettings) -> None:
+        """Make the conserved momenta's functions here, in the GUI thread, once they are
+        wanted (``explorer.envelope.MOMENTA``)."""
+        if self._quantities is None and MOMENTA in settings.diagnostics:
+            try:
+                self._quantities = conserved_quantities(self.compiled)
+            except Exception:  # noqa: BLE001 - no envelope: the plot draws the rows
+                self._quantities = []
+
     def set_settings(self, settings: RunSettings) -> None:
         """New settings; runs restart from their current states unless only the pacing
         (speed, frame time, rows) or the diagnostics changed."""
+        self._want_momenta(settings)
         with self._lock:
             if settings.run_options() != self._settings.run_options():
                 self._restart = True  # applied by the worker thread, between chunks
@@ -663,6 +684,16 @@ class SimulationWorker(QObject):
         if track.envelope is None:
             track.envelope = Envelope(capacity=1 << 20)
         track.envelope.add(exponent, bins)
+        quantities = self._quantities if MOMENTA in settings.diagnostics else None
+        if quantities:
+            with np.errstate(all="ignore"):
+                values = np.stack([np.asarray(f(t, y), dtype=float) for _, f in quantities], axis=1)
+            bins = summarize_series(t, values, t0, exponent)
+            if len(bins) and track.summed is False:
+                bins[0, -1] = 1.0
+            if track.momenta is None:
+                track.momenta = Envelope(capacity=1 << 20, quantities=len(quantities))
+            track.momenta.add(exponent, bins)
         track.summed = True
 
     def _hand_over(
@@ -737,6 +768,9 @@ class SimulationWorker(QObject):
         if track.envelope is not None and len(track.envelope):
             diagnostics["envelope"] = track.envelope
             track.envelope = None
+        if track.momenta is not None and len(track.momenta):
+            diagnostics["momenta_envelope"] = track.momenta
+            track.momenta = None
         changes = dict(
             t=t,
             y=y,

@@ -16,10 +16,12 @@ the worker before it thins the states it hands over): each bin of time a vertica
 its lowest to its highest value, at most a few bins per pixel column over the whole run,
 so at full speed the plot shows what every step did, not a line through the few states
 kept. Before the envelope begins (H was not wanted while the plot was hidden), and for a
-trajectory without one, the rows' H is drawn. Curves against time are drawn as
-``EnvelopeCurve``: at most four rows per pixel column, so a long record costs no more to
-draw than a short one. Rows that hold no state (gap rows) are breaks in the curve
-(``FiniteSeries``): no line is drawn across what was left out.
+trajectory without one, the rows' H is drawn. The conserved momenta of the main orbit
+are drawn the same way, from ``Trajectory.momenta`` (the worker sums them up per step
+alongside H when ``explorer.envelope.MOMENTA`` is among the diagnostics). Curves
+against time are drawn as ``EnvelopeCurve``: at most four rows per pixel column, so a
+long record costs no more to draw than a short one. Rows that hold no state (gap rows)
+are breaks in the curve (``FiniteSeries``): no line is drawn across what was left out.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
+from explorer.envelope import conserved_quantities
 from explorer.labels import momentum_label
 from explorer.panels.curves import (
     EnvelopeCurve,
@@ -125,6 +128,8 @@ class ConservedView(QWidget):
         self._values: dict[int, GrowingArray] = {}
         self._energy_series: dict[int, FiniteSeries] = {}
         self._envelope_drawn: dict[int, tuple] = {}
+        self._momenta_drawn: dict[int, tuple] = {}
+        self._quantities: list = []  # explorer.envelope.conserved_quantities, in order
         self._momentum_series: dict[int, FiniteSeries] = {}
         self.conserved_charges: list[str] = []
         self._charge_functions: dict = {}
@@ -167,6 +172,7 @@ class ConservedView(QWidget):
         ]
         self._charge_functions = charge_functions(compiled.mechanics)
         self.conserved_charges = list(self._charge_functions)
+        self._quantities = conserved_quantities(compiled)
         if self.conserved_momenta or self.conserved_charges:
             self._add_momentum_plot(scene)
 
@@ -228,6 +234,7 @@ class ConservedView(QWidget):
         self._values.clear()
         self._energy_series.clear()
         self._envelope_drawn.clear()
+        self._momenta_drawn.clear()
         self._momentum_series.clear()
         self.energy_legend.clear()
         self.energy_range.reset()
@@ -290,7 +297,9 @@ class ConservedView(QWidget):
         if changed:
             self._update_energy_legend()
         main = store.main
-        if main is not None and main.y.data.shape[1] == 2 * n:
+        if main is not None and main.y.data.shape[1] == 2 * n and self._momenta_binned(main):
+            self._draw_momenta(main)
+        elif main is not None and main.y.data.shape[1] == 2 * n:
             for i, curve in self._momentum_curves.items():
                 series = self._momentum_series.setdefault(i, FiniteSeries())
                 curve.update(*series.feed(main.t.data, main.y.data[:, n + i]))
@@ -312,22 +321,57 @@ class ConservedView(QWidget):
         """Draw the trajectory's envelope of H (``explorer.envelope``), after the rows'
         H before it began (with a break between)."""
         key = trajectory.key
-        envelope = trajectory.envelope
-        curve = self._energy_curves[key]
+        self._draw_bins(
+            self._energy_curves[key],
+            self._envelope_drawn,
+            key,
+            trajectory,
+            trajectory.envelope,
+            trajectory.envelope.polyline(self.shows_error, self._scale(key), FLOOR),
+            lambda rows: self._shown(key, energy[:rows]),
+        )
+
+    def _momenta_binned(self, main) -> bool:
+        """The main trajectory has the conserved momenta's envelope, of these momenta."""
+        envelope = main.momenta
+        return (
+            envelope is not None
+            and len(envelope) > 0
+            and envelope.quantities == len(self._quantities)
+            and len(self._quantities) == len(self._momentum_curves) + len(self._charge_curves)
+        )
+
+    def _draw_momenta(self, main) -> None:
+        """Draw the conserved momenta's envelope (their range over every step, as H's),
+        after the rows' values before it began."""
+        curves = [*self._momentum_curves.values(), *self._charge_curves.values()]
+        for j, (curve, (_, function)) in enumerate(zip(curves, self._quantities, strict=True)):
+
+            def before(rows: int, function=function):
+                with np.errstate(all="ignore"):
+                    return np.asarray(function(main.t.data[:rows], main.y.data[:rows]), dtype=float)
+
+            polyline = main.momenta.polyline(quantity=j)
+            self._draw_bins(curve, self._momenta_drawn, j, main, main.momenta, polyline, before)
+
+    @staticmethod
+    def _draw_bins(curve, drawn: dict, key, trajectory, envelope, polyline, rows_before) -> None:
+        """Draw ``envelope``'s ``polyline`` on ``curve`` after the rows before its first
+        bin (``rows_before(rows)``: their values; gap rows are breaks), with a break
+        between; ``drawn[key]`` remembers what was drawn, so a new bin adds to the curve
+        and bins merged in pairs (or another trajectory) redraw it."""
         start = float(envelope.data[0, 1])
         before = int(np.searchsorted(trajectory.t.data, start, side="left"))
-        state = (envelope.revision, before)
-        drawn = self._envelope_drawn.get(key)
-        if drawn is None or drawn[:2] != state:
+        state = (envelope.revision, before, trajectory.key, id(envelope))
+        last = drawn.get(key)
+        if last is None or last[:4] != state:
             curve.reset()  # from rows to bins, or the bins were merged in pairs
-        revised = drawn is not None and drawn[2] != envelope.version
-        self._envelope_drawn[key] = (*state, envelope.version)
-        x, y = envelope.polyline(self.shows_error, self._scale(key), FLOOR)
+        revised = last is not None and last[4] != envelope.version
+        drawn[key] = (*state, envelope.version)
+        x, y = polyline
         if before:
             rows_t = trajectory.t.data[:before]
-            rows_v = np.where(
-                is_gap(trajectory.y.data[:before]), np.nan, self._shown(key, energy[:before])
-            )
+            rows_v = np.where(is_gap(trajectory.y.data[:before]), np.nan, rows_before(before))
             x = np.concatenate([rows_t, [start], x])
             y = np.concatenate([rows_v, [np.nan], y])
         curve.update(x, y, revised=revised)
