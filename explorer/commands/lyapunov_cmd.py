@@ -32,8 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "tolerance 1e-12), euler, rk4, the Gauss-Legendre methods and, for a separable "
         "H = T(p) + V(q, t), leapfrog and the Yoshida compositions, each integrating the "
         "tangent map of its own scheme. Not: the time-transformed methods (logh_*, *_tt), "
-        "scipy's stiff solvers, scenes with [constraints], and systems of more than four "
-        "coupled coordinates whose mass matrix is solved numerically.",
+        "scipy's stiff solvers and scenes with [constraints].",
     )
     parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
     parser.add_argument(

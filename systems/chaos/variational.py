@@ -59,7 +59,6 @@ class NotApplicable(ValueError):
 def refusal(mechanics) -> str | None:
     """None when the variational equations of ``mechanics`` can be written, else why not."""
     from systems import constraints
-    from systems.mechanics import SYMBOLIC_INVERSE_LIMIT
 
     if constraints.constrained(mechanics.scene):
         return (
@@ -67,13 +66,6 @@ def refusal(mechanics) -> str | None:
             "motion (with its multipliers, contacts and impacts) are not derived, so "
             "Lyapunov exponents and the fast indicators are for scenes without "
             "constraints; write the system in coordinates that satisfy them instead"
-        )
-    if mechanics.matrix_form is not None:
-        return (
-            f"the scene has more than {SYMBOLIC_INVERSE_LIMIT} coupled coordinates, so "
-            "its velocities are solved from M(q) qdot = p - a at every step and "
-            "Hamilton's equations have no closed form to differentiate; the variational "
-            "equations of such systems are not supported yet"
         )
     return None
 
@@ -117,6 +109,12 @@ class _Shape:
     expression): for every tangent vector j, ``out[offset(out half) + i] += expression *
     Y[offset(in half) + l]``, offset(h) = h N + n j. ``halves``: the halves written
     for each vector (every one of their n entries, zero where no product goes).
+
+    A system in matrix form (``solve``: ``FunctionSpec.solve``, the velocities solved
+    from M qdot = p - a before anything else) has two more places: products into
+    "half" 2 are the right-hand side b of ``M dqdot = b`` for each vector, solved with
+    ``mass`` ((i, j, M_ij) of the upper triangle) by the drivers' ``solve_augmented``;
+    products from "half" 2 read that dqdot.
     """
 
     n: int
@@ -124,6 +122,8 @@ class _Shape:
     values: tuple
     products: tuple
     halves: tuple = (0, 1)
+    solve: tuple | None = None
+    mass: tuple | None = None
 
 
 class _Writer(llvm_kernels._Writer):
@@ -159,12 +159,18 @@ class _Writer(llvm_kernels._Writer):
             self.names[symbol] = b.load(at(y, offsets[which], index), name=symbol)
         symbolic = [i for i, term in enumerate(shape.products) if not _number(term[4])]
         exprs = [e for e, _, _ in shape.values] + [shape.products[i][4] for i in symbolic]
-        results = self._phase(exprs, None)
+        mass = [e for _, _, e in shape.mass or ()]
+        results = self._phase(exprs + mass, shape.solve)
         for (_, which, index), value in zip(shape.values, results, strict=False):
             b.store(value, at(out, offsets[which], index))
         factors = {}
-        for i, value in zip(symbolic, results[len(shape.values) :], strict=True):
+        for i, value in zip(symbolic, results[len(shape.values) : len(exprs)], strict=True):
             factors[i] = value
+        mass_values = results[len(exprs) :]
+        if shape.mass:
+            width = shape.n + 2
+            with b.goto_entry_block():
+                W = b.alloca(self.double, size=ir.Constant(i64, shape.n * width), name="Wt")
         entry = b.block
         header = self.function.append_basic_block("vectors")
         body = self.function.append_basic_block("vector")
@@ -179,22 +185,42 @@ class _Writer(llvm_kernels._Writer):
         starts = (shift, b.add(half, shift))
         deltas = {}
         for _, _, which, index, _ in shape.products:
-            if (which, index) not in deltas:
+            if (which, index) not in deltas and which < 2:
                 deltas[which, index] = b.load(at(y, starts[which], index))
         sums: dict = {}
-        for number, (which_out, i, which_in, index, expr) in enumerate(shape.products):
-            delta = deltas[which_in, index]
-            constant = _number(expr)
-            if constant is None:
-                term = b.fmul(factors[number], delta)
-            elif constant == 1.0:
-                term = delta
-            elif constant == -1.0:
-                term = b.fneg(delta)
-            else:
-                term = b.fmul(self.const(constant), delta)
-            key = (which_out, i)
-            sums[key] = term if key not in sums else b.fadd(sums[key], term)
+
+        def accumulate(stage) -> None:
+            for number, (which_out, i, which_in, index, expr) in enumerate(shape.products):
+                if (which_out == 2) != (stage == 2):
+                    continue
+                delta = deltas[which_in, index]
+                constant = _number(expr)
+                if constant is None:
+                    term = b.fmul(factors[number], delta)
+                elif constant == 1.0:
+                    term = delta
+                elif constant == -1.0:
+                    term = b.fneg(delta)
+                else:
+                    term = b.fmul(self.const(constant), delta)
+                key = (which_out, i)
+                sums[key] = term if key not in sums else b.fadd(sums[key], term)
+
+        if shape.mass:  # dqdot from M dqdot = b, M as the state's (filled again: solved in place)
+            accumulate(2)
+
+            def cell(i: int, k: int):
+                return b.gep(W, [ir.Constant(i64, i * width + k)])
+
+            for (i, k), value in zip([(i, k) for i, k, _ in shape.mass], mass_values, strict=True):
+                b.store(value, cell(i, k))
+                b.store(value, cell(k, i) if i != k else cell(i, shape.n + 1))
+            for i in range(shape.n):
+                b.store(sums.get((2, i), self.const(0.0)), cell(i, shape.n))
+            self._call_solver(W, shape.n)
+            for i in range(shape.n):
+                deltas[2, i] = b.load(cell(i, shape.n))
+        accumulate(0)
         for which_out in shape.halves:  # a row of zeros in J is a zero, written too
             for i in range(shape.n):
                 total = sums.get((which_out, i), self.const(0.0))
@@ -228,13 +254,16 @@ def _shapes(mechanics) -> list[tuple[str, tuple, _Shape]]:
     q_reads = tuple((f"v_{name}", 0, i) for i, name in enumerate(scene.coordinates))
     p_reads = tuple((f"v_{name}", 1, i) for i, name in enumerate(scene.momentum_names))
     f = [as_expr(e) for e in mechanics.hamilton_equations]
+    values = tuple((e, i // n, i % n) for i, e in enumerate(f))
+    if mechanics.matrix_form is not None:
+        shape = _matrix_form_shape(mechanics, calc, f, q_reads + p_reads, values)
+        return [("tangent_rhs", ("t", "y", "P", "out"), shape)]
     variables = (*mechanics.q, *mechanics.p)
     products = []
     for i, row in enumerate(f):
         for col, entry in enumerate(calc.gradient(row, variables)):
             if _nonzero(entry):
                 products.append((i // n, i % n, col // n, col % n, entry))
-    values = tuple((e, i // n, i % n) for i, e in enumerate(f))
     shapes = [("tangent_rhs", ("t", "y", "P", "out"), _Shape(n, q_reads + p_reads, values,
                                                               tuple(products)))]  # fmt: skip
     if mechanics.separable_parts is not None:
@@ -252,6 +281,42 @@ def _shapes(mechanics) -> list[tuple[str, tuple, _Shape]]:
             values = tuple((g, 0, i) for i, g in enumerate(gradient))
             shapes.append((name, arguments, _Shape(n, reads, values, tuple(hessian), (0,))))
     return shapes
+
+
+def _matrix_form_shape(mechanics, calc, f, reads, values) -> _Shape:
+    """``tangent_rhs`` of a system in matrix form: qdot solves M(q, t) qdot = p - a(q, t),
+    so for a vector (dq, dp) dqdot solves ``M dqdot = dp - R dq`` with
+    ``R_ik = sum_j dM_ij/dq_k qdot_j + da_i/dq_k`` (qdot held), and
+    ``dpdot = g_q dq + g_qdot dqdot + g_p dp`` for ``pdot = g(q, qdot, p, t)``."""
+    from systems.expressions import as_expr
+
+    form = mechanics.matrix_form
+    n = mechanics.n
+    q, qdot, p = mechanics.q, mechanics.qdot, mechanics.p
+    M = form.mass_matrix
+    shift = [as_expr(e) for e in form.shift]
+    products = [(0, i, 2, i, sympy.Integer(1)) for i in range(n)]  # dq' = dqdot
+    for i in range(n):
+        products.append((2, i, 1, i, sympy.Integer(1)))  # b = dp - R dq
+        momentum = sum((as_expr(M[i, j]) * qdot[j] for j in range(n)), sympy.Integer(0))
+        for k, entry in enumerate(calc.gradient(momentum + shift[i], q)):
+            if _nonzero(entry):
+                products.append((2, i, 0, k, -entry))
+    for i, row in enumerate(f[n:]):
+        for which, symbols in ((0, q), (2, qdot), (1, p)):
+            for k, entry in enumerate(calc.gradient(row, symbols)):
+                if _nonzero(entry):
+                    products.append((1, i, which, k, entry))
+    upper = [(i, j) for i in range(n) for j in range(i, n)]
+    entries = tuple(as_expr(M[i, j]) for i, j in upper) + tuple(shift)
+    scene = mechanics.scene
+    solve = (
+        entries,
+        tuple(f"v_{name}" for name in scene.momentum_names),
+        tuple(f"v_{name}" for name in scene.velocity_names),
+    )
+    mass = tuple((i, j, as_expr(M[i, j])) for i, j in upper)
+    return _Shape(n, reads, values, tuple(products), (0, 1), solve, mass)
 
 
 def write_tangent_ir(mechanics) -> tuple[str, tuple[str, ...]]:

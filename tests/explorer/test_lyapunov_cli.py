@@ -46,6 +46,12 @@ def test_a_chaotic_start_given_on_the_command_line(capsys):
     assert abs(report["megno"] - report["max"] * 2000 / 2) < 0.2 * report["megno"]
 
 
+def test_a_ten_link_chain_in_matrix_form(capsys):
+    report = _json(capsys, "pendulum_chain", "--t-end", "10")
+    assert len(report["exponents"]) == 20 and abs(report["sum"]) < 1e-8
+    assert report["energy_error"] < 1e-8
+
+
 def test_the_text_names_every_number(capsys):
     assert main(["lyapunov", "harmonic_oscillator", "--t-end", "500", "--exponents", "1"]) == 0
     out = capsys.readouterr().out
@@ -59,7 +65,6 @@ def test_the_text_names_every_number(capsys):
     "argv, words",
     [
         (["cartesian_pendulum"], ["not available", "[constraints]"]),
-        (["pendulum_chain"], ["not available", "coupled coordinates"]),
         (["henon_heiles", "--method", "logh_yoshida6"], ["logh_yoshida6", "fictitious time"]),
         (["henon_heiles", "--method", "radau"], ["scipy"]),
         (["double_pendulum", "--method", "yoshida8"], ["separable"]),

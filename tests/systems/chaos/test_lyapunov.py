@@ -118,6 +118,16 @@ def test_the_double_pendulum_spectrum_comes_in_pairs():
     assert abs(np.sum(exponents)) < 1e-6
 
 
+def test_a_chain_in_matrix_form_has_a_spectrum_in_pairs():
+    from systems.families import pendulum_chain
+
+    compiled = compile_system(derive(parse_scene(pendulum_chain(5))), ("rhs", "hamiltonian"))
+    estimate = ly.lyapunov(compiled, t_end=300.0).estimate
+    assert estimate.status == "ok" and len(estimate.exponents) == 10
+    assert abs(np.sum(estimate.exponents)) < 1e-8  # det of the tangent map: 1
+    np.testing.assert_allclose(estimate.exponents + estimate.exponents[::-1], 0.0, atol=0.02)
+
+
 def test_damping_makes_the_exponents_sum_to_the_mean_divergence():
     """Liouville: the sum of all 2n exponents is the time average of tr J, -b/m for the
     catalogue's damped pendulum (R = b l^2 theta_dot^2 / 2); the effect is included."""
@@ -218,6 +228,7 @@ def test_methods_and_settings_that_cannot_carry_vectors_are_refused_with_the_rea
     pendulum = derive(load_scene("double_pendulum"))
     assert "separable" in ly.method_refusal(pendulum, "yoshida8")
     assert "[constraints]" in ly.method_refusal(derive(load_scene("cartesian_pendulum")), "dop853")
+    assert ly.method_refusal(derive(load_scene("pendulum_chain")), "gauss_legendre6") is None
     tangent = load_tangent(_compiled("henon_heiles"))
     with pytest.raises(NotApplicable, match="exponents"):
         ly.LyapunovRun(tangent, exponents=5, t_end=10.0)

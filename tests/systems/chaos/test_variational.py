@@ -147,15 +147,28 @@ def test_a_free_particle_has_a_zero_hessian_of_v_written_as_zeros():
     assert np.array_equal(tangent.rhs(0.0, Y), [1.0, 3.0, 4.0, 0.0, 0.0, 0.0])
 
 
-def test_constraints_and_the_matrix_form_are_refused_with_the_reason():
+def test_constraints_are_refused_with_the_reason():
     constrained = derive(load_scene("cartesian_pendulum"))
     assert "[constraints]" in va.refusal(constrained)
     with pytest.raises(va.NotApplicable, match="constraints"):
         va.tangent_code(constrained)
-    chain = derive(load_scene("pendulum_chain"))
-    assert chain.matrix_form is not None
-    assert "not supported yet" in va.refusal(chain)
     assert va.refusal(derive(load_scene("fpu_chain"))) is None  # diagonal M: closed form
+
+
+def test_a_system_in_matrix_form_solves_for_the_vectors_velocities():
+    """Five links: M(q) is not inverted symbolically; the tangent solves M dqdot =
+    dp - R dq for each vector, with the drivers' solver."""
+    from systems.families import pendulum_chain
+
+    compiled = compile_system(derive(parse_scene(pendulum_chain(5))), ("rhs", "hamiltonian"))
+    assert compiled.mechanics.matrix_form is not None
+    tangent = va.load_tangent(compiled)
+    y = compiled.initial_state() + np.linspace(0.05, 0.3, 10)
+    J = tangent.jacobian(0.3, y)
+    expected = _jacobian_by_differences(compiled, 0.3, y)
+    assert np.abs(J - expected).max() < 1e-8 * np.abs(J).max()
+    f, _ = va.split(tangent.rhs(0.3, va.extended(y, np.eye(10))), 5)
+    np.testing.assert_allclose(f, compiled.rhs(0.3, y), rtol=1e-13, atol=1e-13)
 
 
 @pytest.mark.parametrize(
