@@ -157,11 +157,16 @@ def periodic_symbols(
     """The ``candidates`` in which ``expr`` is 2 pi-periodic: ``is_periodic`` for each,
     with one lambdify and one evaluation (the shift is applied to the inputs).
 
-    For a chain of twenty links, lambdifying L twice per coordinate took seconds.
+    For a chain of twenty links, lambdifying L twice per coordinate took seconds. A
+    candidate that enters only through sines and cosines of ``k q + ...`` (k a nonzero
+    integer, ``_trigonometric_only``) is periodic by construction, without evaluating
+    anything: a six-link chain's L needs no lambdify at all.
     """
     present = [s for s in candidates if expr.has(s)]
+    proved = {s for s in present if _trigonometric_only(expr, s)}
+    present = [s for s in present if s not in proved]
     if not present:
-        return set()
+        return proved
     free = sorted(expr.free_symbols | set(others) | set(present), key=str)
     f = vectorize([expr], free)
     rng = np.random.default_rng(7)
@@ -175,13 +180,31 @@ def periodic_symbols(
     values = f(*np.concatenate(blocks, axis=1))[0].reshape(len(blocks), points.shape[1])
     base = values[0]
     if not np.all(np.isfinite(base)):
-        return set()
+        return proved
     scale = max(1.0, float(np.max(np.abs(base))))
-    return {
+    return proved | {
         symbol
         for symbol, moved in zip(present, values[1:], strict=True)
         if np.all(np.isfinite(moved)) and float(np.max(np.abs(base - moved))) <= 1e-9 * scale
     }
+
+
+_TRIGONOMETRIC = (sympy.sin, sympy.cos, sympy.tan, sympy.cot, sympy.sec, sympy.csc)
+
+
+def _trigonometric_only(expr: sympy.Expr, symbol: sympy.Symbol) -> bool:
+    """True if every occurrence of ``symbol`` in ``expr`` is in the argument ``k symbol +
+    rest`` of a trigonometric function, k a nonzero integer and rest free of it: then
+    ``expr`` is 2 pi-periodic in ``symbol`` exactly."""
+    if expr == symbol:
+        return False
+    if not expr.has(symbol):
+        return True
+    if isinstance(expr, _TRIGONOMETRIC):
+        _, dependent = expr.args[0].as_independent(symbol, as_Add=True)
+        k, rest = dependent.as_coeff_Mul()
+        return bool(rest == symbol and k.is_Integer and k != 0)
+    return all(_trigonometric_only(a, symbol) for a in expr.args)
 
 
 def fold_angle(x: float | np.ndarray) -> float | np.ndarray:
