@@ -42,11 +42,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.linalg
-import scipy.optimize
 import sympy
 
-from systems.calculus import Calculus, Unsupported
+from systems.calculus import Calculus, Unsupported, fast_function
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
 from systems.mechanics import EXPANSION_LIMIT, Mechanics, expanded_terms
 from systems.symmetries import ENERGY
@@ -907,14 +905,15 @@ class _Problem:
         self.hessian_scale = _typical(h)
         self.mass = _mass_function(mechanics, parameters)
         zero = {**dict.fromkeys(mechanics.qdot, 0), mechanics.t: 0}
+        # zero velocities first: what is left (often 0) is smaller to give numbers to
         if mechanics.matrix_form is not None:  # a = p at zero velocity, already formed
             momenta = [
-                with_parameters(e, mechanics, parameters).xreplace(zero)
+                with_parameters(e.xreplace(zero), mechanics, parameters)
                 for e in mechanics.matrix_form.shift
             ]
         elif mechanics.momenta is not None:
             momenta = [
-                with_parameters(e, mechanics, parameters).xreplace(zero) for e in mechanics.momenta
+                with_parameters(e.xreplace(zero), mechanics, parameters) for e in mechanics.momenta
             ]
         else:
             momenta = [sympy.S.Zero] * len(self.names)
@@ -957,25 +956,10 @@ class _Problem:
             roots = [self._block_roots(block) for block in blocks]
             if math.prod(len(r) for r in roots) <= MAX_COMBINED_ROOTS:
                 return self._combined(blocks, roots)
-        found: list[np.ndarray] = []
-
-        def fun(x):
-            return self.gradient(*x)
-
-        for x0 in self.starts():
-            with np.errstate(all="ignore"):
-                try:
-                    sol = scipy.optimize.root(
-                        fun, x0, jac=self.hessian, method="hybr", options={"xtol": 1e-13}
-                    )
-                except (ValueError, np.linalg.LinAlgError, FloatingPointError):
-                    continue
-            x = self.accept(sol.x, inside_only=True)
-            if x is not None:
-                x = self.accept(self.polish(x), inside_only=True)
-            if x is not None and self.index(x, found) < 0:
-                found.append(x)
-        return found
+        everything = list(range(self.m))
+        # with multipliers among the unknowns (constraints) there is no region to bound
+        # Newton's steps by: scipy's hybrid method from every start, as before
+        return self._roots(everything, self.starts(), np.zeros(self.m), newton=self.m == self.mq)
 
     def _block_roots(self, block: list[int]) -> list[np.ndarray]:
         """The roots of dU/dq over the coordinates ``block`` (the others at the middle
@@ -984,32 +968,97 @@ class _Problem:
         highs = np.array([self.region[self.searched[i]][1] for i in block])
         base = np.array([sum(self.region[name]) / 2 for name in self.searched])
         starts = lows + (highs - lows) * _unit_starts(len(block))
-        index = np.ix_(block, block)
+        return [x[block] for x in self._roots(block, starts, base)]
+
+    def _roots(self, block, starts, base, *, newton: bool = True) -> list[np.ndarray]:
+        """The roots of dU/dq over the unknowns ``block`` reached from ``starts`` (the
+        other unknowns at ``base``), in the order of the starts, each accepted, polished
+        and kept once.
+
+        Newton's method runs from every start at once (``_newton``); a start it does not
+        bring to a root in the region goes to scipy's hybrid method, as every start did
+        before: a six-link chain's search made 246 calls to it (and imported scipy, a
+        quarter of a second) for 12 roots. Only the first start that reaches a root is
+        polished.
+        """
 
         def full(y):
             x = base.copy()
             x[block] = y
             return x
 
+        if newton:
+            ranges = [self.region[self.searched[i]] for i in block]
+            ends, reached = self._newton(base, block, starts, np.array([b - a for a, b in ranges]))
+        else:
+            ends, reached = np.zeros((len(starts), self.m)), np.zeros(len(starts), dtype=bool)
         found: list[np.ndarray] = []
-        for y0 in starts:
-            with np.errstate(all="ignore"):
-                try:
-                    sol = scipy.optimize.root(
-                        lambda y: self.gradient(*full(y))[block],
-                        y0,
-                        jac=lambda y: self.hessian(full(y))[index],
-                        method="hybr",
-                        options={"xtol": 1e-13},
-                    )
-                except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+        seen: list[np.ndarray] = []  # Newton's roots so far: most starts end at a few
+        for y0, end, ok in zip(starts, ends, reached, strict=True):
+            x = self.accept(end, inside_only=True, block=block) if ok else None
+            if x is not None:
+                if self.index(x, seen) >= 0:
                     continue
-            x = self.accept(full(sol.x), inside_only=True, block=block)
+                seen.append(x)
+            else:
+                x = self.accept(self._hybrid(full, block, y0), inside_only=True, block=block)
             if x is not None:
                 x = self.accept(self.polish(x, block=block), inside_only=True, block=block)
-            if x is not None and not any(self.same(x, other) for other in found):
+            if x is not None and self.index(x, found) < 0:
                 found.append(x)
-        return [x[block] for x in found]
+        return found
+
+    def _newton(self, base, block, starts, widths) -> tuple[np.ndarray, np.ndarray]:
+        """Newton's method on dU/dq over ``block`` from every start at once.
+
+        Returns the end points, shape (s, m), and which of them are roots (dU/dq there
+        within ``accept``'s tolerance). A step is at most a tenth of the region's width
+        along each coordinate (a start where the Hessian nearly vanishes would jump
+        out of it); a singular Hessian takes the least-squares step.
+        """
+        x = np.tile(base, (len(starts), 1))
+        x[:, block] = starts
+        periodic = self.is_periodic[block]
+        limit = 0.1 * widths
+        index = np.ix_(block, block)
+        with np.errstate(all="ignore"):
+            for _ in range(NEWTON_ITERATIONS):
+                g = self.gradient(*x.T)[block].T
+                K = self._hessian(*x.T).reshape(self.m, self.m, -1)[index].transpose(2, 0, 1)
+                bad = ~(np.all(np.isfinite(g), axis=1) & np.all(np.isfinite(K), axis=(1, 2)))
+                g[bad], K[bad] = 0.0, np.eye(len(block))
+                try:
+                    step = np.linalg.solve(K, g[..., None])[..., 0]
+                except np.linalg.LinAlgError:
+                    step = (np.linalg.pinv(K) @ g[..., None])[..., 0]
+                step *= np.minimum(1.0, np.min(limit / np.maximum(np.abs(step), 1e-300), axis=1))[
+                    :, None
+                ]
+                y = x[:, block] - step
+                x[:, block] = np.where(periodic, fold_angle(y), y)
+                if np.all(np.abs(step) <= 1e-15 * (1.0 + np.abs(y))):
+                    break
+            residual = np.linalg.norm(self.gradient(*x.T)[block], axis=0)
+        reached = np.isfinite(residual) & (residual <= 1e-7 * self.gradient_scale)
+        return x, reached & np.all(np.isfinite(x), axis=1)
+
+    def _hybrid(self, full, block, y0) -> np.ndarray:
+        """scipy's hybrid method on dU/dq over ``block`` from ``y0`` (NaN if it fails)."""
+        import scipy.optimize
+
+        index = np.ix_(block, block)
+        with np.errstate(all="ignore"):
+            try:
+                sol = scipy.optimize.root(
+                    lambda y: self.gradient(*full(y))[block],
+                    y0,
+                    jac=lambda y: self.hessian(full(y))[index],
+                    method="hybr",
+                    options={"xtol": 1e-13},
+                )
+            except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+                return np.full(len(full(y0)), np.nan)
+        return full(sol.x)
 
     def _combined(self, blocks, roots) -> list[np.ndarray]:
         """Every combination of the blocks' roots that is an equilibrium."""
@@ -1166,8 +1215,10 @@ class _Problem:
             w2, vectors = np.zeros(0), np.zeros((0, 0))
         elif regular:
             try:
-                w2, vectors = scipy.linalg.eigh(K, Mrr)
+                w2, vectors = _generalized_eigh(K, Mrr)
             except (np.linalg.LinAlgError, ValueError):
+                import scipy.linalg
+
                 w2, vectors = scipy.linalg.eig(K, Mrr)
                 order = np.argsort(w2.real)
                 w2, vectors = w2.real[order], vectors.real[:, order]
@@ -1793,6 +1844,8 @@ class _Problem:
         def jacobian(x):
             return np.vstack([self.hessian(x) / scale, np.eye(self.m)[zeros]])
 
+        import scipy.optimize
+
         with np.errstate(all="ignore"):
             try:
                 solution = scipy.optimize.least_squares(
@@ -2340,6 +2393,10 @@ def _unique(found, problem: _Problem):
     return unique
 
 
+NEWTON_ITERATIONS = 200
+"""Most Newton steps from the starts (all at once; a regular root takes a handful, a
+degenerate one such as x**6's about 150, converging linearly); a start not at a root by
+then is handed to scipy's hybrid method, which is allowed as many evaluations."""
 MAX_COMBINED_ROOTS = 4096
 """At most this many combinations of independent blocks' roots are formed (a twelve-link
 chain has 4096 equilibria); beyond, the whole space is scanned from ``_unit_starts``."""
@@ -2368,6 +2425,23 @@ def _blocks(pattern: list[bool], m: int) -> list[list[int]]:
 
 HALTON_STARTS = 400
 """Starting points in four or more dimensions (a shifted Halton set)."""
+
+
+def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``K v = w2 M v`` for symmetric K and positive definite M, as
+    ``scipy.linalg.eigh(K, M)``: ascending w2, vectors with ``v^T M v = 1``. Through
+    M's Cholesky factor with numpy (scipy.linalg costs a quarter of a second to import).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If M is not positive definite.
+    """
+    factor = np.linalg.cholesky(M)
+    inverse = np.linalg.inv(factor)
+    A = inverse @ K @ inverse.T
+    w2, y = np.linalg.eigh((A + A.T) / 2)
+    return w2, inverse.T @ y
 
 
 def _unit_starts(m: int) -> np.ndarray:
@@ -2408,13 +2482,19 @@ def _mass_function(mechanics: Mechanics, parameters):
     n = mechanics.n
     zero = {**dict.fromkeys(mechanics.qdot, 0), **dict.fromkeys(mechanics.p, 0), mechanics.t: 0}
     if mechanics.mass_matrix is not None:
-        entries = [
-            with_parameters(e, mechanics, parameters).xreplace(zero) for e in mechanics.mass_matrix
-        ]
-        f = vectorize(entries, mechanics.q)
+        entries = [e.xreplace(zero) for e in mechanics.mass_matrix]
+        # symengine's Lambdify, made in milliseconds (lambdify printed a six-link chain's
+        # M for a third of its equilibrium search), the parameters its arguments (putting
+        # sympy Floats into 36 entries cost as much); M is only wanted at one point at a time
+        values = parameter_values(mechanics, parameters)
+        f = fast_function([*mechanics.q, *values], entries)
+        numbers = np.array(list(values.values()), dtype=float)
 
         def mass(q):
-            return f(*q).reshape(n, n)
+            try:
+                return f(np.concatenate([np.asarray(q, dtype=float), numbers])).reshape(n, n)
+            except (ValueError, ZeroDivisionError, OverflowError):  # sympy's math fallback
+                return np.full((n, n), np.nan)
 
     else:  # M = (d2H/dp2)^-1 at p = 0
         H = with_parameters(mechanics.hamiltonian, mechanics, parameters)

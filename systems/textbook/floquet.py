@@ -34,8 +34,6 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
-import scipy.integrate
-import scipy.optimize
 import sympy
 
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
@@ -421,6 +419,8 @@ def monodromy(
             )
         return rhs(t, z)
 
+    import scipy.integrate  # here: derive --json of an autonomous system never needs it
+
     z0 = np.concatenate([y0, np.eye(m).ravel(), [0.0]])
     solution = scipy.integrate.solve_ivp(
         counted, (t0, t0 + period), z0, method="DOP853", rtol=rtol, atol=atol
@@ -580,6 +580,8 @@ def constant_solutions(
         np.median([np.max(np.abs(residual(z))) for z in grid[:: max(1, len(grid) // 50)]])
     )
     scale = max(scale, 1e-300)
+    import scipy.optimize
+
     found: list[np.ndarray] = []
     for z in grid:
         if cancel is not None:
@@ -903,6 +905,8 @@ def _row_multipliers(system, q_star, Ps, periods, rtol, cancel) -> list[np.ndarr
         J = system.jacobian(t, *y.T, *columns).T.reshape(N, m, m)
         dphi = np.einsum("nij,njk->nik", J, phi)
         return (np.concatenate([f, dphi.reshape(N, m * m)], axis=1) * periods[:, None]).ravel()
+
+    import scipy.integrate
 
     z0 = np.concatenate([y0, np.tile(np.eye(m).ravel(), (N, 1))], axis=1).ravel()
     solution = scipy.integrate.solve_ivp(
