@@ -136,6 +136,7 @@ class ChaosView(QWidget):
         self._job: processes.Job | None = None
         self._thread: ChaosRun | None = None
         self._started = False
+        self._pending_t = 0.0  # the main orbit's time, for a thread not started yet
         self._reason: str | None = "no system yet"
         self._relay = _Relay()
         queued = Qt.ConnectionType.QueuedConnection
@@ -269,7 +270,7 @@ class ChaosView(QWidget):
             return
         y0 = self._y0 if self._y0 is not None else self.compiled.initial_state()
         self._thread = ChaosRun(self.compiled, code, y0, self._relay, generation)
-        self._thread.follow(getattr(self, "_pending_t", 0.0))
+        self._thread.follow(self._pending_t)
         self._thread.start()
         self._show_message("Measuring…")
 

@@ -150,10 +150,16 @@ class Estimate:
         return float(self.exponents[0])
 
 
+HISTORY_POINTS = 8192
+"""Estimates a ``History`` keeps at most: beyond, every other one is dropped (the last
+always kept), so an endless run's plots cost the same however long it runs."""
+
+
 @dataclass
 class History:
     """The estimates at the end of each interval, for plots: ``t`` (N,), ``maximal``
-    (N,), ``megno`` (N,), ``sali`` (N,), ``gali`` (N,)."""
+    (N,), ``megno`` (N,), ``sali`` (N,), ``gali`` (N,); N at most ``HISTORY_POINTS``
+    (thinned evenly in index past it)."""
 
     t: list = field(default_factory=list)
     maximal: list = field(default_factory=list)
@@ -167,6 +173,10 @@ class History:
         self.megno.append(estimate.megno)
         self.sali.append(estimate.sali)
         self.gali.append(estimate.gali)
+        if len(self.t) > HISTORY_POINTS:
+            for name in ("t", "maximal", "megno", "sali", "gali"):
+                values = getattr(self, name)
+                setattr(self, name, values[-1::-2][::-1])
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in

@@ -236,3 +236,13 @@ def test_methods_and_settings_that_cannot_carry_vectors_are_refused_with_the_rea
         ly.LyapunovRun(tangent, method="yoshida8", tol=1e-9, t_end=10.0)
     for name in ly.lyapunov_methods():
         assert name not in ("radau", "bdf", "lsoda", "constrained_dop853")
+
+
+def test_the_history_of_an_endless_run_stays_bounded():
+    history = ly.History()
+    for i in range(3 * ly.HISTORY_POINTS):
+        history.append(ly.Estimate(float(i), np.array([1.0 / (i + 1)]), 2.0, 2.0, 0.5, 0.5, 2))
+    arrays = history.arrays()
+    assert ly.HISTORY_POINTS // 2 <= len(arrays["t"]) <= ly.HISTORY_POINTS
+    assert arrays["t"][-1] == 3 * ly.HISTORY_POINTS - 1  # the latest is always there
+    assert np.all(np.diff(arrays["t"]) > 0) and len({len(a) for a in arrays.values()}) == 1
