@@ -735,7 +735,7 @@ def derivation_json(mechanics: Mechanics) -> dict:
     """
     from systems.constraints import degrees_of_freedom
     from systems.mechanics import DerivationError
-    from systems.textbook import equilibria_json, floquet
+    from systems.textbook import equilibria_json
 
     scene = mechanics.scene
 
@@ -779,12 +779,25 @@ def derivation_json(mechanics: Mechanics) -> dict:
         "conserved": {name: read(expr) for name, expr in conserved.items()},
         "classification": mechanics.classification.as_dict(),
         "equilibria": equilibria_json(mechanics),
-        "floquet": floquet.derive_json(mechanics),
+        "floquet": _floquet_json(mechanics),
         **matrix,
         "particles": particles_json(scene),
         "degrees_of_freedom": degrees_of_freedom(mechanics),
         "constraints": constraints_json(mechanics),
     }
+
+
+def _floquet_json(mechanics: Mechanics) -> dict | None:
+    """``floquet.derive_json``, which is None for a system whose L (or H) has no t at all:
+    decided here, without importing ``systems.textbook.floquet`` for it."""
+    expression = mechanics.lagrangian if mechanics.lagrangian is not None else None
+    if expression is None:
+        expression = mechanics.hamiltonian
+    if not as_expr(expression).has(mechanics.t):
+        return None
+    from systems.textbook import floquet
+
+    return floquet.derive_json(mechanics)
 
 
 def _for_reading(expr: sympy.Basic, scene: Scene) -> sympy.Basic:

@@ -91,7 +91,8 @@ def test_the_equilibrium_search_imports_only_what_it_uses(statement):
 def test_derive_json_of_a_chain_imports_no_scipy(links, tmp_path):
     """A chain's equilibria come from Newton's method (numpy) and its frequencies from
     numpy's Cholesky and eigh: ``derive --json`` imported scipy.optimize and scipy.linalg
-    for them, a quarter of a second of its time (issue 26 item 6)."""
+    for them, a quarter of a second of its time (issue 26 item 6); and an autonomous
+    system's ``floquet`` (None) is decided without importing the Floquet module."""
     path = tmp_path / "chain.toml"
     path.write_text(pendulum_chain(links))
     probe = (
@@ -99,7 +100,8 @@ def test_derive_json_of_a_chain_imports_no_scipy(links, tmp_path):
         f"sys.argv = ['main.py', 'derive', {str(path)!r}, '--json']; out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out): main()\n"
         "print(len(json.loads(out.getvalue())['equilibria']), "
-        "sorted(m for m in sys.modules if m == 'scipy' or m.startswith('scipy.')))"
+        "sorted(m for m in sys.modules if m.split('.')[0] == 'scipy' "
+        "or m == 'systems.textbook.floquet'))"
     )
     env = {**os.environ, "PHASE_EXPLORER_DERIVATION_CACHE": "0"}
     out = subprocess.run(
