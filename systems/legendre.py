@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import sympy
 
+from systems.display import EXPANSION_LIMIT, expanded_terms
+
 
 @dataclass(frozen=True)
 class SquareRootTransform:
@@ -128,7 +130,11 @@ def _split(L: sympy.Expr, qdot) -> tuple[sympy.Expr, sympy.Expr, sympy.Expr] | N
     velocities and rest at most linear in them, read off the terms of L (its top level
     expanded); None if L is not of that form."""
     kappa, radicand, rest = sympy.S.Zero, None, []
-    for term in sympy.Add.make_args(sympy.expand(L, deep=False)):
+    # nothing on the derivation path expands past EXPANSION_LIMIT terms (a long sum to a
+    # high power); such an L is taken term by term as written
+    if expanded_terms(L) <= EXPANSION_LIMIT:
+        L = sympy.expand(L, deep=False)
+    for term in sympy.Add.make_args(L):
         if not term.has(*qdot):
             rest.append(term)
             continue

@@ -154,3 +154,15 @@ def test_a_non_diagonal_radicand_is_inverted_by_cofactors():
     assert [float(e.xreplace(at_p)) for e in transform.velocities] == pytest.approx([0.2, -0.4])
     direct = momenta[p] * 0.2 - momenta[q] * 0.4 - L.xreplace(point)
     assert float(transform.hamiltonian.xreplace(at_p)) == pytest.approx(float(direct))
+
+
+def test_a_lagrangian_that_would_expand_enormously_is_not_expanded():
+    """The top level of L is expanded to find its terms, unless that would exceed
+    ``EXPANSION_LIMIT`` terms: (a sum of 10 velocities)**10 (92378 terms, 7 s to expand)
+    is refused as a square-root Lagrangian at once."""
+    vs = sympy.symbols("v0:10", real=True)
+    x = sympy.Symbol("x", real=True)
+    ps = sympy.symbols("p0:10", real=True)
+    start = time.process_time()
+    assert square_root_transform(sympy.Add(*vs) ** 10, (x,) * 10, vs, ps) is None
+    assert time.process_time() - start < 2.0
