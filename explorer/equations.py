@@ -20,6 +20,7 @@ as its wrapped text. Painting never raises into Qt: a formula that fails is draw
 
 from __future__ import annotations
 
+import html
 import math
 import weakref
 from collections import OrderedDict
@@ -106,10 +107,15 @@ def formula_pixmap(formula: Formula, em: float, colour: QColor, ratio: float) ->
     """``formula`` as an image: ``em`` logical pixels to the em, in ``colour``, for a
     device pixel ratio ``ratio``; None without an outline. Kept per (LaTeX, size,
     colour, ratio), the last ``PIXMAPS``."""
-    outline = formula.outline
-    if outline is None:
+    if formula.outline is None:
         return None
-    key = (formula.latex, round(em, 2), colour.rgba(), round(ratio, 2))
+    return outline_pixmap(formula.outline, formula.latex, em, colour, ratio)
+
+
+def outline_pixmap(outline: Outline, name, em: float, colour: QColor, ratio: float) -> QPixmap:
+    """``outline`` as an image (``formula_pixmap``), kept under ``name`` (its LaTeX, or
+    the LaTeX and the index of a piece of it)."""
+    key = (name, round(em, 2), colour.rgba(), round(ratio, 2))
     pixmap = _PIXMAPS.get(key)
     if pixmap is not None:
         _PIXMAPS.move_to_end(key)
@@ -146,7 +152,8 @@ class Placed:
     part: object
     rect: QRectF
     index: int = -1  # the part's index in the typeset (-1: the card)
-    scale: float = 1.0  # a formula shrunk to fit the width (``DerivationLayout.fit``)
+    scale: float = 1.0  # a formula shrunk to fit the width
+    rows: tuple = ()  # a formula broken across lines: (x, piece indices, baseline) a line
 
 
 class DerivationLayout:
@@ -156,9 +163,14 @@ class DerivationLayout:
 
     Sizes follow ``font`` on the paint device (``device``, None for the screen); colours
     come from ``palette``. ``layout(width)`` places every part and returns the height.
-    On screen a formula wider than the width widens the content (it scrolls); with
-    ``fit`` (a page) it is drawn smaller to fit.
+    A formula wider than the width is broken across lines where it has pieces
+    (``Formula.pieces``: before a term of a sum, after a comma of a tuple), continuation
+    lines aligned after its relation, and drawn smaller where a piece is still too wide
+    (down to ``LEAST_SCALE``; only past that does the content widen and scroll).
     """
+
+    LEAST_SCALE = 0.45
+    LINE_GAP = 0.3  # ems between the lines of a broken formula
 
     MARGIN = 8.0
 
@@ -166,6 +178,7 @@ class DerivationLayout:
         self.font = QFont(font)
         self.palette = palette
         self.device = device
+        self.ratio = 1.0  # the screen's device pixel ratio (formulas' images)
         self.typeset: Typeset | None = None
         self.plain = ""  # shown when there is no typeset (``deriving…``, an error)
         self.card_html = ""
@@ -174,6 +187,7 @@ class DerivationLayout:
         self.height = 0.0
         self.content_width = 0.0
         self._card: QTextDocument | None = None
+        self._rich: dict[int, QTextDocument] = {}  # sentences with formulas, by index
         self.fit = False
 
     # metrics ---------------------------------------------------------------------------
@@ -225,12 +239,19 @@ class DerivationLayout:
                     placed.append(Placed("heading", part, QRectF(m, y, inner, h), index))
                     y += h + 0.25 * self.metrics(font).height()
                 elif isinstance(part, Sentence):
-                    h = self._text_height(self.font, part.text, inner)
-                    placed.append(Placed("sentence", part, QRectF(m, y, inner, h), index))
+                    rich = self._rich_document(index, part.text, inner)
+                    if rich is not None:
+                        h = rich.size().height()
+                        placed.append(Placed("rich", rich, QRectF(m, y, inner, h), index))
+                    else:
+                        h = self._text_height(self.font, part.text, inner)
+                        placed.append(Placed("sentence", part, QRectF(m, y, inner, h), index))
                     y += h + 0.2 * self.metrics(self.font).height()
                 elif isinstance(part, Formula):
-                    rect, kind, scale = self._formula_rect(part, m, y, inner, em, note_metrics)
-                    placed.append(Placed(kind, part, rect, index, scale))
+                    rect, kind, scale, rows = self._formula_rect(
+                        part, m, y, inner, em, note_metrics
+                    )
+                    placed.append(Placed(kind, part, rect, index, scale, rows))
                     right = max(right, rect.right() + m)
                     y += rect.height()
         if self.card_html:  # after the derivation, as the textbook classifies after deriving
@@ -249,14 +270,56 @@ class DerivationLayout:
         if part.outline is not None:
             outline = part.outline
             note = em + notes.horizontalAdvance(f"({part.note})") if part.note else 0.0
-            scale = 1.0
-            if self.fit and lead + outline.width * em + 2 + note > inner:
-                scale = max((inner - lead - 2 - note) / (outline.width * em), 0.05)
+            room = inner - lead - 2
+            if outline.width * em + note <= room:
+                w = lead + outline.width * em + 2 + note
+                h = (outline.ascent + outline.descent + 0.7) * em
+                return QRectF(x, y, w, h), "formula", 1.0, ()
+            if part.pieces:
+                return self._broken_rect(part, x, y, lead, room, em, note)
+            least = 0.05 if self.fit else self.LEAST_SCALE
+            scale = max(min((room - note) / (outline.width * em), 1.0), least)
+            if scale * outline.width * em > room:  # a note that does not fit goes below
+                note = 0.0
             w = lead + outline.width * em * scale + 2 + note
             h = (outline.ascent + outline.descent + 0.7) * em * scale
-            return QRectF(x, y, w, h), "formula", scale
+            return QRectF(x, y, w, h), "formula", scale, ()
         h = self._text_height(self.font, part.text, inner - lead) + 0.5 * em
-        return QRectF(x, y, inner, h), "text", 1.0
+        return QRectF(x, y, inner, h), "text", 1.0, ()
+
+    def _broken_rect(self, part: Formula, x: float, y: float, lead: float, room: float, em, note):
+        """A formula broken across lines: its rect, ``formula``, its scale and rows."""
+        pieces = part.pieces
+        widths = [piece.width * em for piece in pieces]
+        left = sum(widths[: part.lead])
+        indent = left if left <= 0.45 * room else 2 * em
+        widest = max(widths)
+        least = 0.05 if self.fit else self.LEAST_SCALE
+        scale = max(min(1.0, room / max(indent + widest, 1e-9)), least)
+        rows: list[tuple[float, list[int]]] = [(0.0, [])]
+        at = 0.0
+        for index, width in enumerate(widths):
+            start, held = rows[-1]
+            if held and at + width * scale > room:
+                rows.append((indent * scale, []))
+                at = indent * scale
+            rows[-1][1].append(index)
+            at += width * scale
+        if note and at + note > room:
+            rows.append((indent * scale, []))
+            at = indent * scale
+        ends = [start + sum(widths[i] for i in held) * scale for start, held in rows]
+        ends[-1] += note
+        right = max(ends)
+        placed_rows, depth = [], 0.0
+        for start, held in rows:
+            shown = [pieces[i] for i in held] or [pieces[-1]]
+            ascent = max(piece.ascent for piece in shown)
+            baseline = depth + ascent * em * scale
+            placed_rows.append((start, tuple(held), baseline))
+            depth = baseline + (max(p.descent for p in shown) + self.LINE_GAP) * em * scale
+        h = depth + (0.7 - self.LINE_GAP) * em * scale
+        return QRectF(x, y, lead + right + 2, h), "formula", scale, tuple(placed_rows)
 
     def _lead(self, part: Formula) -> float:
         """The room before a formula: its tag (``(1)``) and a gap."""
@@ -269,31 +332,82 @@ class DerivationLayout:
         rect = self.metrics(font).boundingRect(QRectF(0, 0, width, 1e6), flags, text)
         return rect.height()
 
+    def _document(self, html: str, width: float) -> QTextDocument:
+        """Rich text in the layout's font and text colour; on screen its formulas set in
+        type (``explorer.inline_math``; the spans found are its ``spans``)."""
+        document = QTextDocument()
+        if self.device is not None:
+            document.documentLayout().setPaintDevice(self.device)
+        document.setDefaultFont(self.font)
+        document.setDocumentMargin(0)
+        colour = self.palette.color(QPalette.ColorRole.Text)
+        document.setDefaultStyleSheet(f"body {{ color: {colour.name()}; }}")
+        spans = []
+        if self.device is None:
+            from explorer.inline_math import typeset_html
+
+            html, spans = typeset_html(html, self.font, colour, self.ratio, width)
+        document.spans = spans
+        document.setHtml(html)
+        document.setTextWidth(max(width, 40.0))
+        return document
+
     def _card_document(self, width: float) -> QTextDocument:
         document = self._card
         if document is None:
-            document = QTextDocument()
-            if self.device is not None:
-                document.documentLayout().setPaintDevice(self.device)
-            document.setDefaultFont(self.font)
-            text = self.palette.color(QPalette.ColorRole.Text).name()
-            document.setDefaultStyleSheet(f"body {{ color: {text}; }}")
-            document.setHtml(self.card_html)
+            document = self._document(self.card_html, width)
             self._card = document
         document.setTextWidth(max(width, 40.0))
         return document
 
-    def set_card(self, html: str) -> None:
-        self.card_html = html
+    def _rich_document(self, index: int, text: str, width: float) -> QTextDocument | None:
+        """A sentence with formulas as rich text (None for one without, or off screen)."""
+        if self.device is not None:
+            return None
+        document = self._rich.get(index)
+        if document is None:
+            from explorer.inline_math import formula_spans
+
+            escaped = html.escape(text)
+            if not formula_spans(escaped):
+                return None
+            document = self._document(escaped, width)
+            self._rich[index] = document
+        document.setTextWidth(max(width, 40.0))
+        return document
+
+    def inline_at(self, point: QPointF):
+        """The inline formula (``explorer.inline_math.Span``) at ``point`` in the card or
+        a sentence, or None."""
+        for placed in self.placed:
+            if placed.kind not in ("card", "rich") or not placed.rect.contains(point):
+                continue
+            inset = QPointF(6, 6) if placed.kind == "card" else QPointF(0, 0)
+            document = placed.part
+            link = document.documentLayout().anchorAt(point - placed.rect.topLeft() - inset)
+            if link.startswith("tex:"):
+                try:
+                    return document.spans[int(link[4:])]
+                except (ValueError, IndexError, AttributeError):
+                    return None
+        return None
+
+    def forget_documents(self) -> None:
+        """Lay the rich text out again (a new font, palette, or formulas set in type)."""
+        self._card = None
+        self._rich = {}
+
+    def set_card(self, html_: str) -> None:
+        self.card_html = html_
         self._card = None
 
     def set_font(self, font: QFont) -> None:
         self.font = QFont(font)
-        self._card = None
+        self.forget_documents()
 
     def set_palette(self, palette: QPalette) -> None:
         self.palette = palette
-        self._card = None
+        self.forget_documents()
 
     # finding and painting ----------------------------------------------------------
     def at(self, point: QPointF) -> Placed | None:
@@ -343,7 +457,14 @@ class DerivationLayout:
             highlight.setAlpha(50)
             painter.fillRect(rect.adjusted(-4, 0, 4, 0), highlight)
         wrap = int(Qt.TextFlag.TextWordWrap.value)
-        if item.kind == "card":
+        if item.kind == "rich":
+            painter.save()
+            painter.translate(rect.left(), rect.top())
+            context = QAbstractTextDocumentLayout.PaintContext()
+            context.palette = self.palette
+            item.part.documentLayout().draw(painter, context)
+            painter.restore()
+        elif item.kind == "card":
             painter.save()
             painter.setPen(self.palette.color(QPalette.ColorRole.Mid))
             painter.setBrush(self.palette.color(QPalette.ColorRole.AlternateBase))
@@ -368,8 +489,44 @@ class DerivationLayout:
             painter.setFont(self.font)
             body = rect.adjusted(lead, self.em * 0.25, 0, 0)
             painter.drawText(body, wrap, item.part.text)
+        elif item.rows:
+            self._paint_broken(painter, item, text, images)
         else:
             self._paint_formula(painter, item.part, rect, text, images, item.scale)
+
+    def _paint_broken(self, painter, item: Placed, text, images) -> None:
+        """A formula broken across lines: each piece where its row puts it."""
+        part, rect = item.part, item.rect
+        em = self.em * item.scale
+        metrics = self.metrics(self.font)
+        top = rect.top() + 0.35 * em
+        self._paint_tag(painter, part, rect, text, top + item.rows[0][2] - metrics.ascent())
+        left = rect.left() + self._lead(part)
+        ratio = painter.device().devicePixelRatioF() if images and painter.device() else 1.0
+        x = left
+        for start, held, baseline_ in item.rows:
+            baseline = top + baseline_
+            x = left + start
+            for index in held:
+                piece = part.pieces[index]
+                if images:
+                    pixmap = outline_pixmap(piece, (part.latex, index), em, text, ratio)
+                    painter.drawPixmap(QPointF(x - 1, baseline - piece.ascent * em - 1), pixmap)
+                else:
+                    _fill_outline(painter, piece, x, baseline, em, text)
+                x += piece.width * em
+        if part.note:
+            note = f"({part.note})"
+            width = self.metrics(self.note_font()).horizontalAdvance(note)
+            baseline = top + item.rows[-1][2]
+            if not item.rows[-1][1]:
+                x = left + item.rows[-1][0]
+            else:
+                x += self.em
+            x = min(x, max(rect.right() - width, left))
+            painter.setPen(self.palette.color(QPalette.ColorRole.PlaceholderText))
+            painter.setFont(self.note_font())
+            painter.drawText(QPointF(x, baseline), note)
 
     def _paint_formula(self, painter, part: Formula, rect, text, images, scale) -> None:
         em, outline = self.em * scale, part.outline
@@ -385,12 +542,7 @@ class DerivationLayout:
         if pixmap is not None:
             painter.drawPixmap(QPointF(x - 1, top - 1), pixmap)
         else:  # vectors: exports
-            painter.save()
-            painter.setRenderHint(QPainter.RenderHint.Antialiasing)
-            painter.translate(x, baseline)
-            painter.scale(em, em)
-            painter.fillPath(outline_path(outline), text)
-            painter.restore()
+            _fill_outline(painter, outline, x, baseline, em, text)
         if part.note:
             note_x = x + outline.width * em + em
             painter.setPen(self.palette.color(QPalette.ColorRole.PlaceholderText))
@@ -404,6 +556,16 @@ class DerivationLayout:
         painter.setFont(self.font)
         metrics = self.metrics(self.font)
         painter.drawText(QPointF(rect.left(), top + metrics.ascent()), part.tag)
+
+
+def _fill_outline(painter, outline: Outline, x: float, baseline: float, em: float, colour):
+    """Draw ``outline`` as vectors, its baseline at (x, baseline), ``em`` units an em."""
+    painter.save()
+    painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+    painter.translate(x, baseline)
+    painter.scale(em, em)
+    painter.fillPath(outline_path(outline), colour)
+    painter.restore()
 
 
 def _plain(part) -> str:

@@ -84,13 +84,22 @@ class Sentence:
 class Formula:
     """One equation: ``text`` on one line (``L = m·l²·θ̇²/2``), ``latex`` (None where too
     large), ``outline`` (None where not set in type), ``tag`` (``(1)``) and ``note``
-    (``quadratic in q̇``)."""
+    (``quadratic in q̇``).
+
+    ``pieces``: the equation cut where a line may break (``break_pieces``), each set in
+    type; side by side they are ``outline`` (or, where ``outline`` is a fraction, the same
+    equation with ``1/D`` taken out of it). The first ``lead`` pieces end with the
+    relation (``H =``): continuation lines are indented to its end. Empty where the
+    equation has nowhere to break.
+    """
 
     text: str
     latex: str | None
     outline: Outline | None
     tag: str = ""
     note: str = ""
+    pieces: tuple[Outline, ...] = ()
+    lead: int = 0
 
 
 @dataclass(frozen=True)
@@ -145,9 +154,9 @@ def typeset_as_text(mechanics: Mechanics) -> Typeset:
 
 
 def with_outlines(typeset: Typeset) -> Typeset:
-    """``typeset`` with every formula's outline (``outline``)."""
+    """``typeset`` with every formula's outline (``outline``) and line pieces."""
     parts = tuple(
-        dataclasses.replace(part, outline=outline(part.latex))
+        dataclasses.replace(part, **set_in_type(part.latex))
         if isinstance(part, Formula) and part.latex is not None and part.outline is None
         else part
         for part in typeset.parts
@@ -162,13 +171,8 @@ def formula(row: report.Row, scene: Scene, outlines: bool = True) -> Formula:
     if isinstance(expr, sympy.Eq):
         tag = row.label
     latex = row_latex(row, scene)
-    return Formula(
-        text=_one_line(row, scene),
-        latex=latex,
-        outline=outline(latex) if latex is not None and outlines else None,
-        tag=tag,
-        note=row.note,
-    )
+    typeset = set_in_type(latex) if latex is not None and outlines else {"outline": None}
+    return Formula(text=_one_line(row, scene), latex=latex, tag=tag, note=row.note, **typeset)
 
 
 def row_latex(row: report.Row, scene: Scene) -> str | None:
@@ -271,6 +275,243 @@ def _outline(math: str) -> Outline:
         ascent=(height - descent) * scale,
         descent=descent * scale,
     )
+
+
+def outlines_of(latexes: tuple[str, ...]) -> dict[str, Outline | None]:
+    """The outlines of several formulas at once (None for one mathtext refuses): the
+    window's inline formulas, set in a worker process (``explorer.inline_math``)."""
+    return {latex: outline(latex) for latex in latexes}
+
+
+# -- equations broken across lines -------------------------------------------------------
+
+BREAK_EMS = 14.0
+"""An equation narrower than this (in ems) is never broken: it fits any dock."""
+
+FACTOR_EMS = 18.0
+r"""A term wider than this (in ems) is cut again before each of its fractions
+(``… × \dfrac{a}{b}``)."""
+
+
+def set_in_type(latex: str) -> dict:
+    """``latex`` set in type: ``outline``, and ``pieces`` and ``lead`` where it is wide
+    enough to be broken across lines and has places to break (``break_pieces``).
+
+    Returns a dict of ``Formula``'s fields. Pieces whose type mathtext refuses are left
+    out (the equation is then shown whole, scaled to the width).
+    """
+    whole = outline(latex)
+    found: dict = {"outline": whole, "pieces": (), "lead": 0}
+    if whole is None or whole.width < BREAK_EMS or len(latex) > OUTLINE_CHARS:
+        return found
+    cut = break_pieces(latex)
+    if cut is None:
+        return found
+    texts, lead = cut
+    pieces = [outline(text) for text in texts]
+    if any(piece is None for piece in pieces):
+        return found
+    again: list[Outline] = []
+    for index, (text, piece) in enumerate(zip(texts, pieces, strict=True)):
+        finer = (_fraction(text) or _factors(text)) if piece.width > FACTOR_EMS else None
+        shown = [outline(part) for part in finer] if finer else []
+        if finer and all(part is not None for part in shown):
+            again += shown
+            lead += len(shown) - 1 if index < lead else 0
+        else:
+            again.append(piece)
+    found["pieces"] = tuple(again)
+    found["lead"] = lead
+    return found
+
+
+def joined(pieces: tuple[Outline, ...]) -> Outline:
+    """``pieces`` side by side on one baseline, as one outline."""
+    vertices, codes, x = [], [], 0.0
+    for piece in pieces:
+        vertices.append(piece.vertices + np.array([x, 0.0], dtype=np.float32))
+        codes.append(piece.codes)
+        x += piece.width
+    return Outline(
+        vertices=np.concatenate(vertices) if vertices else np.zeros((0, 2), np.float32),
+        codes=np.concatenate(codes) if codes else np.zeros(0, np.uint8),
+        width=x,
+        ascent=max((piece.ascent for piece in pieces), default=0.0),
+        descent=max((piece.descent for piece in pieces), default=0.0),
+    )
+
+
+def _depths(latex: str) -> list[int]:
+    """The bracket depth before each character of ``latex``: ``{}``, ``()``, ``[]``,
+    ``\\left`` and ``\\right`` (escaped braces ``\\{`` ``\\}`` count only after them)."""
+    depths = [0] * (len(latex) + 1)
+    depth, i, n = 0, 0, len(latex)
+    while i < n:
+        depths[i] = depth
+        char = latex[i]
+        if char == "\\":
+            j = i + 1
+            while j < n and latex[j].isalpha():
+                j += 1
+            name = latex[i + 1 : j]
+            if not name:
+                j = min(i + 2, n)  # \{ \} \, \; and the like
+            if name in ("left", "right"):
+                depth += 1 if name == "left" else -1
+                while j < n and latex[j] == " ":
+                    j += 1
+                if j < n and latex[j] == "\\":
+                    k = j + 1
+                    while k < n and latex[k].isalpha():
+                        k += 1
+                    j = max(k, j + 2)
+                else:
+                    j += 1
+            for k in range(i + 1, min(j, n)):
+                depths[k] = depth
+            i = j
+            continue
+        if char in "{([":
+            depth += 1
+        elif char in "})]":
+            depth -= 1
+        i += 1
+    depths[n] = depth
+    return depths
+
+
+def _terms(latex: str, depth: int = 0) -> list[tuple[str, str]]:
+    """``latex`` cut at its `` + `` and `` - `` at ``depth``: (sign, term) pairs, the
+    first sign ``""``."""
+    depths = _depths(latex)
+    cuts = [
+        i
+        for i in range(1, len(latex) - 2)
+        if latex[i - 1 : i + 2] in (" + ", " - ") and depths[i] == depth
+    ]
+    found, start, sign = [], 0, ""
+    for i in cuts:
+        found.append((sign, latex[start : i - 1].strip()))
+        sign, start = latex[i], i + 2
+    found.append((sign, latex[start:].strip()))
+    return [(sign, term) for sign, term in found if term]
+
+
+def _matching(latex: str, start: int) -> int:
+    """The index just past the group that opens with the ``{`` at ``start``."""
+    depth = 0
+    for i in range(start, len(latex)):
+        if latex[i] == "{" and latex[i - 1 : i] != "\\":
+            depth += 1
+        elif latex[i] == "}" and latex[i - 1 : i] != "\\":
+            depth -= 1
+            if depth == 0:
+                return i + 1
+    return -1
+
+
+def break_pieces(latex: str) -> tuple[list[str], int] | None:
+    """Where ``latex`` (``lhs = rhs``) may be broken across lines: its pieces, each a
+    math string of its own, and how many of them make the left side with the relation.
+
+    A line breaks before a `` + `` or `` - `` of a side's sum, after a comma of a tuple
+    ``(a, b)``, and before each term of a fraction's long numerator (``\\dfrac{N}{D}``
+    is then set as ``\\dfrac{1}{D} (N)``). Each piece carries the spacing that joins it
+    to the one before (``{}+ b``): set side by side they read as the equation did.
+    None where there is nowhere to break (or a matrix, which mathtext cannot set).
+    """
+    if "\\begin" in latex:
+        return None
+    depths = _depths(latex)
+    relations = [i for i in range(1, len(latex) - 2) if latex[i - 1 : i + 2] == " = "]
+    relations = [i for i in relations if depths[i] == 0]
+    if relations:
+        left, right = latex[: relations[-1] - 1].strip(), latex[relations[-1] + 2 :].strip()
+    else:
+        left, right = "", latex.strip()
+    pieces = _side(left) if left else []
+    if left:
+        pieces[-1] += " ={}"
+    lead = len(pieces)
+    body = _side(right)
+    if pieces:
+        body[0] = "{}" + body[0] if not body[0].startswith("{}") else body[0]
+    pieces += body
+    if len(pieces) - (1 if lead else 0) < 1 or len(pieces) < 2:
+        return None
+    return pieces, lead
+
+
+def _side(latex: str) -> list[str]:
+    """One side of an equation cut into pieces (one piece where it cannot be cut)."""
+    terms = _terms(latex)
+    if len(terms) > 1:
+        return [_signed(sign, term) for sign, term in terms]
+    if latex.startswith("\\left(") and latex.endswith("\\right)"):
+        inner = latex[len("\\left(") : -len("\\right)")]
+        depths = _depths(inner)
+        commas = [i for i, c in enumerate(inner) if c == "," and depths[i] == 0]
+        if commas and _depths(latex)[len(latex) - len("\\right)")] == 1:
+            items, start = [], 0
+            for i in commas:
+                items.append(inner[start:i].strip())
+                start = i + 1
+            items.append(inner[start:].strip())
+            return (
+                ["\\left(\\right." + items[0] + ",\\ "]
+                + [item + ",\\ " for item in items[1:-1]]
+                + [items[-1] + "\\left.\\right)"]
+            )
+    return _fraction(latex) or [latex]
+
+
+def _fraction(latex: str) -> list[str] | None:
+    """``\\frac{N}{D}`` (after a sign ``{}+ ``) whose numerator is a sum, as the pieces
+    of ``\\dfrac{1}{D} (n_1 + n_2 …)``; None for anything else."""
+    sign = ""
+    for start in ("{}+ ", "{}- ", "- "):
+        if latex.startswith(start):
+            sign, latex = start, latex[len(start) :]
+            break
+    for prefix in ("\\frac{", "\\dfrac{"):
+        if not latex.startswith(prefix):
+            continue
+        end = _matching(latex, len(prefix) - 1)
+        if end < 0 or latex[end : end + 1] != "{" or _matching(latex, end) != len(latex):
+            return None
+        numerator, denominator = latex[len(prefix) : end - 1], latex[end + 1 : -1]
+        terms = _terms(numerator)
+        if len(terms) < 2:
+            return None
+        texts = [_signed(sign, term) for sign, term in terms]
+        texts[0] = f"\\,\\left(\\right.{texts[0]}"
+        texts[-1] += "\\left.\\right)"
+        return [f"{sign}\\dfrac{{1}}{{{denominator}}}", *texts]
+    return None
+
+
+def _signed(sign: str, term: str) -> str:
+    return f"{{}}{sign} {term}" if sign else term
+
+
+def _factors(piece: str) -> list[str] | None:
+    """A wide term cut before each of its fractions after the first (``a \\dfrac{b}{c}
+    \\dfrac{d}{e}`` -> ``a \\dfrac{b}{c}``, ``{}\\times \\dfrac{d}{e}``), or None."""
+    depths = _depths(piece)
+    starts = [
+        i
+        for i in range(len(piece))
+        if depths[i] == 0 and (piece.startswith("\\frac{", i) or piece.startswith("\\dfrac{", i))
+    ]
+    starts = [i for i in starts if piece[:i].strip(" {}+-")]
+    if not starts:
+        return None
+    found, start = [], 0
+    for i in starts:
+        found.append(piece[start:i].rstrip())
+        start = i
+    found.append(piece[start:])
+    return [found[0]] + ["{}\\times " + part for part in found[1:]]
 
 
 # -- a LaTeX document -------------------------------------------------------------------

@@ -43,6 +43,9 @@ class DerivationView(QAbstractScrollArea):
         self.viewport().setBackgroundRole(QPalette.ColorRole.Base)
         self.viewport().setAutoFillBackground(True)
         self.setToolTip("Right-click an equation to copy it as LaTeX")
+        from explorer.inline_math import store
+
+        store().ready.connect(self._relayout)  # the card's and sentences' formulas set
 
     # what is shown ----------------------------------------------------------------
     @property
@@ -128,6 +131,7 @@ class DerivationView(QAbstractScrollArea):
         layout = self.layout_
         layout.set_font(self.font())
         layout.set_palette(self.palette())
+        layout.ratio = self.devicePixelRatioF() or 1.0
         width = max(self.viewport().width(), 80)
         layout.layout(width)
         bar = self.verticalScrollBar()
@@ -194,6 +198,13 @@ class DerivationView(QAbstractScrollArea):
         """The menu at a viewport point: the equation's copies there, then the whole's."""
         menu = QMenu(self)
         found = self.formula_at(point)
+        inline = self.layout_.inline_at(self._to_content(QPointF(point)))
+        if found is None and inline is not None:
+            latex = menu.addAction("Copy as LaTeX")
+            latex.triggered.connect(lambda: self._copy(inline.latex))
+            text = menu.addAction("Copy as text")
+            text.triggered.connect(lambda: self._copy(inline.text))
+            menu.addSeparator()
         if found is not None:
             index, formula = found
             self.selected = index

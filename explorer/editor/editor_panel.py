@@ -64,6 +64,7 @@ from explorer.editor.parameters_table import ParameterTableView, fit_rows, numbe
 from explorer.editor.particles_section import ParticlesSection
 from explorer.editor.scroll_anchor import ScrollAnchor
 from explorer.editor.symmetries_section import SymmetriesSection
+from explorer.inline_math import MathLabel
 from explorer.labels import coordinate_label
 from systems.typeset import Typeset
 
@@ -417,7 +418,7 @@ class SystemEditorPanel(QWidget):
         history.addWidget(self.redo_button)
         history.addWidget(self.state_label, 1)
 
-        self.classification_card = QLabel()
+        self.classification_card = MathLabel()  # its formulas set in type
         never_widens(self.classification_card)
         self.classification_card.setTextFormat(Qt.TextFormat.RichText)
         self.classification_card.setStyleSheet(

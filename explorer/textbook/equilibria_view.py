@@ -16,6 +16,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from explorer.inline_math import MathDelegate
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import GREEN, RED, note_label
 from systems.display import pretty_name
@@ -164,6 +165,7 @@ class EquilibriaView(TextbookTabView):
         self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
         self.table.verticalHeader().setVisible(False)
         self.table.setAlternatingRowColors(True)
+        self.table.setItemDelegate(MathDelegate(self.table))  # formulas set in type
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addWidget(self.status)

@@ -38,6 +38,15 @@ NOTES_WIDTH = (260, 460)
 class TextbookPlot(pg.PlotWidget):
     """A plot widget that prefers ``PLOT_HINT``: the tab's layout stretches it to fit."""
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        from explorer.inline_math import math_title
+
+        math_title(self.getPlotItem())  # its title's formulas set in type
+
+    def setTitle(self, *args, **kwargs) -> None:  # noqa: N802 - pyqtgraph's name
+        self.getPlotItem().setTitle(*args, **kwargs)
+
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt override
         return QSize(PLOT_HINT)
 
@@ -122,11 +131,14 @@ def clear_plot(widget: pg.PlotWidget) -> None:
 
 
 def note_label(text: str = "") -> QLabel:
-    """A wrapped explanatory line of rich text."""
-    label = QLabel(text)
-    label.setWordWrap(True)
-    label.setTextFormat(Qt.TextFormat.RichText)
-    label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+    """A wrapped explanatory line of rich text, its formulas set in type
+    (``explorer.inline_math.MathLabel``: right-click one to copy it as LaTeX)."""
+    from explorer.inline_math import MathLabel
+
+    label = MathLabel(text)
+    label.setTextInteractionFlags(
+        Qt.TextInteractionFlag.TextSelectableByMouse | Qt.TextInteractionFlag.LinksAccessibleByMouse
+    )
     label.setStyleSheet("color: #333; padding: 2px")
     return label
 

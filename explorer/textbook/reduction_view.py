@@ -3,6 +3,8 @@ reduced phase portrait."""
 
 from __future__ import annotations
 
+import html
+
 import numpy as np
 import pyqtgraph as pg
 import scipy.optimize
@@ -17,6 +19,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from explorer.inline_math import marked
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import (
     BLUE,
@@ -118,7 +121,7 @@ class ReductionView(TextbookTabView):
         self.summary.setText(
             f"<b>Cyclic:</b> {', '.join(names)} — its momentum is conserved, so the motion of "
             f"{', '.join(rest)} alone follows the Routhian R = L − Σ p<sub>c</sub> q̇<sub>c</sub>."
-            f" V<sub>eff</sub> = {setup.expression}.{held}"
+            f" {marked('V<sub>eff</sub> = ' + html.escape(str(setup.expression)))}.{held}"
         )
         for j, name in enumerate(reduction.cyclic):
             value = float(setup.p_cyclic[j])
