@@ -5,7 +5,8 @@ equations (effects included) and integrated with the orbit by the compiled drive
 (``systems.chaos``): DOP853 at tolerance 1e-12 by default; a fixed-step method carries
 the tangent map of its own scheme (a Yoshida composition its drifts and kicks,
 Gauss-Legendre its collocation). Exit status 1 when the integration stopped before the
-end time.
+end time; Ctrl+C (SIGTERM, SIGHUP) prints the estimates so far (status ``interrupted``)
+and exits with 128 + the signal.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 
 from explorer.commands.errors import UserError, user_errors
@@ -101,9 +103,27 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     except NotApplicable as exc:
         raise UserError(str(exc)) from exc
-    while not chaos.done:
-        chaos.advance(seconds=0.2)
-        stopping.check()
+    interrupted = False
+    try:
+        said = False
+        while not chaos.done:
+            chaos.advance(seconds=0.2)
+            stopping.check()
+            if not said and not chaos.done:  # estimates exist: a stop now reports them
+                said = True
+                print(
+                    f"integrating to t = {t_end:g}; Ctrl+C stops and prints the estimates so far",
+                    file=sys.stderr,
+                    flush=True,
+                )
+    except KeyboardInterrupt:
+        interrupted = True
+    except Exception:
+        if not stopping.requested():
+            raise
+        interrupted = True  # the signal's exception was lost on the way (``stopping``)
+    if chaos.t == chaos.t0:  # stopped before an interval: nothing to report
+        raise KeyboardInterrupt
     result = Spectrum(
         estimate=chaos.estimate, history=chaos.history.arrays(), method=method,
         setting=chaos.setting, setting_value=chaos.setting_value, t0=chaos.t0, t_end=t_end,
@@ -112,10 +132,15 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     report = result.as_json()
     report = {"scene": scene.name or args.scene, **report}
+    if interrupted:  # the estimates up to where the signal came
+        report["status"] = "interrupted"
+        report["message"] = f"stopped by {stopping.cause()} at t = {chaos.t:.6g}"
     if args.json:
         print(json.dumps(report, indent=2))
     else:
         print("\n".join(_lines(scene, report)))
+    if interrupted:
+        return stopping.status()
     return 0 if report["status"] == "ok" else 1
 
 

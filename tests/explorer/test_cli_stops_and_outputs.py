@@ -130,17 +130,19 @@ def _wait_for(condition, what: str, process: subprocess.Popen, limit: float = 60
         time.sleep(0.05)
 
 
+LAUNCH = (
+    "import runpy, signal, sys; signal.signal(signal.SIGTERM, signal.SIG_DFL); "
+    "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGTERM]); "
+    "sys.argv = ['main.py', *sys.argv[1:]]; runpy.run_path('main.py', run_name='__main__')"
+)
+"""``python -c LAUNCH COMMAND ...`` runs ``main.py COMMAND ...`` with SIGTERM at its
+default and unblocked, whatever the test worker's own state."""
+
+
 def test_sigterm_stops_an_endless_run_and_keeps_its_rows(tmp_path):
     out = tmp_path / "endless.csv"
-    # the child starts with SIGTERM at its default and unblocked, whatever the test
-    # worker's own state
-    launch = (
-        "import runpy, signal, sys; signal.signal(signal.SIGTERM, signal.SIG_DFL); "
-        "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGTERM]); "
-        "sys.argv = ['main.py', *sys.argv[1:]]; runpy.run_path('main.py', run_name='__main__')"
-    )
     process = subprocess.Popen(
-        [sys.executable, "-c", launch, "run", "simple_pendulum", "--t-end", "inf",
+        [sys.executable, "-c", LAUNCH, "run", "simple_pendulum", "--t-end", "inf",
          "--every", "0.01", "--out", str(out)],
         stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
     )  # fmt: skip

@@ -85,3 +85,31 @@ def test_what_cannot_be_measured_is_refused_with_the_reason(capsys, argv, words)
     assert err.startswith("error: ") and err.count("\n") == 1
     for word in words:
         assert word in err
+
+
+def test_sigterm_prints_the_estimates_so_far():
+    import signal
+    import subprocess
+    import sys
+
+    from tests.explorer.test_cli_stops_and_outputs import LAUNCH, ROOT
+
+    process = subprocess.Popen(
+        [sys.executable, "-c", LAUNCH, "lyapunov", "double_pendulum", "--t-end", "1e9",
+         "--json"],
+        stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
+    )  # fmt: skip
+    try:
+        line = process.stderr.readline()  # after the first estimates
+        assert line.startswith("integrating to t = 1e+09"), line
+        process.send_signal(signal.SIGTERM)
+        stdout, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    report = json.loads(stdout)
+    assert report["status"] == "interrupted" and "SIGTERM" in report["message"]
+    assert 0 < report["t_end"] < 1e9 and report["max"] > 0
+    assert "Traceback" not in stderr
