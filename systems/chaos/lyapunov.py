@@ -30,9 +30,9 @@ evaluated by the tangent function at each step's state.
 
 Intervals end where the steps reach a time ``tau`` after their start, ``tau`` adapted
 so that the fastest vector grows, and the spectrum set spreads, by about e^``GROWTH``
-in one (at most
-``STEPS_PER_INTERVAL`` steps): where they end depends only on the orbit, never on how
-the caller splits the run (``advance(seconds)``), so the same run gives the same numbers.
+in one (at most ``STEPS_PER_INTERVAL`` steps and ``max_interval``): where they end
+depends only on the orbit, never on how the caller splits the run (``advance(seconds,
+until)``), so the same run gives the same numbers.
 """
 
 from __future__ import annotations
