@@ -61,6 +61,8 @@ class ControlsPanel(QWidget):
         super().__init__(parent)
         style = self.style()
         self.method_combo = QComboBox()
+        # as wide as the entry shown ("automatic (gauss_legendre6)" was cut), in
+        # presentation mode's large type too (``_fit_method_combo``)
         self.method_combo.setMinimumContentsLength(16)
         self.method_combo.setSizeAdjustPolicy(
             QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon
@@ -167,6 +169,7 @@ class ControlsPanel(QWidget):
                 chosen = index
         self.method_combo.setCurrentIndex(chosen)
         self.method_combo.blockSignals(False)
+        self._fit_method_combo()
         self.automatic = automatic
         self.reason = reason
         self.method_combo.setToolTip(f"{METHOD_TIP}\n\nAutomatic choice: {reason}")
@@ -191,6 +194,18 @@ class ControlsPanel(QWidget):
             self.step_edit.setPlaceholderText(f"auto: {value:.3g}")
         else:
             self.step_edit.setPlaceholderText("auto")
+        self._fit_step_edit()
+
+    def _fit_step_edit(self) -> None:
+        """Room for "auto: 1e-12" in the font shown (presentation mode's large type)."""
+        advance = self.step_edit.fontMetrics().horizontalAdvance("auto: 0.00000")
+        self.step_edit.setMaximumWidth(max(110, advance + 16))
+
+    def changeEvent(self, event) -> None:  # noqa: N802 - Qt override
+        super().changeEvent(event)
+        if event.type() == event.Type.FontChange:
+            self._fit_step_edit()
+            self._fit_method_combo()
 
     @property
     def method(self) -> str | None:
@@ -254,7 +269,12 @@ class ControlsPanel(QWidget):
 
     # -- slots -------------------------------------------------------------------------------
 
+    def _fit_method_combo(self) -> None:
+        """Room for the entry shown, at least 16 characters."""
+        self.method_combo.setMinimumContentsLength(max(16, len(self.method_combo.currentText())))
+
     def _on_method_index_changed(self, _index: int) -> None:
+        self._fit_method_combo()
         self._update_step_label(self.method)
         self.method_changed.emit(self.method)
 

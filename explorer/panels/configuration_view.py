@@ -138,6 +138,24 @@ class ConfigurationView(QWidget):
         self._path_series: WrappedSeries | None = None
         self._path_angles = np.zeros(2, dtype=bool)
         self._store = None
+        self.side_by_side = False
+        """The path plot stands right of the mechanism, not below it (presentation)."""
+
+    def _path_cell(self) -> dict:
+        return {"row": 0, "col": 1} if self.side_by_side else {"row": 1, "col": 0}
+
+    def set_side_by_side(self, side_by_side: bool) -> None:
+        """Put the path plot beside the mechanism (True) or below it (False)."""
+        if side_by_side == self.side_by_side:
+            return
+        self.side_by_side = side_by_side
+        if self.path_plot is not None:
+            # moved within the layout, never deleted (see ``_path_plot``)
+            self.layout_widget.removeItem(self.path_plot)
+            self.layout_widget.addItem(self.path_plot, **self._path_cell())
+        grid = self.layout_widget.ci.layout
+        for column in (0, 1):  # side by side: half the width each
+            grid.setColumnStretchFactor(column, 1 if side_by_side else 0)
 
     def set_system(self, compiled) -> None:
         """Show a newly compiled system (its drawing and coordinates)."""
@@ -146,7 +164,7 @@ class ConfigurationView(QWidget):
         self.mechanism.clear()
         self._traces.clear()
         drawing = scene.drawing
-        set_title(self.mechanism, f"{scene.title}: configuration")
+        set_title(self.mechanism, scene.title)  # the dock says "Configuration"
         self.sketch = sketch(scene)
         self._set_sketch(scene)
         if drawing is None or not drawing.points:
@@ -203,12 +221,12 @@ class ConfigurationView(QWidget):
         scene = compiled.mechanics.scene
         q1, q2 = scene.coordinates[:2]
         if self._path_plot is None:
-            self._path_plot = self.layout_widget.addPlot(row=1, col=0)
+            self._path_plot = self.layout_widget.addPlot(**self._path_cell())
             style_plot(self._path_plot)
             self._path_keeper = RangeKeeper(self._path_plot)
             self._path_plot.getViewBox().sigResized.connect(self._on_path_resized)
         elif self.path_plot is None:
-            self.layout_widget.addItem(self._path_plot, row=1, col=0)
+            self.layout_widget.addItem(self._path_plot, **self._path_cell())
         self.path_plot = self._path_plot
         set_title(self.path_plot, f"Path in ({coordinate_label(q1)}, {coordinate_label(q2)})")
         self.path_plot.setLabel("bottom", coordinate_label(q1))

@@ -409,15 +409,49 @@ def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
 
 
 class FlexibleLabel(pg.LabelItem):
-    """A plot title that does not set the plot's minimum width (a long one is clipped).
+    """A plot title that does not set the plot's minimum width, and is set smaller where
+    it would not fit (down to ``LEAST`` of its size; only past that is it clipped).
 
     pyqtgraph's ``LabelItem`` makes its text's width its minimum at every change and
-    resize, so in a narrow dock a long title pushes the plot's right part out of sight.
+    resize, so in a narrow dock a long title pushes the plot's right part out of sight;
+    presentation mode's large titles were cut ("Double pendulum: configurat").
     """
+
+    LEAST = 0.5
 
     def updateMin(self) -> None:  # noqa: N802 - pyqtgraph override
         super().updateMin()
         self.setMinimumWidth(0)
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt override
+        super().resizeEvent(event)
+        self._fit()
+
+    def setText(self, text, **args) -> None:  # noqa: N802 - pyqtgraph's name
+        self.shown_points = None
+        super().setText(text, **args)
+        self._fit()
+
+    def _fit(self) -> None:
+        """Set the text smaller while it is wider than the label (sizes in points)."""
+        width = self.width()
+        wanted = str(self.opts.get("size") or "")
+        if width <= 0 or not wanted.endswith("pt") or getattr(self, "_fitting", False):
+            return
+        points = float(wanted[:-2])
+        for _ in range(4):  # a font's width is not quite in proportion to its size
+            shown = getattr(self, "shown_points", None) or points
+            natural = self.item.document().idealWidth() * points / shown
+            fitted = max(min(points, points * (width - 1) / max(natural, 1.0)), points * self.LEAST)
+            if fitted >= shown - 0.05 and (fitted - shown < 0.25 or shown >= points):
+                return
+            self._fitting = True
+            try:
+                super().setText(self.text, size=f"{fitted:.2f}pt")
+                self.opts["size"] = wanted
+            finally:
+                self._fitting = False
+            self.shown_points = fitted
 
 
 def set_title(plot: pg.PlotItem, text: str) -> None:

@@ -25,6 +25,11 @@ TICK_POINTS = 15
 LABEL_POINTS = 17
 TITLE_POINTS = 19
 LEGEND_POINTS = 15
+TITLE_COLOUR = "#000000"
+"""Plot titles in presentation mode: black and bold, legible at the back of a hall."""
+RIGHT_SHARE = 0.42
+"""The right docks' share of the window's width in presentation mode (no editor on the
+left): the configuration's two plots stand side by side there."""
 RESTYLE_MS = 400
 AXES = ("left", "bottom", "right", "top")
 
@@ -108,6 +113,7 @@ class Presentation(QObject):
         self._unstyle()
         state, geometry, font, full_screen, maximized, shares = self._saved
         self._saved = None
+        self._arrange(False)
         window.setFont(font)
         if not full_screen:
             window.showMaximized() if maximized else window.showNormal()
@@ -124,9 +130,21 @@ class Presentation(QObject):
             if wanted and dock.isFloating():
                 dock.setFloating(False)
             dock.setVisible(wanted)
+        self._arrange(self.active)
         shares = getattr(self.window, "dock_shares", None)
         if shares is not None:
             shares.reset()
+            if self.active:
+                shares.shares[Qt.DockWidgetArea.RightDockWidgetArea] = RIGHT_SHARE
+                shares.apply()
+
+    def _arrange(self, presenting: bool) -> None:
+        """The configuration's mechanism and path side by side while presenting (stacked
+        in the narrow dock, each was a strip under the large type)."""
+        panels = getattr(self.window, "panels", {})
+        view = panels.get("configuration") if isinstance(panels, dict) else None
+        if view is not None and hasattr(view, "set_side_by_side"):
+            view.set_side_by_side(presenting)
 
     # -- the plots --------------------------------------------------------------------------
 
@@ -160,10 +178,18 @@ class Presentation(QObject):
                 axis.labelStyle = {**axis.labelStyle, "font-size": f"{LABEL_POINTS}pt"}
                 _relabel(axis)
         title = plot.titleLabel
-        if title.opts.get("size") != f"{TITLE_POINTS}pt":
+        math = getattr(plot, "math_title", None)  # a title with formulas set in type
+        if math is not None:
+            if math.override.get("size") != f"{TITLE_POINTS}pt":
+                math.restyle(size=f"{TITLE_POINTS}pt", color=TITLE_COLOUR, bold=True)
+        elif title.opts.get("size") != f"{TITLE_POINTS}pt":
             if not hasattr(title, "_presentation"):
-                title._presentation = title.opts.get("size")
-            title.setText(title.text, size=f"{TITLE_POINTS}pt")
+                title._presentation = (
+                    title.opts.get("size"),
+                    title.opts.get("color"),
+                    title.opts.get("bold"),
+                )
+            title.setText(title.text, size=f"{TITLE_POINTS}pt", color=TITLE_COLOUR, bold=True)
         legend = plot.legend
         if legend is not None and legend.opts.get("labelTextSize") != f"{LEGEND_POINTS}pt":
             if not hasattr(legend, "_presentation"):
@@ -197,12 +223,18 @@ class Presentation(QObject):
                 _relabel(axis)
                 del axis._presentation
             title = plot.titleLabel
+            math = getattr(plot, "math_title", None)
+            if math is not None and math.override:
+                math.restyle()
             if hasattr(title, "_presentation"):
-                if title._presentation is None:
-                    title.opts.pop("size", None)
-                    title.setText(title.text)
-                else:
-                    title.setText(title.text, size=title._presentation)
+                size, colour, bold = title._presentation
+                for key, value in (("size", size), ("color", colour), ("bold", bold)):
+                    if value is None:
+                        title.opts.pop(key, None)
+                    else:
+                        title.opts[key] = value
+                title.opts.setdefault("color", None)
+                title.setText(title.text)
                 del title._presentation
             legend = plot.legend
             if legend is not None and hasattr(legend, "_presentation"):
