@@ -203,6 +203,20 @@ class ParameterTableView(QTableWidget):
         accepted = item.data(ACCEPTED) if item is not None else None
         return str(accepted) if accepted is not None else self._name(row)
 
+    def _widen(self, row: int) -> None:
+        """Widen the slider's range to take a value typed beyond it (by the value's own
+        default range): typing 9.81 for a g added at 1 pinned the slider at its end."""
+        value, lo, hi = (self._number(row, c) for c in (VALUE, LOW, HIGH))
+        if None in (value, lo, hi) or not math.isfinite(value) or lo <= value <= hi:
+            return
+        low, high = default_range(value)
+        self._filling = True
+        try:
+            self.item(row, LOW).setText(f"{min(lo, low):g}")
+            self.item(row, HIGH).setText(f"{max(hi, high):g}")
+        finally:
+            self._filling = False
+
     def _place_slider(self, row: int) -> None:
         slider = self.cellWidget(row, SLIDER)
         value, lo, hi = (self._number(row, c) for c in (VALUE, LOW, HIGH))
@@ -328,6 +342,7 @@ class ParameterTableView(QTableWidget):
                 self._place_slider(item.row())
                 self.value_refused.emit(refusal)
                 return
+            self._widen(item.row())
             self._place_slider(item.row())
             self.values_changed.emit(self.values())
         else:

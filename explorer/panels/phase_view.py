@@ -468,7 +468,8 @@ class PhaseView(QWidget):
             item.setZValue(-10)
             self._add_static(item, "level sets of H" if first else None)
             first = False
-        energies = sorted({round(s.energy, 12) for s in self.saddles})
+        # + 0.0: a level a round-off below 0 (-2.8e-44) rounds to -0.0, shown "H = -0"
+        energies = sorted({round(s.energy, 12) + 0.0 for s in self.saddles})
         for k, energy in enumerate(energies):
             x, y = level_sets.contour(self.grid, energy)
             item = pg.PlotDataItem(x, y, pen=SEPARATRIX_PEN, connect="finite")

@@ -47,3 +47,8 @@ def spin(app, condition, seconds: float) -> None:
     while not condition() and time.monotonic() < deadline:
         app.processEvents()
         time.sleep(0.02)
+
+
+def measure_screens(script: str, sizes, folder: Path) -> dict:
+    """``measure_on_screen(script, [folder], size, folder)`` for each of ``sizes``, by size."""
+    return {size: measure_on_screen(script, [str(folder)], size, folder) for size in sizes}

@@ -22,7 +22,11 @@ def _labels(qtbot, axis_item, span, height):
     widget.show()
     qtbot.waitExposed(widget)
     qtbot.wait(20)
-    axis = plot.getAxis("left")
+    return drawn_labels(plot.getAxis("left"))
+
+
+def drawn_labels(axis) -> list:
+    """The (rectangle, text) of each label ``axis`` draws, as laid out for painting."""
     image = QImage(400, 1200, QImage.Format.Format_ARGB32)
     painter = QPainter(image)
     try:

@@ -75,10 +75,9 @@ def measure(folder: str) -> dict:
 
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory):
-    from tests.explorer.screens import measure_on_screen
+    from tests.explorer.screens import measure_screens
 
-    folder = tmp_path_factory.mktemp("presentation")
-    return {size: measure_on_screen(__file__, [str(folder)], size, folder) for size in SCREENS}
+    return measure_screens(__file__, SCREENS, tmp_path_factory.mktemp("presentation"))
 
 
 @pytest.mark.soak  # screen-size tests, as tests/explorer/test_window_fits_screen.py
