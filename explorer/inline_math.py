@@ -295,35 +295,38 @@ def typeset_html(
     spans = formula_spans(html)
     if not spans:
         return html, spans
-    em = inline_em(font)
-    metrics = QFontMetricsF(font)
-    quarter = metrics.xHeight() / 4.0
     pieces, at = [], 0
     for index, span in enumerate(spans):
-        outline = store().outline(span.latex)
         pieces.append(html[at : span.start])
         at = span.end
-        if outline is None:
-            pieces.append(span.text)
-            continue
-        size = em
-        if width > 0 and outline.width * size + 2 > width:
-            size = max((width - 2) / outline.width, em * 0.4)
-        ascent, descent = outline.ascent * size + 1, outline.descent * size + 1
-        # Qt sets an image aligned "middle" with its centre x-height/4 above the baseline:
-        # padded so that the formula's baseline lands on the line's
-        shift = 2 * quarter - ascent + descent
-        top, bottom = max(shift, 0.0), max(-shift, 0.0)
-        height = ascent + descent + top + bottom
-        url = _padded_url(outline, span.latex, size, colour, ratio, top, bottom)
-        width_px = outline.width * size + 2
-        pieces.append(
-            f'<a href="tex:{index}" style="text-decoration:none">'
-            f'<img src="{url}" width="{width_px:.1f}" height="{height:.1f}" '
-            f'style="vertical-align: middle"></a>'
-        )
+        pieces.append(formula_html(span, index, font, colour, ratio, width))
     pieces.append(html[at:])
     return "".join(pieces), spans
+
+
+def formula_html(
+    span: Span, index: int, font: QFont, colour: QColor, ratio: float = 1.0, width: float = 0.0
+) -> str:
+    """One formula as an image in a ``tex:index`` link, or its text while it is not set
+    in type (see ``typeset_html``)."""
+    outline = store().outline(span.latex)
+    if outline is None:
+        return span.text
+    size = em = inline_em(font)
+    if width > 0 and outline.width * size + 2 > width:
+        size = max((width - 2) / outline.width, em * 0.4)
+    ascent, descent = outline.ascent * size + 1, outline.descent * size + 1
+    # Qt sets an image aligned "middle" with its centre x-height/4 above the baseline:
+    # padded so that the formula's baseline lands on the line's
+    shift = QFontMetricsF(font).xHeight() / 2.0 - ascent + descent
+    top, bottom = max(shift, 0.0), max(-shift, 0.0)
+    height = ascent + descent + top + bottom
+    url = _padded_url(outline, span.latex, size, colour, ratio, top, bottom)
+    return (
+        f'<a href="tex:{index}" style="text-decoration:none">'
+        f'<img src="{url}" width="{outline.width * size + 2:.1f}" height="{height:.1f}" '
+        'style="vertical-align: middle"></a>'
+    )
 
 
 def _padded_url(outline, latex, em, colour, ratio, top, bottom) -> str:
@@ -450,9 +453,14 @@ class MathLabel(QLabel):
             super().contextMenuEvent(event)
 
 
+LATEX_ROLE = Qt.ItemDataRole.UserRole + 31
+"""A table item's LaTeX when the whole cell is one formula (``MathDelegate``)."""
+
+
 class MathDelegate(QStyledItemDelegate):
     """Table cells whose text holds formulas, drawn with them set in type (the
-    Equilibria tab's frequencies, closed forms and multipliers); other cells as usual."""
+    Equilibria tab's frequencies and multipliers; a cell with ``LATEX_ROLE`` data, a
+    closed form, as that one formula); other cells as usual."""
 
     def __init__(self, view):
         super().__init__(view)
@@ -464,7 +472,9 @@ class MathDelegate(QStyledItemDelegate):
         if not isinstance(text, str) or not text:
             return None
         escaped = html.escape(text, quote=False)
-        if not formula_spans(escaped):
+        latex = index.data(LATEX_ROLE)
+        whole = Span(0, len(escaped), escaped, latex) if isinstance(latex, str) and latex else None
+        if whole is None and not formula_spans(escaped):
             return None
         colour = index.data(Qt.ItemDataRole.ForegroundRole)
         colour = (
@@ -473,7 +483,10 @@ class MathDelegate(QStyledItemDelegate):
             else option.palette.color(QPalette.ColorRole.Text)
         )
         ratio = self.view.devicePixelRatioF() or 1.0
-        shown, _ = typeset_html(escaped, option.font, colour, ratio)
+        if whole is not None:
+            shown = formula_html(whole, 0, option.font, colour, ratio)
+        else:
+            shown, _ = typeset_html(escaped, option.font, colour, ratio)
         document = QTextDocument()
         document.setDefaultFont(option.font)
         document.setDocumentMargin(2)

@@ -16,7 +16,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from explorer.inline_math import MathDelegate
+from explorer.inline_math import LATEX_ROLE, MathDelegate
 from explorer.textbook.base import TextbookTabView
 from explorer.textbook.plots import GREEN, RED, note_label
 from systems.display import pretty_name
@@ -269,6 +269,7 @@ class EquilibriaView(TextbookTabView):
         self.table.setRowCount(len(search.equilibria))
         for row, e in enumerate(search.equilibria):
             cells = [_number(e.q[name]) for name in shown]
+            latex: dict[int, str | None] = {}  # cells that are one formula: their LaTeX
             if exact:
                 forms = [
                     f"{pretty_name(name)} = {self._closed_form(e.exact[name])}"
@@ -277,6 +278,7 @@ class EquilibriaView(TextbookTabView):
                     if name in e.exact
                 ]
                 cells.append(",  ".join(forms) if self._symbolic(e) else "")
+                latex[len(cells) - 1] = self._closed_form_latex(e, shown, search.periodic)
             kind_column = len(cells)
             cells += [kind_text(e), f"{e.potential:.6g}"]
             if forces:
@@ -288,6 +290,8 @@ class EquilibriaView(TextbookTabView):
             for column, text in enumerate(cells):
                 item = QTableWidgetItem(text)
                 item.setToolTip(e.decided_by)
+                if latex.get(column) and text:
+                    item.setData(LATEX_ROLE, latex[column])
                 if column == kind_column:
                     item.setForeground(pg.mkColor(GREEN if e.stable else RED))
                 self.table.setItem(row, column, item)
@@ -313,6 +317,29 @@ class EquilibriaView(TextbookTabView):
             except ExpressionError:
                 continue
         return False
+
+    def _closed_form_latex(self, equilibrium, shown, periodic) -> str | None:
+        """The closed forms of ``equilibrium`` as one LaTeX formula (None if one does
+        not read back)."""
+        from systems.display import latex_names
+        from systems.expressions import ExpressionError
+        from systems.typeset import expression_latex
+
+        scene = self.compiled.mechanics.scene
+        names = latex_names(scene)
+        forms = []
+        for name in shown:
+            if name not in equilibrium.exact:
+                continue
+            try:
+                body = expression_latex(self._parse(equilibrium.exact[name]), scene)
+            except (ExpressionError, TypeError, ValueError, AttributeError):
+                return None
+            if body is None:
+                return None
+            mod = r"\ \ (\mathrm{mod}\ 2\pi)" if name in periodic else ""
+            forms.append(f"{names.get(name, name)} = {body}{mod}")
+        return r",\quad ".join(forms) or None
 
     def _closed_form(self, text: str) -> str:
         from systems.display import for_display

@@ -163,6 +163,41 @@ def test_textbook_notes_titles_and_table_cells_set_their_formulas(qtbot):
     assert len(document.toHtml().split("data:image/png")) == 3  # ω₁ = …, ω² = …
 
 
+def test_an_equilibrium_s_closed_form_is_one_formula_in_its_cell(qtbot):
+    from types import SimpleNamespace
+
+    from PySide6.QtWidgets import QStyleOptionViewItem
+
+    from explorer.inline_math import LATEX_ROLE
+    from explorer.textbook.equilibria_view import EquilibriaView
+    from systems.textbook import jobs
+    from systems.textbook.equilibria import search_equilibria
+
+    mechanics = derive(load_scene("bead_on_rotating_hoop"))
+    result = jobs.EquilibriaResult(search_equilibria(mechanics), tuple(mechanics.scene.coordinates))
+    view = EquilibriaView(runner=None)
+    qtbot.addWidget(view)
+    view.compiled = SimpleNamespace(mechanics=mechanics)
+    view._on_search_done(result, view.generation)
+    table = view.table
+    column = [table.horizontalHeaderItem(c).text() for c in range(table.columnCount())].index(
+        "closed form (sympy)"
+    )
+    forms = [table.item(r, column) for r in range(table.rowCount())]
+    latex = [item.data(LATEX_ROLE) for item in forms if item.text()]
+    assert len(latex) == 2 and all(r"\operatorname{acos}" in form for form in latex), latex
+    assert all(r"\mathrm{mod}" in form for form in latex)  # theta is an angle
+    assert any("acos(g/(a·ω²))" in item.text() for item in forms)  # its text, as before
+    table.show()
+    wait_for_type(qtbot)
+    option = QStyleOptionViewItem()
+    option.font = table.font()
+    option.palette = table.palette()
+    row = next(r for r in range(table.rowCount()) if forms[r].text())
+    document = table.itemDelegate()._document(option, table.model().index(row, column))
+    assert document is not None and document.toHtml().count("data:image/png") == 1
+
+
 def measure(folder: str) -> dict:
     """Open the window on the double pendulum as ``main.py`` does, show its derivation
     and its equilibria, and measure (run in a process whose screen has the size)."""
