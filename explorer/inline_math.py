@@ -23,6 +23,7 @@ import html
 import re
 from dataclasses import dataclass
 
+import pyqtgraph as pg
 from PySide6.QtCore import QBuffer, QByteArray, QObject, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPalette, QTextDocument
 from PySide6.QtWidgets import QApplication, QLabel, QMenu, QStyle, QStyledItemDelegate
@@ -35,6 +36,7 @@ INLINE_SCALE = 1.15
 FORMULAS = (
     "det(−ω² M + iω G + K) = 0",
     "dH/dt = −∂L/∂t + Σ q̇ᵢ Qᵢ",
+    "−∂L/∂t + Σ q̇ᵢ Qᵢ",
     "h = Σ q̇ᵢ ∂L/∂q̇ᵢ − L",
     "Σ q̇ᵢ ∂T/∂q̇ᵢ ≠ 2T",
     "R = L − Σ p<sub>c</sub> q̇<sub>c</sub>",
@@ -54,6 +56,8 @@ FORMULAS = (
     "d²S/dε²",
     "dS/dε",
     "−∂U/∂q",
+    "−∂L/∂t",
+    "dH/dt",
     "dV/dq = 0",
     "dU/dq = 0",
     "dU/dq",
@@ -77,7 +81,7 @@ _GREEK = {
     "λ": r"\lambda", "μ": r"\mu", "ν": r"\nu", "ξ": r"\xi", "π": r"\pi", "ρ": r"\rho",
     "σ": r"\sigma", "τ": r"\tau", "υ": r"\upsilon", "φ": r"\phi", "χ": r"\chi",
     "ψ": r"\psi", "ω": r"\omega", "Γ": r"\Gamma", "Δ": r"\Delta", "Θ": r"\Theta",
-    "Λ": r"\Lambda", "Ξ": r"\Xi", "Π": r"\Pi", "Σ": r"\sum", "Φ": r"\Phi", "Ψ": r"\Psi",
+    "Λ": r"\Lambda", "Ξ": r"\Xi", "Π": r"\Pi", "Σ": r"\Sigma", "Φ": r"\Phi", "Ψ": r"\Psi",
     "Ω": r"\Omega", "∂": r"\partial", "≤": r"\leq", "≥": r"\geq", "≠": r"\neq",
     "→": r"\to", "−": "-", "·": r"\cdot", "×": r"\times", "≈": r"\approx", "∞": r"\infty",
 }  # fmt: skip
@@ -581,3 +585,53 @@ def math_title(plot):
         plot.math_title = title
         plot.setTitle = title.set
     return plot
+
+
+class MathLabelItem(pg.LabelItem):
+    """A pyqtgraph label (a legend's entry) whose formulas are set in type; ``text``
+    stays the text as written, so restyling it (presentation mode) sets it again."""
+
+    def __init__(self, text: str = " ", parent=None, angle: int = 0, **args):
+        self.source = text
+        super().__init__(text, parent, angle, **args)
+        store().ready.connect(self._on_store_ready)
+
+    def setText(self, text, **args) -> None:  # noqa: N802 - pyqtgraph's name
+        self.source = text
+        self.opts.update(args)
+        font = QFont()
+        size = str(self.opts.get("size") or "")
+        if size.endswith("pt"):
+            font.setPointSizeF(float(size[:-2]))
+        colour = QColor(self.opts.get("color") or pg.getConfigOption("foreground"))
+        shown, _ = typeset_html(str(text), font, colour)
+        super().setText(shown, **args)
+        self.text = text
+
+    def _on_store_ready(self) -> None:
+        try:
+            self.setText(self.source)
+        except RuntimeError:  # the item is gone
+            pass
+
+
+class MathLegend(pg.LegendItem):
+    """A legend whose entries' formulas are set in type (``MathLabelItem``)."""
+
+    def addItem(self, item, name) -> None:  # noqa: N802 - pyqtgraph's name
+        label = MathLabelItem(
+            name, color=self.opts["labelTextColor"], justify="left", size=self.opts["labelTextSize"]
+        )
+        sample = item if isinstance(item, self.sampleType) else self.sampleType(item)
+        sample.sigClicked.connect(self.sigSampleClicked)
+        self.items.append((sample, label))
+        self._addItemToLayout(sample, label)
+        self.updateSize()
+
+
+def math_legend(plot, **options) -> MathLegend:
+    """``plot.addLegend(**options)`` with a ``MathLegend``."""
+    if plot.legend is None:
+        plot.legend = MathLegend(**options)
+        plot.legend.setParentItem(plot.vb)
+    return plot.legend

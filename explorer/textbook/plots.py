@@ -85,7 +85,10 @@ def make_plot(title: str, bottom: str, left: str, corner: str = "top-right") -> 
     plot.setTitle(title, color="#222", size="10pt")
     plot.setLabel("bottom", bottom)
     plot.setLabel("left", left)
-    plot.addLegend(
+    from explorer.inline_math import math_legend
+
+    math_legend(  # its entries' formulas set in type
+        plot,
         offset=CORNERS[corner],
         labelTextColor="#222",
         brush=pg.mkBrush(255, 255, 255, 190),

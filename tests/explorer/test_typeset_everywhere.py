@@ -140,6 +140,7 @@ def test_textbook_notes_titles_and_table_cells_set_their_formulas(qtbot):
     assert isinstance(note, MathLabel)
     plot = make_plot("dH/dt = −∂L/∂t + Σ q̇ᵢ Qᵢ along the motion", "t", "rate")
     qtbot.addWidget(plot)
+    plot.plot([0, 1], [0, 1], name="dH/dt = −∂L/∂t (the formula)")
     from PySide6.QtWidgets import QTableWidget, QTableWidgetItem
 
     table = QTableWidget(1, 1)
@@ -153,6 +154,9 @@ def test_textbook_notes_titles_and_table_cells_set_their_formulas(qtbot):
     title = plot.getPlotItem().titleLabel
     assert "data:image/png" in title.item.toHtml()
     assert plot.getPlotItem().math_title.text.startswith("dH/dt")
+    (_, entry), *_ = plot.getPlotItem().legend.items
+    assert "data:image/png" in entry.item.toHtml()
+    assert entry.text == "dH/dt = −∂L/∂t (the formula)"  # as written, for restyling
     from PySide6.QtWidgets import QStyleOptionViewItem
 
     option = QStyleOptionViewItem()
