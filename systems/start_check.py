@@ -25,8 +25,8 @@ def check_start(compiled, y0: np.ndarray | None = None, t0: float = 0.0) -> np.n
 
     Checks, at the initial state and the current parameter values: the initial state can
     be formed and is finite; the mass matrix d2L/dqdot2 is regular (and positive definite
-    where the scene gives T, which must be); H and Hamilton's equations are finite and
-    real.
+    where the scene gives T, which must be); the velocities qdot(q, p) give the momenta
+    back (``_round_trip``); H and Hamilton's equations are finite and real.
 
     Raises
     ------
@@ -63,6 +63,9 @@ def check_start(compiled, y0: np.ndarray | None = None, t0: float = 0.0) -> np.n
                 "the kinetic energy is not positive definite (mass matrix eigenvalues "
                 f"{_numbers(eigenvalues)}): a mass or moment of inertia is negative"
             )
+    problem = _round_trip(compiled, t0, y0)
+    if problem is not None:
+        raise fail(problem)
     for label, values in _equations(compiled, t0, y0):
         bad = [(name, v) for name, v in zip(label, values, strict=True) if not np.isfinite(v)]
         if bad:
@@ -125,6 +128,48 @@ def _mass_matrix(compiled, t0: float, y0: np.ndarray) -> np.ndarray | None:
     if np.any(np.abs(raw.imag) > 0):
         return None
     return raw.real
+
+
+def _round_trip(compiled, t0: float, y0: np.ndarray) -> str | None:
+    """Why p(q, qdot(q, p)) is not p at the start, or None.
+
+    The closed-form inverse of a square-root Lagrangian (``systems.legendre``) is formed
+    for the signs the parameters have in the scene (m c**2 > 0: H = c sqrt(c**2 m**2 +
+    p**2)); a parameter moved to the other sign afterwards (the window changes values
+    without deriving again) would run the dynamics of the other sign. Only a Lagrangian
+    that is not quadratic is checked (a quadratic one is inverted for any values); a
+    value that cannot be evaluated is left to the checks of the equations.
+    """
+    mech = compiled.mechanics
+    if mech.lagrangian is None or mech.momenta is None or mech.matrix_form is not None:
+        return None
+    if not any(a.has(*mech.qdot) for row in mech.mass_matrix.tolist() for a in row):
+        return None  # L quadratic in the velocities: M q̇ + a = p is solved exactly
+    n = compiled.n
+    q, p0 = y0[:n], y0[n:]
+    v = compiled._lambdified("velocities", (mech.t, mech.q, mech.p), mech.velocities)
+    # the start's momenta, and nudged ones: at rest (p = 0) any sign gives p back
+    for p in (p0, p0 + 1e-3 * (1.0 + np.abs(p0))):
+        try:
+            with np.errstate(all="ignore"):
+                qdot = np.array(v(t0, q, p), dtype=float).reshape(n)
+                back = compiled.momenta_from_velocities(t0, q, qdot)
+        except (ArithmeticError, ValueError, TypeError):
+            continue
+        if not (np.all(np.isfinite(qdot)) and np.all(np.isfinite(back))):
+            continue
+        scale = max(1.0, float(np.max(np.abs(p))))
+        if np.allclose(back, p, rtol=1e-8, atol=1e-12 * scale):
+            continue
+        values = dict(zip(compiled.parameter_names, compiled.parameters, strict=True))
+        signs = ", ".join(f"{name} = {value:g}" for name, value in values.items())
+        return (
+            "the velocities q̇(q, p) do not give the momenta back (p = ∂L/∂q̇ at them is "
+            f"{_numbers(back)}, not {_numbers(p)}): the Legendre transform was solved for "
+            f"the signs the parameters have in the scene, not for {signs}; change the "
+            "scene's values so that it is derived again"
+        )
+    return None
 
 
 def _equations(compiled, t0: float, y0: np.ndarray):

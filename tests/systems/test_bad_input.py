@@ -247,6 +247,22 @@ def test_a_regular_start_passes_and_gives_the_state():
     np.testing.assert_allclose(y0, [1.0, 1.0])
 
 
+@pytest.mark.parametrize("at_rest", [False, True])
+def test_a_parameter_moved_past_the_sign_a_square_root_transform_took_is_refused(at_rest):
+    """The relativistic oscillator's H = c sqrt(c**2 m**2 + p**2) + V is solved for m > 0
+    as the scene has it (``systems.legendre``); the window changes values without deriving
+    again, so m = -1 would have run the dynamics of m = 1 with p = m q̇/sqrt(...) of m = -1.
+    Refused, also from rest (p = 0, where any sign gives p back)."""
+    from systems.start_check import SingularStart, check_start
+
+    text = RELATIVISTIC.replace("y_dot = 0.3", "y_dot = 0.0") if at_rest else RELATIVISTIC
+    compiled = _compiled(text)
+    check_start(compiled)
+    check_start(compiled.with_parameters({"m": 2.0, "c": 3.0}))
+    with pytest.raises(SingularStart, match="do not give the momenta back"):
+        check_start(compiled.with_parameters({"m": -1.0}))
+
+
 def test_an_indefinite_but_regular_lagrangian_is_allowed():
     from systems.start_check import check_start
 
