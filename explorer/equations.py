@@ -235,8 +235,13 @@ class DerivationLayout:
                 if isinstance(part, Heading):
                     font = self.heading_font(part.level)
                     y += 0.6 * self.metrics(font).height() if index else 0.0
-                    h = self._text_height(font, part.title, inner)
-                    placed.append(Placed("heading", part, QRectF(m, y, inner, h), index))
+                    rich = self._rich_document(index, part.title, inner, font)
+                    if rich is not None:  # a heading with formulas: "p = dL/dq̇"
+                        h = rich.size().height()
+                        placed.append(Placed("rich", rich, QRectF(m, y, inner, h), index))
+                    else:
+                        h = self._text_height(font, part.title, inner)
+                        placed.append(Placed("heading", part, QRectF(m, y, inner, h), index))
                     y += h + 0.25 * self.metrics(font).height()
                 elif isinstance(part, Sentence):
                     rich = self._rich_document(index, part.text, inner)
@@ -332,13 +337,14 @@ class DerivationLayout:
         rect = self.metrics(font).boundingRect(QRectF(0, 0, width, 1e6), flags, text)
         return rect.height()
 
-    def _document(self, html: str, width: float) -> QTextDocument:
-        """Rich text in the layout's font and text colour; on screen its formulas set in
-        type (``explorer.inline_math``; the spans found are its ``spans``)."""
+    def _document(self, html: str, width: float, font: QFont | None = None) -> QTextDocument:
+        """Rich text in the layout's font (or ``font``) and text colour; on screen its
+        formulas set in type (``explorer.inline_math``; the spans found are its ``spans``)."""
+        font = self.font if font is None else font
         document = QTextDocument()
         if self.device is not None:
             document.documentLayout().setPaintDevice(self.device)
-        document.setDefaultFont(self.font)
+        document.setDefaultFont(font)
         document.setDocumentMargin(0)
         colour = self.palette.color(QPalette.ColorRole.Text)
         document.setDefaultStyleSheet(f"body {{ color: {colour.name()}; }}")
@@ -346,7 +352,7 @@ class DerivationLayout:
         if self.device is None:
             from explorer.inline_math import typeset_html
 
-            html, spans = typeset_html(html, self.font, colour, self.ratio, width)
+            html, spans = typeset_html(html, font, colour, self.ratio, width)
         document.spans = spans
         document.setHtml(html)
         document.setTextWidth(max(width, 40.0))
@@ -360,8 +366,11 @@ class DerivationLayout:
         document.setTextWidth(max(width, 40.0))
         return document
 
-    def _rich_document(self, index: int, text: str, width: float) -> QTextDocument | None:
-        """A sentence with formulas as rich text (None for one without, or off screen)."""
+    def _rich_document(
+        self, index: int, text: str, width: float, font: QFont | None = None
+    ) -> QTextDocument | None:
+        """A sentence or heading with formulas as rich text (None for one without, or off
+        screen)."""
         if self.device is not None:
             return None
         document = self._rich.get(index)
@@ -371,7 +380,7 @@ class DerivationLayout:
             escaped = html.escape(text)
             if not formula_spans(escaped):
                 return None
-            document = self._document(escaped, width)
+            document = self._document(escaped, width, font)
             self._rich[index] = document
         document.setTextWidth(max(width, 40.0))
         return document

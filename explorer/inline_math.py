@@ -34,6 +34,15 @@ INLINE_SCALE = 1.15
 """A formula's em within a sentence, as a multiple of the font's pixel height × 0.82."""
 
 FORMULAS = (
+    "v = dr/dt = (∂r/∂q)·q̇ + ∂r/∂t",
+    "T = Σ m |v|²/2 = T₂ + T₁ + T₀",
+    "p = ∂L/∂q̇ = M q̇ + a",
+    "p = dL/dq̇",
+    "M q̇ = p − a",
+    "M q̈ = F",
+    "r = r(q, t)",
+    "g(q, t) ≥ 0",
+    "−Aᵀ λ",
     "det(−ω² M + iω G + K) = 0",
     "dH/dt = −∂L/∂t + Σ q̇ᵢ Qᵢ",
     "−∂L/∂t + Σ q̇ᵢ Qᵢ",

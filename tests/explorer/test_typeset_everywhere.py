@@ -120,6 +120,10 @@ def test_the_derivation_s_card_and_sentences_hold_copyable_formulas(qtbot, deriv
     wait_for_type(qtbot)
     rich = [p for p in view.layout_.placed if p.kind == "rich"]
     assert rich  # the classification's sentences: "H = T + V, the mechanical energy"
+    from systems.typeset import Heading
+
+    parts = view.typeset.parts
+    assert any(isinstance(parts[p.index], Heading) for p in rich)  # "p = dL/dq̇"
     card = next(p for p in view.layout_.placed if p.kind == "card")
     assert card.part.spans and "data:image/png" in card.part.toHtml()
     # the formula under the mouse is found for the context menu's Copy as LaTeX
