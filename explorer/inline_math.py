@@ -226,6 +226,7 @@ class MathStore(QObject):
         self._asked: set[str] = set()
         self._batch: list[str] = []
         self.jobs: list[processes.Job] = []
+        self._batches: dict[int, tuple[str, ...]] = {}
         self._finished.connect(self._on_finished, Qt.ConnectionType.QueuedConnection)
 
     def outline(self, latex: str):
@@ -260,14 +261,18 @@ class MathStore(QObject):
                 what="setting formulas in type",
                 on_done=self._finished.emit,
             )
-        except Exception:  # noqa: BLE001 - no worker: the formulas stay text
+        except Exception:  # noqa: BLE001 - no worker: the formulas stay text for now
+            self._asked.difference_update(batch)
             return
         self.jobs = [j for j in self.jobs if not j.done()] + [job]
+        self._batches[id(job)] = batch
 
     def _on_finished(self, job) -> None:
+        batch = self._batches.pop(id(job), ())
         try:
             found = job.result(0)
-        except Exception:  # noqa: BLE001 - refused or cancelled: the text stays
+        except Exception:  # noqa: BLE001 - cancelled (a window closed) or failed
+            self._asked.difference_update(batch)  # asked again when next shown
             return
         self.outlines.update({k: v for k, v in found.items() if v is not None})
         self.ready.emit()

@@ -77,6 +77,28 @@ def test_long_equations_break_within_the_dock_never_past_it(qtbot, derivations, 
         assert sum(p.scale == 1.0 for p in formulas) >= 0.6 * len(formulas)
 
 
+def test_formulas_whose_worker_was_ended_are_set_when_next_asked(qtbot):
+    """A window closing ends every worker (``processes.cancel_all``): the formulas it was
+    setting are asked for again by the next label that shows them."""
+    from explorer.inline_math import MathStore
+
+    store = MathStore()
+    latex = r"\alpha_{7} = \beta"
+    # a batch of seconds of work, so that the worker is ended before it answers
+    many = [
+        " + ".join(rf"\frac{{x_{{{i}}}^{{{k}}}}}{{y_{{{k}}}}}" for k in range(12))
+        for i in range(300)
+    ]
+    for text in [latex, *many]:
+        assert store.outline(text) is None
+    qtbot.waitUntil(lambda: bool(store.jobs), timeout=5000)
+    store.cancel()
+    qtbot.waitUntil(lambda: latex not in store._asked, timeout=10000)
+    with qtbot.waitSignal(store.ready, timeout=60000):
+        assert store.outline(latex) is None
+    assert store.outline(latex) is not None
+
+
 def test_a_classification_card_s_formulas_are_set_and_copied_as_latex(qtbot):
     from PySide6.QtWidgets import QApplication
 
