@@ -65,7 +65,7 @@ from explorer.editor.particles_section import ParticlesSection
 from explorer.editor.scroll_anchor import ScrollAnchor
 from explorer.editor.symmetries_section import SymmetriesSection
 from explorer.inline_math import MathLabel
-from explorer.labels import coordinate_label
+from explorer.labels import coordinate_label, momentum_label
 from systems.typeset import Typeset
 
 DEBOUNCE_MS = 400
@@ -1313,8 +1313,15 @@ def classification_html(mechanics, method: str, reason: str) -> str:
     ]
     cyclic = ", ".join(coordinate_label(q) for q in mechanics.cyclic) or "none"
     rows.append(f"cyclic coordinates: {html.escape(cyclic)}")
-    conserved = ", ".join(mechanics.conserved) or "none"
-    rows.append(f"conserved: {html.escape(conserved)}")
+    coordinates = set(scene.coordinates)
+
+    def quantity(name: str) -> str:  # p_phi as p<sub>φ</sub>, set in type on the card
+        if name.startswith("p_") and name[2:] in coordinates:
+            return momentum_label(name[2:])
+        return html.escape(name)
+
+    conserved = ", ".join(quantity(name) for name in mechanics.conserved) or "none"
+    rows.append(f"conserved: {conserved}")
     if method:
         rows.append(f"integrator: <b>{html.escape(method)}</b> — {html.escape(reason)}")
     title = html.escape(scene.title)

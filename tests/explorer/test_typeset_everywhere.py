@@ -128,6 +128,15 @@ def test_a_classification_card_s_formulas_are_set_and_copied_as_latex(qtbot):
     assert QApplication.clipboard().text() == "H = T + V"
 
 
+def test_the_card_names_conserved_momenta_as_momenta_set_in_type():
+    from explorer.editor.editor_panel import classification_html
+    from explorer.inline_math import formula_spans
+
+    card = classification_html(derive(load_scene("spherical_pendulum")), "", "")
+    assert "conserved: H, p<sub>φ</sub>" in card and "p_phi" not in card
+    assert r"p_{\phi}" in [span.latex for span in formula_spans(card)]
+
+
 def test_the_derivation_s_card_and_sentences_hold_copyable_formulas(qtbot, derivations):
     from PySide6.QtCore import QPointF
 
