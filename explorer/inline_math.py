@@ -132,10 +132,11 @@ def latex_of(text: str) -> str:
             command = _GREEK[char]
             following = text[i + 1 : i + 2]
             out.append(command + (" " if command[-1].isalpha() and following.isalpha() else ""))
-        elif text.startswith("det(", i) or text.startswith("tr ", i):
-            word = "det" if text.startswith("det(", i) else "tr"
-            out.append(r"\mathrm{" + word + "}" + (r"\," if word == "tr" else ""))
-            i += len(word) + (1 if word == "tr" else 0)
+        elif text.startswith(("det(", "det ", "tr "), i):
+            word = "det" if text.startswith("det", i) else "tr"
+            spaced = text[i + len(word)] == " "
+            out.append(r"\mathrm{" + word + "}" + (r"\," if spaced else ""))
+            i += len(word) + spaced
             continue
         elif char == " ":
             # mathtext drops spaces: a product (``K v``) keeps a thin one
@@ -156,8 +157,8 @@ MARKED = re.compile(r'<span class="math">(.*?)</span>', re.DOTALL)
 """A formula marked as such by the code that writes the sentence (``marked``)."""
 _PATTERN = re.compile(
     "|".join(re.escape(f) for f in sorted(FORMULAS, key=len, reverse=True))
-    + rf"|(?<![\w<>/]){_NAME}<sub>[^<]{{1,6}}</sub>(?: = {_NUMBER}(?![\w.]))?"
-    + rf"|(?<![\w.]){_NAME} = {_NUMBER}(?:, {_NUMBER})*(?![\w.])"
+    + rf"|(?<![\w<>/]){_NAME}<sub>[^<]{{1,6}}</sub>(?: = {_NUMBER}(?!\w|\.\d))?"
+    + rf"|(?<![\w.])(?:(?:tr|det) )?{_NAME} = {_NUMBER}(?:, {_NUMBER})*(?!\w|\.\d)"
 )
 _TAG = re.compile(r"<[^>]*>")
 

@@ -77,6 +77,33 @@ def test_long_equations_break_within_the_dock_never_past_it(qtbot, derivations, 
         assert sum(p.scale == 1.0 for p in formulas) >= 0.6 * len(formulas)
 
 
+@pytest.mark.parametrize(
+    "text, found",
+    [
+        ("Driven system: period T = 6.28319.", ["T = 6.28319"]),
+        (
+            "multipliers 1.77, 0.56; tr M = 2.3361; det M = 1 (Liouville)",
+            ["tr M = 2.3361", "det M = 1"],
+        ),
+        ("θ₁ = 0, θ₂ = 3.142: unstable (saddle)", ["θ₁ = 0", "θ₂ = 3.142"]),
+        ("at p<sub>θ</sub> = 1.225", ["p<sub>θ</sub> = 1.225"]),
+        (
+            "the Routhian R = L − Σ p<sub>c</sub> q̇<sub>c</sub>.",
+            ["R = L − Σ p<sub>c</sub> q̇<sub>c</sub>"],
+        ),
+        ("<a href='remove-view'>x = 1</a> and version 2.5.1", []),
+        ("Newton did not converge in 12 steps", []),
+    ],
+)
+def test_the_formulas_of_a_sentence_are_found_and_nothing_else(text, found):
+    from explorer.inline_math import formula_spans
+    from systems.typeset import outline
+
+    spans = formula_spans(text)
+    assert [span.text for span in spans] == found
+    assert all(outline(span.latex) is not None for span in spans)  # mathtext sets each
+
+
 def test_formulas_whose_worker_was_ended_are_set_when_next_asked(qtbot):
     """A window closing ends every worker (``processes.cancel_all``): the formulas it was
     setting are asked for again by the next label that shows them."""
