@@ -15,14 +15,12 @@ default 10 000 output times), in one process, best of ``REPEATS``:
 
 Target: ``wall_s`` within 1.5x of the integration time. Met while the double pendulum's
 default was gauss_legendre6 (14 310 steps: 1.07-1.23x). With the measured choice's
-dop853 at tol 1e-12 (1 794 steps, 3 ms) it is missed (about 4x, 12 ms): each of the
-10 000 rows costs a shortened DOP853 step (11 evaluations, 5.6 rows a step), and DOP853's
-dense output, 4 evaluations a step, was 100 times less accurate than the tolerance at
-its worst on this scene (1e-10 against a shortened step, scipy's the same), so it is not
-used (``kernels.dop853_sample``). The rows by the first step at or after each time
-(before exact times) took 9.6 ms. The drivers are warmed first in a
-child process (``warm_drivers``: about a minute on an empty cache, a second otherwise), as
-``python main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the
+dop853 at tol 1e-12 (1 794 steps, 2.7 ms) it is missed: about 4x (12 ms) while each of the
+10 000 rows cost a shortened DOP853 step (11 evaluations), 2.0x (5.4 ms) with DOP853's
+dense output (``kernels.dop853_sample``): three more stages and the dense coefficients
+for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms). The drivers are
+warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
+second otherwise), as ``python main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the
 cache. Timings on a shared machine vary: read the numbers, not only PASS.
 """
 

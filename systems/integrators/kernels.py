@@ -663,7 +663,7 @@ def _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol):
         sc = atol + rtol * max(abs(y[k]), abs(ynew[k]))
         a5 = 0.0
         a3 = 0.0
-        for j in range(K.shape[0]):
+        for j in range(E5.shape[0]):  # K has a row more (dop853_work)
             a5 += K[j, k] * E5[j]
             a3 += K[j, k] * E3[j]
         a5 /= sc
@@ -677,8 +677,9 @@ def _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol):
 
 def dop853_work(coef, m):
     S = coef[1].shape[0]
-    # K, ynew, ys, flags [K[0] valid, last step rejected]
-    return (np.empty((S + 1, m)), np.empty(m), np.empty(m), np.zeros(2))
+    # K (f at the start, the stages, f at the end; row S + 1: f at the start of the last
+    # accepted step, for the dense output), ynew, ys, flags [K[0] valid, last rejected]
+    return (np.empty((S + 2, m)), np.empty(m), np.empty(m), np.zeros(2))
 
 
 def dop853_step(fns, y, comp, clock, P, coef, work):
@@ -691,7 +692,7 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
     would otherwise be crossed in one step, and a drawing of the states would skip it.
     """
     rhs = fns[0]
-    A, B, C, E3, E5, rtol, atol, hmax = coef
+    A, B, C, E3, E5, _, _, _, rtol, atol, hmax = coef
     K, ynew, ys, flags = work
     t = clock[CLOCK_T]
     evals = 0
@@ -727,6 +728,7 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
         factor = min(1.0, factor)
     for k in range(m):
         y[k] = ynew[k]
+        K[S + 1, k] = K[0, k]
         K[0, k] = K[S, k]
     clock[CLOCK_T] = t_end if last else t + h
     clock[CLOCK_H] = min(h * factor, hmax)
@@ -735,32 +737,70 @@ def dop853_step(fns, y, comp, clock, P, coef, work):
 
 
 def dop853_sample_work(coef, m):
+    AX = coef[5]
+    # the extended stages, the interpolant's coefficients (7, m), a stage's state
+    return (np.empty((AX.shape[1], m)), np.empty((7, m)), np.empty(m))
+
+
+def _dop853_dense(rhs, prev, state, P, coef, K, swork):
+    """The dense output's coefficients ``F`` (7, m) of the last step from ``prev`` to
+    ``state``: its three extra stages, then ``F`` (scipy's ``_dense_output_impl``)."""
+    AX, CX, D = coef[5], coef[6], coef[7]
+    Kx, F, ys = swork
+    yprev, _, kprev = prev
+    ynew = state[0]
+    t0 = kprev[CLOCK_T]
+    h = state[2][CLOCK_T] - t0
+    m = yprev.shape[0]
     S = coef[1].shape[0]
-    return (np.empty((S, m)), np.empty(m))
+    for k in range(m):
+        Kx[0, k] = K[S + 1, k]
+        for j in range(1, S + 1):
+            Kx[j, k] = K[j, k]
+    for e in range(AX.shape[0]):
+        stage = S + 1 + e
+        for k in range(m):
+            acc = 0.0
+            for j in range(stage):
+                acc += AX[e, j] * Kx[j, k]
+            ys[k] = yprev[k] + h * acc
+        rhs(t0 + CX[e] * h, ys, P, Kx[stage])
+    for k in range(m):
+        delta = ynew[k] - yprev[k]
+        F[0, k] = delta
+        F[1, k] = h * Kx[0, k] - delta
+        F[2, k] = 2.0 * delta - h * (Kx[S, k] + Kx[0, k])
+        for r in range(D.shape[0]):
+            acc = 0.0
+            for j in range(Kx.shape[0]):
+                acc += D[r, j] * Kx[j, k]
+            F[3 + r, k] = h * acc
+    return AX.shape[0]
 
 
 def dop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
-    """The state at ``s``: a DOP853 step of length ``s - t`` from the start of the last
-    step (f there computed once per step). The error control accepted the longer step, so
-    the sample is as accurate as the steps; DOP853's 7th-order dense output is cheaper
-    but was up to 16 times less accurate than the steps around it (an oscillator at
-    tol 1e-8), so it is not used."""
-    rhs = fns[0]
-    A, B, C = coef[0], coef[1], coef[2]
-    K, Yst = swork
-    yprev, _, kprev = prev
-    t0 = kprev[CLOCK_T]
-    m = yprev.shape[0]
-    S = B.shape[0]
-    evals = S - 1
+    """The state at ``s`` from DOP853's dense output of the last step (Hairer's 7th-order
+    interpolant, scipy's ``Dop853DenseOutput``): once per step, three more stages and the
+    coefficients ``F`` (``_dop853_dense``), then each sample a polynomial in (s - t) / h.
+    Its error is of the order of the tolerance, one order below the steps' (see
+    docs/internals.md)."""
+    evals = 0
     if first:
-        rhs(t0, yprev, P, K[0])
-        evals += 1
-    h = s - t0
-    _rk_stages(rhs, t0, yprev, P, h, (A, C), (K, Yst), (1, S))
-    ys = scratch[0]
-    for k in range(m):
-        ys[k] = yprev[k] + h * _rk_sum(K, B, k)
+        evals = _dop853_dense(fns[0], prev, state, P, coef, work[0], swork)
+    F = swork[1]
+    yprev = prev[0]
+    t0 = prev[2][CLOCK_T]
+    x = (s - t0) / (state[2][CLOCK_T] - t0)
+    out = scratch[0]
+    for k in range(yprev.shape[0]):
+        v = 0.0
+        for i in range(7):
+            v += F[6 - i, k]
+            if i % 2 == 0:
+                v *= x
+            else:
+                v *= 1.0 - x
+        out[k] = yprev[k] + v
     return STATUS_RUNNING, evals
 
 

@@ -337,7 +337,7 @@ def _constrained_rk4_coef(stepper, compiled, t0, y0, compensated):
     return (A, b, c, False, sizes(compiled.mechanics))
 
 
-def _dop853_coef(stepper, compiled, t0, y0, compensated):
+def _dop853_tableau() -> tuple:
     dc = dop853_coefficients()
     return (
         np.ascontiguousarray(dc.A[:12, :12]),
@@ -348,11 +348,24 @@ def _dop853_coef(stepper, compiled, t0, y0, compensated):
     )
 
 
+def _dop853_coef(stepper, compiled, t0, y0, compensated):
+    """The tableau, then the dense output's three extra stages (A_EXTRA (3, 16),
+    C_EXTRA (3,)) and its matrix D (4, 16)."""
+    dc = dop853_coefficients()
+    n = dc.N_STAGES + 1
+    return (
+        *_dop853_tableau(),
+        np.ascontiguousarray(dc.A[n:]),
+        np.ascontiguousarray(dc.C[n:]),
+        np.ascontiguousarray(dc.D),
+    )
+
+
 def _constrained_dop853_coef(stepper, compiled, t0, y0, compensated):
-    """DOP853's, and ``constraints.sizes``."""
+    """DOP853's tableau, and ``constraints.sizes``."""
     from systems.constraints import sizes
 
-    return (*_dop853_coef(stepper, compiled, t0, y0, compensated), sizes(compiled.mechanics))
+    return (*_dop853_tableau(), sizes(compiled.mechanics))
 
 
 def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
