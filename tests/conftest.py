@@ -75,23 +75,12 @@ def _seed_drivers_from_installation() -> None:
     does not verify is rebuilt like any damaged cache entry."""
     from pathlib import Path
 
-    from systems.codegen import _driver_key
+    from systems.integrators.warmup import copy_drivers
 
-    installed = Path.home() / ".cache" / "phase-explorer" / "kernels"
-    name = f"pe_drivers_{_driver_key()}"
-    if Path(_SHARED_CACHE).resolve() == installed.parent.resolve():
+    installed = Path.home() / ".cache" / "phase-explorer"
+    if Path(_SHARED_CACHE).resolve() == installed.resolve():
         return  # the caller pointed the tests at the user's cache itself
-    if not (installed / f"{name}.py").is_file():
-        return
-    target = Path(_SHARED_CACHE) / "kernels"
-    (target / "__pycache__").mkdir(parents=True, exist_ok=True)
-    try:
-        shutil.copy2(installed / f"{name}.py", target / f"{name}.py")
-        for entry in (installed / "__pycache__").glob(f"{name}.*"):
-            if entry.is_file() and not entry.is_symlink():
-                shutil.copy2(entry, target / "__pycache__" / entry.name)
-    except OSError:
-        return  # compiled afresh instead
+    copy_drivers(installed, Path(_SHARED_CACHE))
 
 
 SLOW_FIRST = (

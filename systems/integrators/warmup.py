@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -105,8 +106,36 @@ def warm_drivers(progress=None) -> float:
     return time.perf_counter() - start
 
 
+def copy_drivers(source: Path, target: Path) -> bool:
+    """Copy the drivers' module of this source and numba's cache files of it from the
+    cache directory ``source`` into the cache directory ``target`` (both roots as
+    ``PHASE_EXPLORER_CACHE`` names them); nothing else (no scene's derivation or
+    functions), so that ``target`` is a cold cache for scenes on an installation whose
+    drivers are compiled. False where ``source`` has no such drivers or a copy fails
+    (``target`` then compiles them afresh)."""
+    import shutil
+
+    from systems.codegen import _driver_key
+
+    name = f"pe_drivers_{_driver_key()}"
+    installed, kernels = Path(source) / "kernels", Path(target) / "kernels"
+    if not (installed / f"{name}.py").is_file():
+        return False
+    try:
+        (kernels / "__pycache__").mkdir(parents=True, exist_ok=True)
+        shutil.copy2(installed / f"{name}.py", kernels / f"{name}.py")
+        for entry in (installed / "__pycache__").glob(f"{name}.*"):
+            if entry.is_file() and not entry.is_symlink():
+                shutil.copy2(entry, kernels / "__pycache__" / entry.name)
+    except OSError:
+        return False
+    return True
+
+
 def warm_numba() -> None:
-    """Initialise numba's CPU target by compiling a trivial array function (no cache)."""
+    """Initialise numba's CPU target by compiling a trivial array function (no cache),
+    then import the drivers' module and load the loops every scene calls whatever its
+    method (``preload_drivers``)."""
     if _warm.is_set():
         return
     from numba import njit
@@ -119,7 +148,32 @@ def warm_numba() -> None:
         return s
 
     _touch(np.zeros(2))
+    preload_drivers()
     _warm.set()
+
+
+def preload_drivers() -> None:
+    """Import the drivers' module (``systems.codegen.driver_module``) and load from
+    numba's cache the loops that call a scene's functions one at a time or over rows
+    (``call4``: rhs; ``batch_scalar``: H; ``batch_vector``: the velocities and the
+    drawing), for the function types every scene's functions have. Once per process,
+    the same for every scene: 0.1 s that a scene opened first would otherwise pay.
+    The function values are placeholders at address 0, typed, never called."""
+    from numba.core import sigutils
+    from numba.core.typing import signature
+
+    from systems.codegen import SIGNATURES, driver_module, entry_point, function_value
+
+    def placeholder(name: str):
+        args, result = sigutils.normalize_signature(SIGNATURES[name])
+        return function_value(0, signature(result, *args), None)
+
+    drivers = driver_module()
+    v, P, rows = np.zeros(2), np.zeros(1), np.zeros((1, 2))
+    entry_point(drivers.call4, (placeholder("rhs"), 0.0, v, P, v))
+    entry_point(drivers.batch_scalar, (placeholder("hamiltonian"), v, rows, P, v))
+    entry_point(drivers.batch_vector, (placeholder("velocities"), v, rows, P, rows))
+    entry_point(drivers.batch_vector, (placeholder("drawing"), v, rows, P, np.zeros((1, 1, 2))))
 
 
 def numba_is_warm() -> bool:
