@@ -128,14 +128,23 @@ def default_step(
 
 
 AIMED_ORDERS = (6, 8)
-"""Orders whose default step is aimed at ``ENERGY_TARGET`` by pilot runs (``aimed_step``):
-the orders the automatic choice uses for conservative systems. Lower orders keep
-``STEPS_PER_PERIOD`` (they show what low orders do)."""
+"""Orders whose default step is aimed at ``ENERGY_TARGET`` by pilot runs (``aimed_step``)
+on a conservative system: the orders the automatic choice uses there. Lower orders keep
+``STEPS_PER_PERIOD`` (their energy plot shows what low orders do)."""
+STATE_AIMED_ORDERS = (4, 6, 8)
+"""Orders whose default step is aimed at the same target through the error of the state
+(Richardson's estimate from pilots at the step and half of it) where H is not conserved
+(damping, driving): nothing on screen shows their error there. Orders 1 and 2 would need
+10^4 to 10^6 steps a period; ``systems.run_check`` says plainly when they are off."""
 AIM = 0.1
-"""The energy error aimed at, as a fraction of ``ENERGY_TARGET`` (a margin for the part
-of the run the pilot does not cover)."""
+"""The error aimed at, as a fraction of ``ENERGY_TARGET`` (a margin for the part of the
+run the pilot does not cover)."""
 AIM_GROWTH = (0.25, 3.0)
 """The aimed step stays within these factors of ``STEPS_PER_PERIOD``'s."""
+STATE_AIM_GROWTH = (1.0 / 16.0, 3.0)
+"""The same where the state's error is aimed at: RK4 and Gauss-Legendre 4 at 300 steps a
+period end 4.7e-9 and 7.9e-10 from a damped oscillator's exact state at t = 10 and need
+a fifth and a third of that step; a lower order or a larger error hits the bound."""
 AIM_PILOT_STEPS = 8000
 """Steps of a pilot run at most (the whole run when it is shorter)."""
 
@@ -143,25 +152,32 @@ _aimed: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def aimed_step(compiled, stepper, t0: float, y0: np.ndarray, t_end: float, dt: float) -> float:
-    """``dt`` scaled so that the run's relative energy error lands near ``AIM *
-    ENERGY_TARGET`` instead of far below it (or above it).
+    """``dt`` scaled so that the run's error lands near ``AIM * ENERGY_TARGET`` instead of
+    far below it (or above it).
 
-    For a conservative system and a fixed-step method of an order in ``AIMED_ORDERS``: a
-    pilot run of the method itself at ``dt`` (``AIM_PILOT_STEPS`` steps at most, over
-    the run or the scene's ``[view] t_end`` for an endless one) measures the energy
-    error e; the step is scaled by (AIM * ENERGY_TARGET / e)^(1 / order), within
-    ``AIM_GROWTH``, and a second pilot at the new step must keep the error within
-    ``ENERGY_TARGET`` (else the step shrinks by 1.5 at most twice more, and otherwise
-    stays ``dt``). Counted in errors, never timed: the same system and start always get
-    the same step. Remembered per compiled system, start and method.
+    For a fixed-step method: on a conservative system (orders ``AIMED_ORDERS``) the error
+    is the largest relative energy error of a pilot run of the method itself at ``dt``
+    (``AIM_PILOT_STEPS`` steps at most, over the run or the scene's ``[view] t_end`` for
+    an endless one); where H is not conserved (orders ``STATE_AIMED_ORDERS``) it is the
+    final state's error relative to its size (at least 1), by Richardson's estimate from
+    a second pilot at half the step. The step is scaled by (AIM * ENERGY_TARGET /
+    e)^(1 / order), within ``AIM_GROWTH`` (``STATE_AIM_GROWTH``), and a pilot at the new
+    step must keep the error within ``ENERGY_TARGET`` (else the step shrinks by 1.5 at
+    most twice more, and otherwise stays ``dt``: chaotic motion, whose error no
+    affordable step bounds). Counted in errors, never timed: the same system and start
+    always get the same step. Remembered per compiled system, start and method.
     """
     order = stepper.order
-    if order not in AIMED_ORDERS or stepper.setting != "dt" or stepper.family.adaptive:
+    if stepper.setting != "dt" or stepper.family.adaptive:
         return dt
     c = compiled.mechanics.classification
-    if not (c.conservative and c.hamiltonian_conserved):
-        return dt
-    if "hamiltonian" not in getattr(compiled, "wanted", ()):
+    if c.conservative and c.hamiltonian_conserved:
+        if order not in AIMED_ORDERS or "hamiltonian" not in getattr(compiled, "wanted", ()):
+            return dt
+        error, growth = _pilot_error, AIM_GROWTH
+    elif order in STATE_AIMED_ORDERS:
+        error, growth = _state_error, STATE_AIM_GROWTH
+    else:
         return dt
     horizon = t_end - t0
     if not math.isfinite(horizon) or horizon <= 0.0:
@@ -175,7 +191,7 @@ def aimed_step(compiled, stepper, t0: float, y0: np.ndarray, t_end: float, dt: f
             memory = {}
         if key in memory:
             return memory[key]
-    aimed = _aim(compiled, stepper, t0, y0, horizon, dt)
+    aimed = _aim(lambda step: error(compiled, stepper, t0, y0, horizon, step), order, dt, growth)
     with _probed_lock:
         if len(memory) >= PROBE_MEMORY:
             memory.pop(next(iter(memory)))
@@ -183,19 +199,19 @@ def aimed_step(compiled, stepper, t0: float, y0: np.ndarray, t_end: float, dt: f
     return aimed
 
 
-def _aim(compiled, stepper, t0, y0, horizon, dt) -> float:
-    error = _pilot_error(compiled, stepper, t0, y0, horizon, dt)
+def _aim(error_at, order: int, dt: float, growth: tuple[float, float]) -> float:
+    error = error_at(dt)
     if error is None:
         return dt
-    low, high = AIM_GROWTH
+    low, high = growth
     target = AIM * ENERGY_TARGET
-    factor = high if error <= 0.0 else (target / error) ** (1.0 / stepper.order)
+    factor = high if error <= 0.0 else (target / error) ** (1.0 / order)
     factor = min(max(factor, low), high)
     if abs(factor - 1.0) < 0.05:
         return dt
     for _ in range(3):
         trial = dt * factor
-        error = _pilot_error(compiled, stepper, t0, y0, horizon, trial)
+        error = error_at(trial)
         if error is not None and error <= ENERGY_TARGET:
             return trial
         factor /= 1.5
@@ -210,6 +226,36 @@ def _pilot_error(compiled, stepper, t0, y0, horizon, dt) -> float | None:
     end = t0 + min(horizon, AIM_PILOT_STEPS * dt)
     outcome = pilot_run(compiled, stepper.name, t0, y0, end, AIM_PILOT_STEPS, dt=dt)
     return None if outcome is None else outcome[0]
+
+
+def _state_error(compiled, stepper, t0, y0, horizon, dt) -> float | None:
+    """Richardson's estimate of the error of the state a run of ``stepper`` at ``dt``
+    reaches over ``horizon`` (``AIM_PILOT_STEPS`` steps at most), relative to the
+    state's size (at least 1), from a run at ``dt / 2``; None where a run fails."""
+    from systems.simulation import Run
+
+    end = t0 + min(horizon, AIM_PILOT_STEPS * dt)
+    finals = []
+    for step, steps in ((dt, AIM_PILOT_STEPS), (dt / 2, 2 * AIM_PILOT_STEPS)):
+        try:
+            run = Run(
+                compiled, method=stepper.name, y0=y0, t0=t0, t_end=end, dt=step,
+                max_points=2, energy_tolerance=None, max_steps=steps + 2,
+            )  # fmt: skip
+        except (ValueError, ArithmeticError):
+            return None
+        if run.runner is None:
+            return None
+        last = run.advance(math.inf)
+        while not run.finished and last.status in ("ok", "running"):
+            last = run.advance(math.inf)
+        if last.status != "ok" or not len(last.y) or not np.all(np.isfinite(last.y[-1])):
+            return None
+        finals.append(np.asarray(last.y[-1], dtype=float))
+    coarse, fine = finals
+    scale = max(1.0, float(np.max(np.abs(y0))), float(np.max(np.abs(coarse))))
+    p = stepper.order
+    return float(np.max(np.abs(coarse - fine))) * 2**p / (2**p - 1) / scale
 
 
 def pilot_run(

@@ -98,3 +98,58 @@ def test_the_default_step_is_aimed_at_the_target_not_far_below(name):
     assert aimed > plain
     error, _ = _energy_error_and_evaluations(compiled, method, t_end)
     assert error <= ENERGY_TARGET
+
+
+@pytest.mark.parametrize("method", ["rk4", "gauss_legendre4", "gauss_legendre6"])
+def test_a_damped_run_at_the_default_step_lands_near_the_target(method):
+    """Where H is not conserved, the default fixed step of an order-4 or higher method is
+    aimed at the state's error (Richardson from pilots): the damped oscillator ends
+    within 1e-10 of its exact state at t = 10, where RK4 and Gauss-Legendre 4 at 300
+    steps a period ended 4.7e-9 and 7.9e-10 from it, and Gauss-Legendre 6 (6e-15) now
+    takes three times longer steps."""
+    import math
+
+    from systems.scene import parse_scene
+    from tests.systems.scenes import DAMPED_OSCILLATOR  # m = k = 1, c = 0.2, x(0) = 1
+
+    compiled = compile_system(
+        derive(parse_scene(DAMPED_OSCILLATOR, source="<damped>")), ("rhs", "hamiltonian")
+    )
+    t_end = 10.0
+    gamma = 0.1
+    w = math.sqrt(1.0 - gamma**2)
+    x = math.exp(-gamma * t_end) * (math.cos(w * t_end) + gamma / w * math.sin(w * t_end))
+    stepper = get_stepper(method)
+    y0 = compiled.initial_state()
+
+    def error(dt: float) -> float:
+        _, last = run_to_end(compiled, method=method, t_end=t_end, dt=dt, energy_tolerance=None)
+        assert last.status == "ok", last.message
+        return abs(float(last.y[-1][0]) - x)
+
+    plain = default_step(compiled, stepper, 0.0, y0, t_end, aim=False)
+    aimed = default_step(compiled, stepper, 0.0, y0, t_end)
+    assert error(aimed) <= ENERGY_TARGET, (plain, aimed)
+    if method == "gauss_legendre6":
+        assert aimed > 2 * plain
+    else:
+        assert aimed < plain and error(plain) > ENERGY_TARGET
+
+
+def test_euler_on_a_damped_scene_keeps_its_step_and_the_check_says_it_is_off():
+    """Orders 1 and 2 are not aimed (10^4 to 10^6 steps a period): their default step
+    stays, and the final-state check (``systems.run_check``) flags the run."""
+    from systems.run_check import check_final_state
+    from systems.scene import parse_scene
+    from tests.systems.scenes import DAMPED_OSCILLATOR
+
+    compiled = compile_system(
+        derive(parse_scene(DAMPED_OSCILLATOR, source="<damped>")), ("rhs", "hamiltonian")
+    )
+    stepper = get_stepper("euler")
+    y0 = compiled.initial_state()
+    dt = default_step(compiled, stepper, 0.0, y0, 30.0)
+    assert dt == default_step(compiled, stepper, 0.0, y0, 30.0, aim=False)
+    _, last = run_to_end(compiled, method="euler", t_end=30.0, dt=dt, energy_tolerance=None)
+    check = check_final_state(compiled, "euler", "dt", dt, 0.0, y0, 30.0, last.y[-1])
+    assert not check.accurate and "too inaccurate" in check.message
