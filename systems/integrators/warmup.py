@@ -9,8 +9,9 @@ functions, so that afterwards no scene waits for a driver; ``python main.py warm
 ``make run`` call it, and the test session does once.
 
 The first compiled function a process loads pays a fixed start-up of about half a
-second (numba initialising its CPU target): ``warm_in_background`` pays it in a daemon
-thread while the window appears.
+second (numba initialising its CPU target), and the drivers' module its import (0.1 s):
+``warm_in_background`` pays both in a daemon thread while the window appears, so that
+a scene opened then only loads its own functions and its method's loop.
 """
 
 from __future__ import annotations
