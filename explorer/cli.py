@@ -22,7 +22,8 @@ import sys
 from contextlib import nullcontext
 
 COMMANDS = (
-    "list", "derive", "run", "bench", "methods", "periodic", "lyapunov", "open", "export", "warm",
+    "list", "derive", "run", "bench", "methods", "periodic", "lyapunov", "chaosmap",
+    "bifurcation", "open", "export", "warm",
 )  # fmt: skip
 
 

@@ -1,5 +1,7 @@
 """Poincaré sections of two-degree autonomous systems: q_j = c crossed with p_j > 0.
 
+Shared by the window (``explorer.poincare``) and the chaos maps (``systems.chaos.maps``).
+
 The crossings themselves come from the engine (``stream(..., section=...)`` locates them
 inside each step by cubic Hermite interpolation). A click on the section at energy E
 solves H(q, p) = E for the missing momentum p_j > 0; H of a natural system is quadratic
@@ -81,27 +83,47 @@ def forbidden(compiled, section: Section, energy: float, q_i, p_i) -> np.ndarray
 
 def state_on_section(compiled, section: Section, energy: float, q_i: float, p_i: float):
     """The state on the section at (q_i, p_i) with H = ``energy`` and p_j > 0, or None."""
-    a, b, c = (float(v[0]) for v in _quadratic_in_pj(compiled, section, q_i, p_i))
-    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
-        return None
-    disc = b * b - 4 * a * (c - energy)
-    if a <= 0 or disc < 0:
-        return None
-    p_j = (-b + np.sqrt(disc)) / (2 * a)
-    if p_j <= 0:
-        return None
+    y = states_on_section(compiled, section, energy, [q_i], [p_i])[0]
+    return None if np.isnan(y[0]) else y
+
+
+def states_on_section(compiled, section: Section, energy: float, q_i, p_i) -> np.ndarray:
+    """The states on the section at the points (q_i, p_i) with H = ``energy``, p_j > 0.
+
+    Parameters
+    ----------
+    q_i, p_i : array_like, shape (N,)
+
+    Returns
+    -------
+    ndarray, shape (N, 2n)
+        A row of NaN where no p_j > 0 reaches ``energy`` (or H is not finite there).
+    """
+    a, b, c = _quadratic_in_pj(compiled, section, q_i, p_i)
+    with np.errstate(all="ignore"):
+        disc = b * b - 4 * a * (c - energy)
+        p_j = (-b + np.sqrt(disc)) / (2 * a)
+    good = np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & (a > 0) & (disc >= 0) & (p_j > 0)
     n = compiled.n
-    y = np.zeros(2 * n)
-    y[section.shown], y[n + section.shown] = q_i, p_i
-    y[section.coordinate], y[n + section.coordinate] = section.value, p_j
+    Y = np.zeros((len(a), 2 * n))
+    Y[:, section.shown] = np.atleast_1d(np.asarray(q_i, dtype=float))
+    Y[:, n + section.shown] = np.atleast_1d(np.asarray(p_i, dtype=float))
+    Y[:, section.coordinate] = section.value
+    Y[:, n + section.coordinate] = np.where(good, p_j, 0.0)
+    Y = Y[good]
+    j = n + section.coordinate
     for _ in range(3):  # polish, in case H is not exactly quadratic in p_j
-        h = 1e-7 * max(1.0, abs(p_j))
-        plus, minus = y.copy(), y.copy()
-        plus[n + section.coordinate] += h
-        minus[n + section.coordinate] -= h
-        H = compiled.hamiltonian(0.0, np.array([y, plus, minus]))
-        slope = (H[1] - H[2]) / (2 * h)
-        if slope == 0 or not np.isfinite(slope):
+        if not len(Y):
             break
-        y[n + section.coordinate] -= (H[0] - energy) / slope
-    return y
+        h = 1e-7 * np.maximum(1.0, np.abs(Y[:, j]))
+        plus, minus = Y.copy(), Y.copy()
+        plus[:, j] += h
+        minus[:, j] -= h
+        with np.errstate(all="ignore"):
+            H = compiled.hamiltonian(0.0, np.concatenate([Y, plus, minus])).reshape(3, -1)
+            slope = (H[1] - H[2]) / (2 * h)
+            usable = (slope != 0) & np.isfinite(slope)
+            Y[usable, j] -= (H[0, usable] - energy) / slope[usable]
+    out = np.full((len(good), 2 * n), np.nan)
+    out[good] = Y
+    return out
