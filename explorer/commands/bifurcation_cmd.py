@@ -1,0 +1,194 @@
+"""``bifurcation SCENE --parameter NAME --range A:B:N --out FILE``: the orbit diagram of a
+periodically driven system over one parameter (``systems.chaos.bifurcation``).
+
+For each of N values from A to B, the orbit from the scene's start (or ``--start``)
+runs the transient, then K periods of the drive; its state at the end of each is kept
+(the stroboscopic section) and plotted against the parameter. Exit status 1 when some
+orbits stopped early.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from explorer.commands.errors import UserError, user_errors
+
+SUFFIXES = (".png", ".npz")
+MAX_VALUES = 100_000
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "bifurcation",
+        help="the orbit (bifurcation) diagram of a driven system over one parameter",
+        description="An orbit diagram: for each value of a parameter, the orbit's state "
+        "once per period of the drive (the stroboscopic section) after a transient, "
+        "all values in one parallel compiled loop. The driven damped pendulum's "
+        "period-doubling route to chaos: --parameter A --range 1.0:1.1:400.",
+    )
+    parser.add_argument("scene", help="a catalogue name (see `list`) or a path to a .toml file")
+    parser.add_argument("--parameter", required=True, help="the parameter to scan, e.g. A")
+    parser.add_argument("--range", required=True, dest="span", help="A:B:N, N values from A to B")
+    parser.add_argument(
+        "--transient", type=float, default=None,
+        help="time left out before sampling, rounded up to whole periods (default 300 periods)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--samples", type=int, default=64, help="periods sampled per value (default 64)"
+    )
+    parser.add_argument(
+        "--method",
+        default=None,
+        help="a fixed-step method (default rk4 for a damped or forced scene)",
+    )
+    parser.add_argument(
+        "--steps-per-period", type=int, default=None,
+        help="fixed steps per period of the drive (default 200)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--start", default="",
+        help="the start of every orbit, e.g. theta=-1.5708,theta_dot=0 (default: the scene's)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--variable", default=None,
+        help="the state variable plotted (default: the first coordinate's momentum for an "
+        "angle, else the first coordinate)",
+    )  # fmt: skip
+    parser.add_argument("--out", required=True, help="FILE.png or FILE.npz")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def parse_span(text: str) -> np.ndarray:
+    """'1.0:1.1:400' -> 400 values from 1.0 to 1.1."""
+    parts = text.split(":")
+    try:
+        lo, hi, count = float(parts[0]), float(parts[1]), int(parts[2])
+        if len(parts) != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise UserError(
+            f"--range takes A:B:N (N values from A to B), e.g. 1.0:1.1:400, not {text!r}"
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not 1 <= count <= MAX_VALUES:
+        raise UserError(
+            f"--range needs finite ends and from 1 to {MAX_VALUES} values, not {text!r}"
+        )
+    if count > 1 and lo == hi:
+        raise UserError(f"--range: {count} values need two different ends")
+    return np.linspace(lo, hi, count)
+
+
+def run(args: argparse.Namespace) -> int:
+    from explorer.commands import stopping
+    from explorer.commands.chaosmap_cmd import checked_output
+    from explorer.commands.periodic_cmd import _start as parse_start
+    from systems.angles import angle_coordinates
+    from systems.chaos import bifurcation as bf
+    from systems.chaos.maps import default_map_method, state_names
+    from systems.compiled import compile_system
+    from systems.files import atomic_path
+    from systems.integrators import STEPPERS
+    from systems.mechanics import derive
+    from systems.scene import load_scene
+    from systems.start_check import check_start
+    from systems.textbook.periodic_orbits import start_state
+
+    suffix = checked_output(args.out, SUFFIXES)
+    values = parse_span(args.span)
+    start_values = parse_start(args.start)
+    start = time.perf_counter()
+    with user_errors():
+        scene = load_scene(args.scene)
+        mechanics = derive(scene)
+    method = args.method or default_map_method(mechanics)
+    wants = (STEPPERS[method].wants if method in STEPPERS else frozenset()) | {"hamiltonian"}
+    with user_errors():
+        compiled = compile_system(mechanics, wants)
+        try:
+            given = start_state(mechanics, start_values) if start_values else None
+        except ValueError as exc:
+            raise UserError(f"--start: {exc}") from None
+        y0 = check_start(compiled, given)
+    names = state_names(mechanics)
+    angles = [i for i, q in enumerate(scene.coordinates) if q in angle_coordinates(mechanics)]
+    variable = args.variable or (names[compiled.n] if 0 in angles else names[0])
+    if variable not in names:
+        raise UserError(f"--variable is one of {', '.join(names)}, not {variable!r}")
+    options = {} if args.steps_per_period is None else {"per_period": args.steps_per_period}
+    if args.steps_per_period is not None and not 4 <= args.steps_per_period <= 100_000:
+        raise UserError(f"--steps-per-period must be from 4 to 100000, not {args.steps_per_period}")
+    try:
+        kernel = bf.strobe_kernel(
+            compiled, args.parameter, transient=args.transient, samples=args.samples,
+            method=args.method, **options,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise UserError(f"{args.scene}: {exc}") from exc
+    if not args.json:
+        print(
+            f"{len(values)} orbits, {kernel.transient_periods} + {kernel.samples} periods "
+            f"each ({kernel.method}, {kernel.per_period} steps a period); Ctrl+C stops",
+            file=sys.stderr,
+            flush=True,
+        )
+    diagram = bf.orbit_diagram(kernel, values, y0=y0, cancelled=stopping.requested)
+    if not diagram.complete:
+        raise KeyboardInterrupt
+    index = names.index(variable)
+    wrap = index in angles
+    if suffix == ".npz":
+        with atomic_path(args.out) as temporary, open(temporary, "wb") as handle:
+            np.savez_compressed(
+                handle, values=values, samples=diagram.samples, periods_T=diagram.periods_T,
+                status=diagram.status, names=np.array(names), parameter=args.parameter,
+                transient_periods=kernel.transient_periods, y0=y0,
+            )  # fmt: skip
+    else:
+        from explorer.commands.chaos_plot import render_points
+
+        column = diagram.variable(variable, wrap=wrap)
+        x = np.repeat(values, column.shape[1])
+        y = column.ravel()
+        keep = np.isfinite(y)
+        render_points(
+            x[keep], y[keep], labels=(args.parameter, variable), path=args.out,
+            title=f"{scene.title}: {variable} once per period of the drive, over {args.parameter}",
+        )  # fmt: skip
+    found = bf.periods(diagram, angles=tuple(angles))
+    stopped = int((diagram.status > 0).sum())
+    report = {
+        "scene": scene.name or args.scene,
+        "parameter": args.parameter,
+        "range": [float(values[0]), float(values[-1]), len(values)],
+        "variable": variable,
+        "method": kernel.method,
+        "steps_per_period": kernel.per_period,
+        "transient_periods": kernel.transient_periods,
+        "samples": kernel.samples,
+        "drive_period": bf.drive_period(compiled),
+        "periods": [int(p) for p in found],
+        "stopped": stopped,
+        "wall_s": time.perf_counter() - start,
+        "out": args.out,
+    }
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        counts = {p: int((found == p).sum()) for p in sorted(set(found.tolist()))}
+        text = ", ".join(
+            f"{c} of period {p}" if p else f"{c} without a period" for p, c in counts.items()
+        )
+        print(
+            f"{scene.title}: orbit diagram over {args.parameter} in [{values[0]:g}, {values[-1]:g}]"
+        )
+        print(f"{text} (up to {kernel.samples // 2} periods of the drive); {diagram.wall_s:.1f} s")
+        if stopped:
+            print(f"{stopped} orbits stopped early (left out)")
+        print(f"wrote {args.out}")
+    return 1 if stopped else 0

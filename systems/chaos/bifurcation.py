@@ -1,0 +1,328 @@
+"""Stroboscopic sections and orbit (bifurcation) diagrams of periodically driven systems.
+
+When the explicit time dependence of a system is periodic (t only in sines and cosines
+of commensurate frequencies: ``systems.textbook.floquet.periodicity``), its Poincaré
+section is stroboscopic: the state once per period T of the drive, at t0 + k T.
+``drive_period(compiled)`` says whether and at which T.
+
+An orbit diagram scans one parameter: for each value, the orbit from the same start
+runs a transient of whole periods, then ``samples`` periods more, and the state at the
+end of each is kept. Every value is one row of one parallel compiled loop
+(``map_kernels.DRIVER_strobe_parallel``), with its own parameters and its own step,
+``per_period`` fixed steps per period of the drive at that value, so every sample falls
+on a step's end and nothing is interpolated. ``strobe_chunk`` is the unit of work (a
+chunk of parameter rows in, their samples out), each row independent of the others.
+
+``periods(diagram)`` counts the distinct samples of each row: 1, 2, 4, ... on the way
+to chaos by period doubling, 0 where none repeats within the samples (chaotic, or
+quasi-periodic, or not settled).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from systems.chaos.map_kernels import loop_module
+from systems.chaos.maps import default_map_method
+
+PER_PERIOD = 200
+"""Fixed steps per period of the drive (rk4: the driven damped pendulum's period-1
+orbit at A = 1.06 is then kept to about 1e-7 a period)."""
+DEFAULT_TRANSIENT_PERIODS = 300
+DEFAULT_SAMPLES = 64
+CHUNK = 64
+
+
+def drive_frequencies(mechanics) -> list | None:
+    """The angular frequencies (sympy, in the parameters) of the sines and cosines through
+    which alone t enters Hamilton's equations (effects included), or None when the
+    system is autonomous or t enters otherwise."""
+    from systems.textbook.floquet import NotPeriodic, time_harmonics
+
+    if not mechanics.classification.time_dependent:
+        return None
+    try:
+        omegas = time_harmonics(
+            list(mechanics.hamilton_equations), mechanics.t, list(mechanics.params.values())
+        )
+    except NotPeriodic:
+        return None
+    return omegas or None
+
+
+def period_at(mechanics, omegas: list, values: dict[str, float]) -> float | None:
+    """The common period of ``omegas`` at the parameter ``values`` (None: incommensurate
+    or all 0 there)."""
+    from systems.textbook.floquet import common_period
+
+    numbers = {mechanics.params[k]: float(v) for k, v in values.items() if k in mechanics.params}
+    return common_period([float(w.xreplace(numbers)) for w in omegas])
+
+
+def drive_period(compiled, parameters: dict[str, float] | None = None) -> float | None:
+    """The period of the drive of ``compiled`` at its parameters (updated by
+    ``parameters``), or None when the system is autonomous or its time dependence is not
+    periodic there: the period of its stroboscopic section."""
+    omegas = drive_frequencies(compiled.mechanics)
+    if omegas is None:
+        return None
+    values = dict(zip(compiled.parameter_names, map(float, compiled.parameters), strict=True))
+    values.update(parameters or {})
+    return period_at(compiled.mechanics, omegas, values)
+
+
+@dataclass(frozen=True)
+class OrbitDiagram:
+    """An orbit diagram.
+
+    Attributes
+    ----------
+    parameter : str
+    values : ndarray, shape (N,)
+        The parameter's values.
+    samples : ndarray, shape (N, K, 2n)
+        The state at the end of each of the K periods after the transient; NaN past
+        where a row stopped.
+    periods_T : ndarray, shape (N,)
+        The drive's period at each value.
+    status : ndarray of int, shape (N,)
+        0 every period reached, else the ``Status`` that stopped the row, -1 not computed
+        (cancelled).
+    """
+
+    parameter: str
+    values: np.ndarray
+    samples: np.ndarray
+    periods_T: np.ndarray
+    status: np.ndarray
+    names: tuple[str, ...]
+    method: str
+    per_period: int
+    transient_periods: int
+    t0: float
+    wall_s: float
+    complete: bool
+
+    def variable(self, name: str, wrap: bool = False) -> np.ndarray:
+        """(N, K) samples of the state variable ``name``; an angle ``wrap``ped to (-pi, pi]."""
+        column = self.samples[:, :, self.names.index(name)]
+        if wrap:
+            column = np.pi - np.mod(np.pi - column, 2 * np.pi)
+        return column
+
+
+@dataclass
+class StrobeKernel:
+    """The strobe loop of one compiled system and method (``strobe_kernel``)."""
+
+    compiled: object
+    method: str
+    parameter: int
+    per_period: int
+    transient_periods: int
+    samples: int
+    t0: float
+    omegas: list
+    loop: object
+    fns: tuple
+    coef: tuple
+    _entry: object = None
+
+
+def strobe_kernel(
+    compiled,
+    parameter: str,
+    *,
+    transient: float | None = None,
+    samples: int = DEFAULT_SAMPLES,
+    method: str | None = None,
+    per_period: int = PER_PERIOD,
+    t0: float = 0.0,
+) -> StrobeKernel:
+    """The strobe loop of ``compiled`` scanning ``parameter``.
+
+    ``transient`` (a time) is rounded up to whole periods of the drive at the scene's
+    values (default ``DEFAULT_TRANSIENT_PERIODS`` periods).
+
+    Raises
+    ------
+    ValueError
+        An unknown parameter, an autonomous or not periodically driven system, a method
+        that does not apply or has no ensemble loop, settings out of range; the message
+        says what to give instead.
+    """
+    from systems.integrators.registry import STEPPERS
+
+    names = list(compiled.parameter_names)
+    period = drive_period(compiled)
+    if period is None:
+        raise ValueError(
+            "an orbit diagram samples once per period of a periodic drive; this system's "
+            "time dependence is not periodic at its parameter values"
+            if compiled.mechanics.classification.time_dependent
+            else "an orbit diagram samples once per period of a periodic drive; this "
+            "system does not depend on t (scan it with chaosmap instead)"
+        )
+    if parameter not in names:
+        known = ", ".join(names) or "none"
+        raise ValueError(f"the scene has no parameter {parameter!r} (its parameters: {known})")
+    mechanics = compiled.mechanics
+    method = method or default_map_method(mechanics)
+    stepper = STEPPERS.get(method)
+    if stepper is None or not stepper.family.ensemble:
+        usable = [name for name, s in STEPPERS.items() if s.family.ensemble]
+        raise ValueError(
+            f"an orbit diagram runs a fixed-step method ({', '.join(usable)}), not {method!r}"
+        )
+    reason = stepper.applies_to(mechanics)
+    if reason:
+        raise ValueError(reason)
+    if not (isinstance(samples, int) and 1 <= samples <= 100_000):
+        raise ValueError(f"the samples per value must be from 1 to 100000, not {samples!r}")
+    if transient is None:
+        periods = DEFAULT_TRANSIENT_PERIODS
+    elif not (math.isfinite(transient) and transient >= 0):
+        raise ValueError(f"the transient must be a time of at least 0, not {transient!r}")
+    else:
+        periods = math.ceil(transient / period - 1e-9)
+    family = stepper.family
+    y0 = compiled.initial_state(t0)
+    coef = family.coefficients(stepper, compiled, t0, y0, False)
+    fns = compiled.functions(family.functions)
+    loop = getattr(loop_module(), f"{family.kernel}_strobe_parallel")
+    return StrobeKernel(
+        compiled, method, names.index(parameter), int(per_period), int(periods), samples,
+        float(t0), drive_frequencies(mechanics), loop, fns, coef,
+    )  # fmt: skip
+
+
+def strobe_chunk(
+    kernel: StrobeKernel, values: np.ndarray, y0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples of the orbits from ``y0`` (2n,) at the parameter's ``values`` (N,):
+    the unit of an orbit diagram's work.
+
+    Returns
+    -------
+    samples : ndarray, shape (N, K, 2n)
+    periods : ndarray, shape (N,)
+        The drive's period at each value (NaN where it is not periodic: the row is not run).
+    status : ndarray of int, shape (N,)
+    """
+    from systems.codegen import entry_point
+    from systems.integrators.codes import CLOCK_SIZE, Clock
+
+    compiled = kernel.compiled
+    values = np.asarray(values, dtype=float)
+    N = len(values)
+    m = 2 * compiled.n
+    P = np.repeat(np.asarray(compiled.parameters, dtype=float)[None, :], N, axis=0)
+    P[:, kernel.parameter] = values
+    base = dict(zip(compiled.parameter_names, map(float, compiled.parameters), strict=True))
+    name = compiled.parameter_names[kernel.parameter]
+    periods = np.array(
+        [
+            period_at(compiled.mechanics, kernel.omegas, {**base, name: v}) or math.nan
+            for v in values
+        ]
+    )
+    out = np.full((N, kernel.samples, m), np.nan)
+    status = np.full(N, -1, dtype=np.int64)
+    run = np.flatnonzero(np.isfinite(periods))
+    if not len(run):
+        return out, periods, status
+    Y = np.ascontiguousarray(np.repeat(np.asarray(y0, dtype=float)[None, :], len(run), axis=0))
+    H = np.ascontiguousarray(periods[run] / kernel.per_period)
+    Pr = np.ascontiguousarray(P[run])
+    clock = np.zeros(CLOCK_SIZE)
+    clock[Clock.T] = clock[Clock.T0] = kernel.t0
+    clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
+    part = np.full((len(run), kernel.samples, m), np.nan)
+    part_status = np.zeros(len(run), dtype=np.int64)
+    limits = (kernel.transient_periods, kernel.per_period, kernel.samples)
+    args = (kernel.fns, Y, clock, H, Pr, kernel.coef, limits, part, part_status)
+    if kernel._entry is None:
+        kernel._entry = entry_point(kernel.loop, args)
+    kernel._entry(*args)
+    out[run], status[run] = part, part_status
+    return out, periods, status
+
+
+def orbit_diagram(
+    kernel: StrobeKernel,
+    values: np.ndarray,
+    *,
+    y0: np.ndarray | None = None,
+    chunk: int = CHUNK,
+    progress: Callable[[int, int], None] | None = None,
+    cancelled: Callable[[], bool] | None = None,
+) -> OrbitDiagram:
+    """The orbit diagram over ``values`` (N,) of the kernel's parameter, every orbit from
+    ``y0`` (default: the scene's start); ``progress`` and ``cancelled`` as ``chaos_map``'s."""
+    from systems.chaos.maps import state_names
+
+    start = time.perf_counter()
+    compiled = kernel.compiled
+    values = np.asarray(values, dtype=float)
+    y0 = compiled.initial_state(kernel.t0) if y0 is None else np.asarray(y0, dtype=float)
+    N, m = len(values), 2 * compiled.n
+    samples = np.full((N, kernel.samples, m), np.nan)
+    periods = np.full(N, np.nan)
+    status = np.full(N, -1, dtype=np.int64)
+    complete = True
+    for first in range(0, N, chunk):
+        if cancelled is not None and cancelled():
+            complete = False
+            break
+        part = slice(first, first + chunk)
+        samples[part], periods[part], status[part] = strobe_chunk(kernel, values[part], y0)
+        if progress is not None:
+            progress(min(first + chunk, N), N)
+    return OrbitDiagram(
+        parameter=compiled.parameter_names[kernel.parameter], values=values, samples=samples,
+        periods_T=periods, status=status, names=tuple(state_names(compiled.mechanics)),
+        method=kernel.method, per_period=kernel.per_period,
+        transient_periods=kernel.transient_periods, t0=kernel.t0,
+        wall_s=time.perf_counter() - start, complete=complete,
+    )  # fmt: skip
+
+
+def periods(
+    diagram: OrbitDiagram, tolerance: float = 1e-4, angles: tuple[int, ...] = ()
+) -> np.ndarray:
+    """The period of each row in periods of the drive: the smallest p <= K / 2 with
+    every sample within ``tolerance`` (relative to the state's size, at least 1) of the
+    one p before it; 0 where there is none. Coordinates in ``angles`` (state indices)
+    are compared modulo 2 pi.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+    """
+    S = diagram.samples
+    N, K, _ = S.shape
+    result = np.zeros(N, dtype=np.int64)
+    for r in range(N):
+        rows = S[r]
+        if not np.isfinite(rows).all():
+            continue
+        scale = max(1.0, float(np.abs(rows).max()))
+        for p in range(1, K // 2 + 1):
+            gap = rows[p:] - rows[:-p]
+            for i in angles:
+                gap[:, i] = np.pi - np.mod(np.pi - gap[:, i], 2 * np.pi)
+            if np.abs(gap).max() <= tolerance * scale:
+                result[r] = p
+                break
+    return result
+
+
+__all__ = [
+    "OrbitDiagram", "StrobeKernel", "drive_period", "orbit_diagram", "periods",
+    "strobe_chunk", "strobe_kernel",
+]  # fmt: skip

@@ -1,0 +1,94 @@
+"""Orbit diagrams of driven systems (``systems.chaos.bifurcation``): the driven damped
+pendulum's period doubling where the literature puts it, the stroboscopic samples at
+whole periods of the drive, and what is refused.
+
+The catalogue's driven damped pendulum is theta'' + 0.5 theta' + sin(theta) =
+A cos(2 t / 3) (m = g = l = 1, b = 0.5): Baker & Gollub's (Chaotic Dynamics: An
+Introduction) pendulum with quality factor q = 1 / 0.5 = 2, drive frequency 2/3 and
+drive amplitude g = A, which is also J. R. Taylor's (Classical Mechanics, 2005,
+chapter 12) with omega_0 = 1.5 omega and beta = omega_0 / 4 in units of 1 / omega_0,
+and drive strength gamma = A. Taylor's thresholds of the cascade from phi(0) = -pi/2,
+phi'(0) = 0: period 2 from gamma_1 = 1.0663, 4 from 1.0793, 8 from 1.0821; Baker &
+Gollub: period two near g = 1.07, chaotic near 1.5.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from systems.chaos import bifurcation as bf
+from systems.compiled import compile_system
+from systems.mechanics import derive
+from systems.scene import load_scene
+from systems.simulation import Run, Sampler
+
+START = np.array([-math.pi / 2, 0.0])
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return compile_system(derive(load_scene("driven_damped_pendulum")), ("rhs", "hamiltonian"))
+
+
+def test_the_drive_sets_the_stroboscopic_period(pendulum):
+    assert bf.drive_period(pendulum) == pytest.approx(3 * math.pi, rel=1e-14)
+    assert bf.drive_period(pendulum, {"w": 0.5}) == pytest.approx(4 * math.pi, rel=1e-14)
+    hh = compile_system(derive(load_scene("henon_heiles")), ("rhs", "hamiltonian"))
+    assert bf.drive_period(hh) is None
+
+
+def test_the_first_period_doubling_is_taylors_gamma_1(pendulum):
+    kernel = bf.strobe_kernel(pendulum, "A", transient=20000.0, samples=16)
+    values = np.round(np.arange(1.060, 1.0751, 0.0005), 4)
+    diagram = bf.orbit_diagram(kernel, values, y0=START)
+    assert (diagram.status == 0).all()
+    found = bf.periods(diagram, 1e-6, angles=(0,))
+    first = values[np.argmax(found == 2)]
+    assert (found[values < first] == 1).all() and (found[values >= first] == 2).all(), found
+    assert 1.0655 < first <= 1.0675
+    # past a flip the two branches part like sqrt(A - gamma_1): the line through the
+    # squared gaps meets 0 at the threshold
+    p = diagram.variable("p_theta")
+    gap2 = (p[:, -1] - p[:, -2]) ** 2
+    near = (values >= first) & (values <= first + 0.003)
+    slope, intercept = np.polyfit(values[near], gap2[near], 1)
+    assert abs(-intercept / slope - 1.0663) < 5e-4
+
+
+def test_the_cascade_goes_on_to_chaos(pendulum):
+    kernel = bf.strobe_kernel(pendulum, "A", transient=20000.0, samples=32)
+    diagram = bf.orbit_diagram(kernel, np.array([1.078, 1.0805, 1.0824, 1.5]), y0=START)
+    assert list(bf.periods(diagram, 1e-6, angles=(0,))) == [2, 4, 8, 0]
+
+
+def test_the_samples_are_the_states_at_whole_periods(pendulum):
+    # A = 1.06: periodic (at 1.2 the motion is chaotic and amplifies any difference)
+    T = 3 * math.pi
+    kernel = bf.strobe_kernel(pendulum, "A", transient=5 * T, samples=4, per_period=400)
+    assert kernel.transient_periods == 5
+    diagram = bf.orbit_diagram(kernel, np.array([1.06]), y0=START)
+    times = T * np.arange(6, 10)
+    sampler = Sampler(Run(pendulum.with_parameters({"A": 1.06}), method="dop853", tol=1e-12,
+                          y0=START, t_end=9 * T), times)  # fmt: skip
+    exact = np.array([y for t, y in sampler][1:])
+    assert np.abs(diagram.samples[0] - exact).max() < 1e-6
+
+
+def test_what_is_refused_says_why(pendulum):
+    with pytest.raises(ValueError, match="no parameter 'Q'.*m, g, l, b, A, w"):
+        bf.strobe_kernel(pendulum, "Q")
+    hh = compile_system(derive(load_scene("henon_heiles")), ("rhs", "hamiltonian", "separable"))
+    with pytest.raises(ValueError, match="does not depend on t"):
+        bf.strobe_kernel(hh, "Q")
+    with pytest.raises(ValueError, match="fixed-step method"):
+        bf.strobe_kernel(pendulum, "A", method="dop853")
+    with pytest.raises(ValueError, match="leapfrog|dissipat|forc"):
+        bf.strobe_kernel(pendulum, "A", method="yoshida4")
+
+
+def test_a_frequency_of_zero_leaves_the_row_out(pendulum):
+    kernel = bf.strobe_kernel(pendulum, "w", transient=0.0, samples=2)
+    diagram = bf.orbit_diagram(kernel, np.array([0.0, 2 / 3]), y0=START)
+    assert diagram.status[0] == -1 and np.isnan(diagram.samples[0]).all()
+    assert diagram.status[1] == 0 and np.isfinite(diagram.samples[1]).all()
