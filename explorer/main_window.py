@@ -64,6 +64,8 @@ POINCARE_T_END = 5000.0
 CLOSE_SECONDS = 0.8
 """The time closing may take, shared by everything it stops (the requirement is 1 s)."""
 MESSAGE_MS = 20000
+STATUS_GAP = 14
+"""Pixels between the status bar's readouts (time, rate, energy error, method)."""
 
 
 class MainWindow(QMainWindow):
@@ -260,6 +262,7 @@ class MainWindow(QMainWindow):
         self.busy_bar.setVisible(False)
         for widget in (self.time_label, self.rate_label, self.error_label, self.method_label):
             widget.setMinimumWidth(120)
+            widget.setContentsMargins(STATUS_GAP, 0, 0, 0)  # never run into the one before
             bar.addPermanentWidget(widget)
         bar.addPermanentWidget(self.busy_bar)
         self.details_button = QPushButton("Details…")
@@ -1257,6 +1260,7 @@ class MainWindow(QMainWindow):
         self._stop_worker(max(0.05, deadline - time.monotonic()))
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()
+        self.phase_view.map_layer.shutdown()
         processes.cancel_all(max(0.05, deadline - time.monotonic()))
         self.collector.stop()
         self.error_reporter.uninstall()

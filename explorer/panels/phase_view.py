@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 
 from explorer import level_sets, poincare
 from explorer.labels import coordinate_label, momentum_label
+from explorer.panels.chaos_map_layer import ChaosMapLayer
 from explorer.panels.curves import (
     ANGLE_RANGE,
     PacedLayoutWidget,
@@ -195,6 +196,9 @@ class PhaseView(QWidget):
         header.addWidget(QLabel("Pair:"))
         header.addWidget(self.pair_combo)
         header.addWidget(self.poincare_box)
+        self.map_layer = ChaosMapLayer(self)  # a MEGNO map under the section
+        for widget in self.map_layer.widgets():
+            header.addWidget(widget)
         header.addStretch(1)
         header.addWidget(self.hint)
         layout = QVBoxLayout(self)
@@ -323,12 +327,14 @@ class PhaseView(QWidget):
         self.centres = []
         if self.compiled is None:
             self._update_legend()
+            self.map_layer.clear()
             return
         if self.mode == "poincare":
             self._setup_section()
         else:
             self._setup_phase()
         self._update_legend()
+        self.map_layer.clear()  # drawn for another system, mode or energy
 
     def _axis(self, name: str, value: float, angle: bool) -> tuple[tuple[float, float], bool]:
         """(range, fixed) of one axis: declared, an angle's, or a guess that may grow."""

@@ -32,6 +32,34 @@ def _titles(window) -> list:
     return found
 
 
+def _status(window) -> dict:
+    """The status bar's readouts: each one's text against its room, and the gaps between
+    neighbours' texts (pixels; negative: they run into each other)."""
+    labels = [
+        label
+        for label in (window.time_label, window.rate_label, window.error_label,
+                      window.method_label)
+        if label.isVisible() and label.text()
+    ]  # fmt: skip
+    cut = [
+        label.text()
+        for label in labels
+        if label.fontMetrics().horizontalAdvance(label.text()) > label.contentsRect().width()
+    ]
+    gaps = []
+    for left, right in zip(labels, labels[1:], strict=False):
+        end = left.geometry().x() + left.contentsRect().x()
+        end += left.fontMetrics().horizontalAdvance(left.text())
+        gaps.append(right.geometry().x() + right.contentsRect().x() - end)
+    right_edge = max((label.geometry().right() for label in labels), default=0)
+    return {
+        "texts": [label.text() for label in labels],
+        "cut": cut,
+        "gaps": gaps,
+        "inside": right_edge <= window.statusBar().width(),
+    }
+
+
 def measure(folder: str) -> dict:
     """Open the window on the double pendulum, enter presentation mode and measure."""
     from explorer.app import application, create_window
@@ -61,6 +89,7 @@ def measure(folder: str) -> dict:
         "colours": sorted({(label.opts.get("color"), label.opts.get("bold")) for label in titles}),
         "combo": [combo.width(), combo.fontMetrics().horizontalAdvance(combo.currentText())],
         "combo_text": combo.currentText(),
+        "status": _status(window),
     }
     window.presentation.set_active(False)
     spin(app, lambda: False, 1.0)
@@ -90,6 +119,9 @@ def test_presentation_mode_titles_plots_and_method_box_are_legible(reports, size
         width, height = report[key]
         assert width >= 120 and height >= 150, report
     assert report["colours"] == [["#000000", True]], report  # (JSON: lists)
+    status = report["status"]  # "|ΔH/H₀| = 9.12e-16method: ..." ran together at 1280 x 720
+    assert len(status["texts"]) >= 3 and status["cut"] == [] and status["inside"], status
+    assert min(status["gaps"]) >= 12, status
     width, text = report["combo"]
     assert report["combo_text"].startswith("automatic (") and width >= text + 10, report
     after = report["after"]
