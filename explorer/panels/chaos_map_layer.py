@@ -20,6 +20,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QProgressBar, QPushButton
 
+from explorer.panels.chaos_view import submit_tangent_code
 from systems import processes
 
 GRID = 120
@@ -145,7 +146,7 @@ class ChaosMapLayer(QObject):
         """Map the section's visible box at the section's energy."""
         if not self.available or self.running or self._closed:
             return
-        from systems.chaos.variational import refusal, tangent_code
+        from systems.chaos.variational import refusal
 
         self.clear()
         reason = refusal(self.view.compiled.mechanics)
@@ -161,25 +162,7 @@ class ChaosMapLayer(QObject):
             self._on_relay_coded(generation, code)
             return
 
-        def report(job: processes.Job) -> None:  # in the thread that waited for the worker
-            try:
-                result = job.result(0)
-            except processes.Cancelled:
-                return
-            except Exception as exc:  # noqa: BLE001 - shown in the view
-                result = str(exc)
-            try:
-                relay.coded.emit(generation, result)
-            except RuntimeError:
-                pass
-
-        try:
-            self._job = processes.submit(
-                tangent_code, mechanics, cpu_seconds=CPU_SECONDS,
-                what="the variational equations", on_done=report,
-            )  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - no worker: said in the view
-            relay.coded.emit(generation, str(exc))
+        self._job = submit_tangent_code(mechanics, relay.coded, generation, CPU_SECONDS)
 
     def cancel(self) -> None:
         """Stop the map being computed (the last finished one stays)."""

@@ -54,6 +54,35 @@ INTERVAL_SCALES = 2.0
 largest eigenvalue at the start): estimates follow the main orbit that closely."""
 
 
+def submit_tangent_code(mechanics, signal, generation: int, cpu_seconds: float):
+    """Write the variational equations of ``mechanics`` in a worker process
+    (``systems.processes``); ``signal.emit(generation, code)`` when done, the
+    ``TangentCode`` or the error's message (also when no worker can start). Returns the
+    job (None without a worker), whose ``cancel`` drops the result."""
+    from systems.chaos.variational import tangent_code
+
+    def report(job: processes.Job) -> None:  # in the thread that waited for the worker
+        try:
+            result = job.result(0)
+        except processes.Cancelled:
+            return
+        except Exception as exc:  # noqa: BLE001 - shown in the view
+            result = str(exc)
+        try:
+            signal.emit(generation, result)
+        except RuntimeError:  # the relay's C++ side is gone: nobody is left to tell
+            pass
+
+    try:
+        return processes.submit(
+            tangent_code, mechanics, cpu_seconds=cpu_seconds,
+            what="the variational equations", on_done=report,
+        )  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 - no worker: said in the view
+        signal.emit(generation, str(exc))
+        return None
+
+
 class _Relay(QObject):
     """Carries results from the view's threads to the GUI thread (queued)."""
 
@@ -244,31 +273,11 @@ class ChaosView(QWidget):
         self._pending_t = t
 
     def _start(self) -> None:
-        from systems.chaos.variational import tangent_code
-
         self._started = True
         self._show_message("Writing the variational equations…")
-        generation, relay = self._generation, self._relay
-
-        def report(job: processes.Job) -> None:  # in the thread that waited for the worker
-            try:
-                result = job.result(0)
-            except processes.Cancelled:
-                return
-            except Exception as exc:  # noqa: BLE001 - shown in the view
-                result = str(exc)
-            try:
-                relay.coded.emit(generation, result)
-            except RuntimeError:
-                pass
-
-        try:
-            self._job = processes.submit(
-                tangent_code, self.compiled.mechanics, cpu_seconds=CPU_SECONDS,
-                what="the variational equations", on_done=report,
-            )  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - no worker: said in the view
-            relay.coded.emit(generation, str(exc))
+        self._job = submit_tangent_code(
+            self.compiled.mechanics, self._relay.coded, self._generation, CPU_SECONDS
+        )
 
     def _on_relay_coded(self, generation: int, code) -> None:
         if self._closed or generation != self._generation:
