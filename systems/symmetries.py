@@ -181,10 +181,14 @@ def _particle_generators(scene: Scene) -> list[Generator]:
         for component in position
     ]
     solver = _MotionSolver(scene, jacobian, transformation.mass_matrix, transformation.masses)
+    displacements = {
+        name: [c for position in positions for c in motion(position)]
+        for name, motion in _motions(len(positions[0])).items()
+    }
+    solver.evaluate(list(displacements.values()))
     found = []
-    for name, motion in _motions(len(positions[0])).items():
-        displacement = [c for position in positions for c in motion(position)]
-        xi = solver.solve(displacement)
+    for which, (name, displacement) in enumerate(displacements.items()):
+        xi = solver.solve(displacement, which)
         if xi is not None:
             kind = "rotation" if name in ROTATIONS else "translation"
             found.append(Generator(name, xi, kind))
@@ -211,15 +215,27 @@ class _MotionSolver:
         self.mass_diagonal = [entries[j][j] for j in range(self.n)]
         self.rng = random.Random(20261123)
 
-    def solve(self, displacement: list[sympy.Expr]) -> tuple[sympy.Expr, ...] | None:
+    def evaluate(self, displacements: list[list[sympy.Expr]]) -> None:
+        """The Jacobian's entries and every motion's displacement at the same random
+        states, at once (one evaluator: building one per motion was most of the cost)."""
         rows, n = len(self.jacobian), self.n
-        entries = [e for row in self.jacobian for e in row] + list(displacement)
+        entries = [e for row in self.jacobian for e in row]
+        entries += [d for displacement in displacements for d in displacement]
         where = [k for k, e in enumerate(entries) if e != 0]  # mostly zeros: not evaluated
         found = _values(
             self.scene, [entries[k] for k in where], self.rng, velocities=False, momenta=False
         )
-        values = np.zeros((len(found), len(entries)))
-        values[:, where] = found
+        self.values = np.zeros((len(found), len(entries)))
+        self.values[:, where] = found
+        self.rows = rows * n + np.arange(len(displacements))[:, None] * rows + np.arange(rows)
+
+    def solve(self, displacement: list[sympy.Expr], which: int) -> tuple[sympy.Expr, ...] | None:
+        """xi with (dr/dq) xi = dr for the motion ``displacement``, the ``which``-th given
+        to ``evaluate``; None where the motion leaves the configuration space."""
+        rows, n = len(self.jacobian), self.n
+        values = np.concatenate(
+            [self.values[:, : rows * n], self.values[:, self.rows[which]]], axis=1
+        )
         solutions = []
         for row in values[np.all(np.isfinite(values), axis=1)][:SAMPLES]:
             A, b = row[: rows * n].reshape(rows, n), row[rows * n :]
