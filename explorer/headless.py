@@ -137,10 +137,11 @@ def render_panel(
             view.set_system(compiled, y0)
             if poincare:
                 view.set_mode("poincare")
-                if view.mode != "poincare":
+                if view.mode != "poincare" or view.section is None:
                     raise ValueError(
                         "a Poincaré section needs an autonomous conservative system "
-                        "of two degrees of freedom"
+                        "of two degrees of freedom (a driven system's stroboscopic section "
+                        "is shown in the window, not exported yet)"
                     )
                 section = (view.section.coordinate, view.section.value, 1)
         else:

@@ -45,6 +45,7 @@ from explorer.panels.configuration_view import ConfigurationView
 from explorer.panels.conserved_view import ConservedView
 from explorer.panels.constraint_forces_view import attach as attach_constraint_view
 from explorer.panels.mode_energy_view import attach as attach_mode_view
+from explorer.panels.orbit_diagram_view import attach as attach_orbit_diagram
 from explorer.panels.phase_view import PhaseView
 from explorer.panels.presentation import Presentation
 from explorer.panels.window_layout import DockShares, keep_plots_readable
@@ -165,6 +166,8 @@ class MainWindow(QMainWindow):
         self.constraint_view = attach_constraint_view(self)
         # Lyapunov exponents, MEGNO and SALI as the run plays (View > Chaos)
         self.chaos_view = attach_chaos_view(self)
+        # a driven scene's orbit diagram over one parameter (View > Orbit diagram)
+        self.orbit_diagram_view = attach_orbit_diagram(self)
 
         toolbar = self.addToolBar("Run")
         toolbar.setObjectName("run-toolbar")
@@ -614,6 +617,7 @@ class MainWindow(QMainWindow):
         section = None
         if poincare and self.phase_view.section is not None:
             section = (self.phase_view.section.coordinate, self.phase_view.section.value, 1)
+        strobe = self.phase_view.strobe_period if poincare else None
         step = self.controls.step_value
         adaptive = self.controls.is_adaptive()
         scene_t_end = float(self.compiled.mechanics.scene.view.get("t_end", 100.0) or 100.0)
@@ -625,6 +629,7 @@ class MainWindow(QMainWindow):
             t_end=self._section_t_end(scene_t_end) if poincare else math.inf,
             diagnostics=self._wanted_diagnostics(),
             section=section,
+            strobe=strobe,
             energy_tolerance=self.energy_tolerance,
         )
 
@@ -668,6 +673,7 @@ class MainWindow(QMainWindow):
         self.mode_view.set_system(compiled, y0)
         self.constraint_view.set_system(compiled)
         self.chaos_view.set_system(compiled, y0)
+        self.orbit_diagram_view.set_system(compiled, y0)
         self.settings = self._current_settings()
         worker = SimulationWorker(compiled, self.settings, self._generation, runs=self._runs)
         worker.blocks_ready.connect(self._on_worker_blocks_ready)

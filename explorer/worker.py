@@ -108,7 +108,9 @@ class RunSettings:
     ``max_points`` is the states a run's block keeps (every step up to that many);
     ``rows_per_second`` bounds the rows handed to the store per wall second;
     ``max_step`` bounds an adaptive method's steps (``systems.simulation.Run``): by
-    default so that what is drawn follows the motion between the steps' ends.
+    default so that what is drawn follows the motion between the steps' ends;
+    ``strobe`` is a stroboscopic section's period (``Run(strobe=...)``: its events are
+    the states once per period of the drive).
     """
 
     method: str | None = None
@@ -120,6 +122,7 @@ class RunSettings:
     frame_seconds: float = FRAME_SECONDS
     max_points: int = FINE_POINTS
     section: tuple[int, float, int] | None = None
+    strobe: float | None = None
     energy_tolerance: float | None = 1e-2
     rows_per_second: float = ROWS_PER_SECOND
     max_step: float | str = "drawing"
@@ -137,6 +140,7 @@ class RunSettings:
             t_end=self.t_end,
             max_points=self.max_points,
             section=self.section,
+            strobe=self.strobe,
             energy_tolerance=self.energy_tolerance,
             max_step=self.max_step,
         )

@@ -193,6 +193,12 @@ class Run:
         such as a free flight, in one step, and the states kept are only its ends.
         ``"drawing"``: ``stepsize.drawing_step`` from where the orbit began
         (``probe_start`` or the start). Fixed-step methods ignore it.
+    strobe : float, optional
+        A stroboscopic section: the states at exactly t0 + k ``strobe`` (k = 1, 2, ...;
+        the period of a periodic drive, ``systems.chaos.bifurcation.drive_period``) are
+        the blocks' events (``events_t``, ``events_y``), found inside the compiled loop as
+        ``advance(samples=...)`` finds them (where ``takes_samples``; not with scipy's
+        solvers). Not with a ``section``.
     """
 
     def __init__(
@@ -213,6 +219,7 @@ class Run:
         max_steps: int | None = None,
         probe_start: tuple[float, np.ndarray] | None = None,
         max_step: float | str = math.inf,
+        strobe: float | None = None,
     ):
         if method is None:
             method, _ = choose_method(compiled.mechanics)
@@ -237,6 +244,10 @@ class Run:
         self.diagnostics, self.max_points = tuple(diagnostics), max_points
         self.section = section
         self.section_period: float | None = None
+        if strobe is not None and not (math.isfinite(strobe) and strobe > 0 and section is None):
+            raise ValueError(f"strobe must be a positive period without a section, not {strobe!r}")
+        self.strobe = None if strobe is None else float(strobe)
+        self._strobe_next = 1  # the next stroboscopic time is t0 + strobe * this
         self.t_end = t_end
         self.max_steps = max_steps
         self.y0 = compiled.initial_state(t0) if y0 is None else np.array(y0, dtype=float)
@@ -412,6 +423,10 @@ class Run:
             nsteps = min(nsteps, self.max_steps - self.steps)
         start = time.perf_counter()
         before = self.good
+        strobing = samples is None and self.strobe is not None and self.takes_samples
+        if strobing:  # the stroboscopic section: the states at t0 + k strobe
+            k = self._strobe_next
+            samples = self.t0 + self.strobe * np.arange(k, k + STROBE_CHUNK, dtype=float)
         # a section on an angle needs every step: thinned to max_points after the search
         points = nsteps + 2 if self.section_period is not None else self.max_points
         try:
@@ -494,6 +509,9 @@ class Run:
                 float(self.section[1]), dense=self.stepper.family.name == "dop853",
             )  # fmt: skip
         sampled = out.sampled if samples is not None and self.takes_samples else 0
+        if strobing and sampled:
+            events = (np.array(t[:sampled]), np.array(y[:sampled]))
+            self._strobe_next += sampled
         block = self._block(t, y, status, message, diag, events, sampled)
         if len(t):
             self.good = (float(t[-1]), np.array(y[-1]))
@@ -753,6 +771,8 @@ class Sampler:
 
 
 SAMPLE_CHUNK = 4096
+STROBE_CHUNK = 64
+"""Stroboscopic times handed to one compiled call (``Run(strobe=...)``)."""
 """Sample times handed to the compiled loop in one call at most."""
 
 

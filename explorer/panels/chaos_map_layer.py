@@ -13,13 +13,12 @@ energy (the view rebuilt) cancels the map and removes it.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, Signal
-from PySide6.QtWidgets import QProgressBar, QPushButton
+from PySide6.QtWidgets import QPushButton
 
+from explorer.panels.background import ProgressControls, RelayThread
 from explorer.panels.chaos_view import submit_tangent_code
 from systems import processes
 
@@ -42,20 +41,13 @@ class _Relay(QObject):
     failed = Signal(int, str)
 
 
-class MapRun(threading.Thread):
+class MapRun(RelayThread):
     """One map of one section, in its own thread; ``cancel`` ends it between chunks."""
 
     def __init__(self, compiled, code, section, energy, box, relay: _Relay, generation: int):
-        super().__init__(name="chaos-map", daemon=True)
+        super().__init__("chaos-map", relay, generation)
         self.compiled, self.code, self.section = compiled, code, section
         self.energy, self.box = float(energy), box
-        self.relay, self.generation = relay, generation
-        self.stopping = threading.Event()
-
-    def cancel(self, timeout: float = 1.0) -> None:
-        self.stopping.set()
-        if self.is_alive() and threading.current_thread() is not self:
-            self.join(timeout)
 
     def run(self) -> None:
         from systems.chaos import maps
@@ -73,12 +65,6 @@ class MapRun(threading.Thread):
             return
         if result.complete:
             self._emit("finished", result)
-
-    def _emit(self, signal: str, *values) -> None:
-        try:
-            getattr(self.relay, signal).emit(self.generation, *values)
-        except RuntimeError:  # the relay's C++ side is gone: nobody is left to tell
-            pass
 
 
 def map_image(result) -> np.ndarray:
@@ -118,12 +104,8 @@ class ChaosMapLayer(QObject):
             "start that orbit."
         )
         self.button.clicked.connect(self._on_button_clicked)
-        self.progress = QProgressBar()
-        self.progress.setMaximumWidth(140)
-        self.progress.setVisible(False)
-        self.cancel_button = QPushButton("Cancel")
-        self.cancel_button.setVisible(False)
-        self.cancel_button.clicked.connect(self.cancel)
+        self.controls = ProgressControls(self.cancel)
+        self.progress, self.cancel_button = self.controls.progress, self.controls.cancel_button
         self.update_enabled()
 
     @property
@@ -190,10 +172,7 @@ class ChaosMapLayer(QObject):
         self.cancel()
 
     def _show_running(self, running: bool) -> None:
-        self.progress.setVisible(running)
-        self.cancel_button.setVisible(running)
-        if running:
-            self.progress.setRange(0, 0)  # busy until the first chunk is done
+        self.controls.show_running(running)
         self.update_enabled()
 
     def _on_button_clicked(self) -> None:
@@ -218,8 +197,7 @@ class ChaosMapLayer(QObject):
     def _on_relay_progressed(self, generation: int, done: int, total: int) -> None:
         if self._closed or generation != self._generation:
             return
-        self.progress.setRange(0, total)
-        self.progress.setValue(done)
+        self.controls.set_progress(done, total)
 
     def _on_relay_finished(self, generation: int, result) -> None:
         if self._closed or generation != self._generation:

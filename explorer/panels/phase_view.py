@@ -138,6 +138,7 @@ class PhaseView(QWidget):
         self.y0 = np.zeros(2)
         self.angles = np.zeros(0, dtype=bool)
         self.section: poincare.Section | None = None
+        self.strobe_period: float | None = None  # a periodic drive's: the stroboscopic section
         self.section_energy = 0.0
         self.grid: level_sets.EnergyGrid | None = None
         self.saddles: list[level_sets.Saddle] = []
@@ -218,9 +219,12 @@ class PhaseView(QWidget):
 
     @property
     def poincare_available(self) -> bool:
-        """Autonomous conservative two-degree systems get a Poincaré section."""
+        """Autonomous conservative two-degree systems get a Poincaré section, periodically
+        driven ones a stroboscopic section (the state once per period of the drive)."""
         if self.compiled is None:
             return False
+        if self.strobe_period is not None:
+            return True
         cls = self.compiled.mechanics.classification
         return self.compiled.n == 2 and not cls.time_dependent and cls.hamiltonian_conserved
 
@@ -234,7 +238,10 @@ class PhaseView(QWidget):
                 "(With one, the phase plane already shows whole orbits.)"
             )
         if cls.time_dependent:
-            return "A Poincaré section needs an autonomous system; this one depends on t."
+            return (
+                "A Poincaré section needs an autonomous system, or a periodic drive (then "
+                "it is stroboscopic); this one depends on t otherwise."
+            )
         return "A Poincaré section needs a conserved H (no dissipation or driving force)."
 
     def set_system(self, compiled, y0: np.ndarray) -> None:
@@ -251,11 +258,16 @@ class PhaseView(QWidget):
         n = compiled.n
         self.index = _preferred_index(self.scene)
         self._fill_pairs()
+        self.strobe_period = None
+        if compiled.mechanics.classification.time_dependent:
+            from systems.chaos.bifurcation import drive_period
+
+            self.strobe_period = drive_period(compiled)
         available = self.poincare_available
         if not available:
             self.mode = "phase"
         self.section = None
-        if available:
+        if available and self.strobe_period is None:
             angles = tuple(q for q, a in zip(self.scene.coordinates, self.angles, strict=True) if a)
             self.section = poincare.Section.from_scene(
                 self.scene, angles, tuple(compiled.mechanics.cyclic)
@@ -315,6 +327,12 @@ class PhaseView(QWidget):
             if self.angles[self.section.coordinate]:
                 text += f" {coordinate_label(cut)} is an angle: every turn crosses the section."
             self.poincare_box.setToolTip(text)
+        elif self.strobe_period is not None:
+            self.poincare_box.setToolTip(
+                "Stroboscopic section: the drive is periodic, so the section is the state "
+                f"once per period T = {self.strobe_period:.6g} (t = T, 2T, ...), in the "
+                "pair's plane."
+            )
         else:
             self.poincare_box.setToolTip(self._poincare_refusal())
 
@@ -392,6 +410,9 @@ class PhaseView(QWidget):
         return q_range, p_range
 
     def _setup_section(self) -> None:
+        if self.section is None:
+            self._setup_strobe()
+            return
         scene, section, n = self.scene, self.section, self.compiled.n
         shown = scene.coordinates[section.shown]
         cut = scene.coordinates[section.coordinate]
@@ -423,6 +444,23 @@ class PhaseView(QWidget):
         self._draw_static()
         self.hint.setText("Click in the allowed region to start an orbit at this energy.")
 
+    def _setup_strobe(self) -> None:
+        """The stroboscopic section of a periodically driven system, in the pair's plane."""
+        scene, i, n = self.scene, self.index, self.compiled.n
+        q = scene.coordinates[i]
+        self.plot.setLabel("bottom", coordinate_label(q))
+        self.plot.setLabel("left", momentum_label(q))
+        set_title(
+            self.plot,
+            f"Stroboscopic section: t = k·{self.strobe_period:.4g}, the drive's period",
+        )
+        q_range, q_fixed = self._axis(q, float(self.y0[i]), bool(self.angles[i]))
+        p_range, p_fixed = self._axis(f"p_{q}", float(self.y0[n + i]), False)
+        fixed = tuple(axis for axis, f in (("x", q_fixed), ("y", p_fixed)) if f)
+        self.ranges.reset(q_range, p_range, fixed)
+        self._draw_static()
+        self.hint.setText("Click to start an orbit there at t = 0: one point per period.")
+
     def _forbidden_mask(self, qs: np.ndarray, ps: np.ndarray) -> np.ndarray:
         """``mask[a, b]``: (qs[a], ps[b]) is energetically forbidden; shape (len(qs), len(ps))."""
         Q, P = np.meshgrid(qs, ps, indexing="ij")
@@ -451,6 +489,8 @@ class PhaseView(QWidget):
         if self.ranges.x is None or self.ranges.y is None:
             return
         q_range, p_range = tuple(self.ranges.x), tuple(self.ranges.y)
+        if self.mode == "poincare" and self.section is None:
+            return  # stroboscopic: every point of the plane is a start
         if self.mode == "poincare":
             size = 241
             qs, ps = np.linspace(*q_range, size), np.linspace(*p_range, size)
@@ -624,7 +664,8 @@ class PhaseView(QWidget):
             self._section_scatter[key] = scatter
         points = trajectory.events.data
         self._section_points[key] = points
-        n, s = self.compiled.n, self.section.shown
+        n = self.compiled.n
+        s = self.index if self.section is None else self.section.shown
         q = wrap(points[:, s]) if self.angles[s] and len(points) else points[:, s]
         p = points[:, n + s]
         old = self._shown.get(key)
@@ -659,7 +700,7 @@ class PhaseView(QWidget):
         if self.compiled is None:
             return
         n = self.compiled.n
-        if self.mode == "poincare":
+        if self.mode == "poincare" and self.section is not None:
             state = poincare.state_on_section(
                 self.compiled, self.section, self.section_energy, x, y
             )

@@ -92,3 +92,20 @@ def test_a_frequency_of_zero_leaves_the_row_out(pendulum):
     diagram = bf.orbit_diagram(kernel, np.array([0.0, 2 / 3]), y0=START)
     assert diagram.status[0] == -1 and np.isnan(diagram.samples[0]).all()
     assert diagram.status[1] == 0 and np.isfinite(diagram.samples[1]).all()
+
+
+def test_a_run_with_a_strobe_gives_the_states_once_per_period(pendulum):
+    T = bf.drive_period(pendulum)
+    run = Run(pendulum, method="dop853", tol=1e-12, t_end=100 * T, strobe=T)
+    times, states = [], []
+    while not run.finished:
+        block = run.advance(0.05)
+        times += list(block.events_t)
+        states += list(block.events_y)
+    assert len(times) == 100
+    assert np.allclose(times, T * np.arange(1, 101), rtol=0, atol=1e-12)
+    exact = Sampler(Run(pendulum, method="dop853", tol=1e-12, t_end=100 * T), T * np.arange(1, 101))
+    expected = np.array([y for _, y in exact][1:])
+    assert np.abs(np.array(states) - expected).max() < 1e-9
+    with pytest.raises(ValueError, match="strobe must be a positive period"):
+        Run(pendulum, strobe=T, section=(0, 0.0, 1))
