@@ -37,6 +37,7 @@ class ProgressControls:
         self.progress.setMaximumWidth(140)
         self.progress.setVisible(False)
         self.cancel_button = QPushButton("Cancel")
+        self.cancel_button.setToolTip("Stop computing (what is already drawn stays)")
         self.cancel_button.setVisible(False)
         self.cancel_button.clicked.connect(on_cancel)
 

@@ -182,8 +182,10 @@ def test_reset_layout_brings_every_dock_that_applies_back(qtbot, window):
     window.reset_layout()
     for key, dock in window.docks.items():
         # the pendulum has no normal modes to show (one coordinate) nor constraint forces;
-        # the chaos estimates come only when asked for (View > Chaos)
-        assert dock.isHidden() == (key in ("modes", "constraints", "chaos")), key
+        # the chaos estimates come only when asked for (View > Chaos), and the orbit
+        # diagram is for driven scenes
+        hidden = ("modes", "constraints", "chaos", "orbit_diagram")
+        assert dock.isHidden() == (key in hidden), key
         assert not dock.isFloating(), key
 
 
