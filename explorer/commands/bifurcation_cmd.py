@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 from explorer.commands.errors import UserError, user_errors
+from systems.usage import MAX_DIAGRAM_VALUES as MAX_VALUES
 
 SUFFIXES = (".png", ".npz")
-MAX_VALUES = 100_000
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -88,16 +88,12 @@ def run(args: argparse.Namespace) -> int:
     from explorer.commands import stopping
     from explorer.commands.chaosmap_cmd import checked_output
     from explorer.commands.periodic_cmd import _start as parse_start
-    from systems.angles import angle_coordinates
     from systems.chaos import bifurcation as bf
-    from systems.chaos.maps import default_map_method, state_names
-    from systems.compiled import compile_system
+    from systems.chaos.maps import state_names
     from systems.files import atomic_path
-    from systems.integrators import STEPPERS
     from systems.mechanics import derive
     from systems.scene import load_scene
-    from systems.start_check import check_start
-    from systems.textbook.periodic_orbits import start_state
+    from systems.usage import diagram_setup
 
     suffix = checked_output(args.out, SUFFIXES)
     values = parse_span(args.span)
@@ -106,30 +102,12 @@ def run(args: argparse.Namespace) -> int:
     with user_errors():
         scene = load_scene(args.scene)
         mechanics = derive(scene)
-    method = args.method or default_map_method(mechanics)
-    wants = (STEPPERS[method].wants if method in STEPPERS else frozenset()) | {"hamiltonian"}
-    with user_errors():
-        compiled = compile_system(mechanics, wants)
-        try:
-            given = start_state(mechanics, start_values) if start_values else None
-        except ValueError as exc:
-            raise UserError(f"--start: {exc}") from None
-        y0 = check_start(compiled, given)
-    names = state_names(mechanics)
-    angles = [i for i, q in enumerate(scene.coordinates) if q in angle_coordinates(mechanics)]
-    variable = args.variable or (names[compiled.n] if 0 in angles else names[0])
-    if variable not in names:
-        raise UserError(f"--variable is one of {', '.join(names)}, not {variable!r}")
-    options = {} if args.steps_per_period is None else {"per_period": args.steps_per_period}
-    if args.steps_per_period is not None and not 4 <= args.steps_per_period <= 100_000:
-        raise UserError(f"--steps-per-period must be from 4 to 100000, not {args.steps_per_period}")
-    try:
-        kernel = bf.strobe_kernel(
-            compiled, args.parameter, transient=args.transient, samples=args.samples,
-            method=args.method, **options,
+        compiled, kernel, y0, variable, angles = diagram_setup(
+            mechanics, args.scene, parameter=args.parameter, transient=args.transient,
+            samples=args.samples, method=args.method, steps_per_period=args.steps_per_period,
+            start=start_values, variable=args.variable,
         )  # fmt: skip
-    except ValueError as exc:
-        raise UserError(f"{args.scene}: {exc}") from exc
+    names = state_names(mechanics)
     if not args.json:
         print(
             f"{len(values)} orbits, {kernel.transient_periods} + {kernel.samples} periods "

@@ -22,7 +22,6 @@ import numpy as np
 from explorer.commands.errors import UserError, user_errors
 
 SUFFIXES = (".png", ".npz", ".csv")
-MAX_POINTS = 4_000_000
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -69,20 +68,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def parse_grid(text: str) -> tuple[int, int]:
-    """'200x100' -> (200, 100): N along the x axis, M along y."""
+    """'200x100' -> (200, 100): N along the x axis, M along y (sizes checked by
+    ``systems.usage.check_map_options``)."""
     match = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
     if not match:
         raise UserError(f"--grid must be N x M starts such as 200x200, not {text!r}")
-    nx, ny = int(match.group(1)), int(match.group(2))
-    if nx < 2 or ny < 2 or nx * ny > MAX_POINTS:
-        raise UserError(
-            f"--grid needs at least 2 starts a side and at most {MAX_POINTS:,} in all, not {text}"
-        )
-    return nx, ny
+    return int(match.group(1)), int(match.group(2))
 
 
 def parse_ranges(text: str) -> dict[str, tuple[float, float]]:
     """'y=-0.5:0.7,p_y=-1:1' -> {'y': (-0.5, 0.7), 'p_y': (-1.0, 1.0)}."""
+    from systems.usage import check_ranges
+
     ranges = {}
     for item in filter(None, (part.strip() for part in text.split(","))):
         name, equals, span = item.partition("=")
@@ -93,110 +90,31 @@ def parse_ranges(text: str) -> dict[str, tuple[float, float]]:
             bounds = None
         if not (equals and colon and bounds and all(map(math.isfinite, bounds))):
             raise UserError(f"--ranges takes name=low:high items, e.g. y=-0.5:0.7, not {item!r}")
-        if not bounds[0] < bounds[1]:
-            raise UserError(f"--ranges: {name.strip()}'s low end must be below its high end")
         ranges[name.strip()] = bounds
-    return ranges
+    with user_errors():
+        return check_ranges(ranges)
 
 
 def prepare_map(args: argparse.Namespace, scene_name: str):
     """(scene, compiled, tangent, kernel, grid) from the command's arguments, every
-    mistake a ``UserError`` naming what to fix. Shared with the window's tests."""
-    from explorer.panels.ranges import axis_range
-    from systems.chaos import maps
-    from systems.chaos.variational import NotApplicable, load_tangent, refusal
-    from systems.compiled import compile_system
-    from systems.integrators import STEPPERS
+    mistake a ``UserError`` naming what to fix (``systems.usage``'s checks, which the
+    Python API shares). Shared with the window's tests."""
     from systems.mechanics import derive
     from systems.scene import load_scene
-    from systems.start_check import check_start
+    from systems.usage import check_map_options, map_setup
 
     nx, ny = parse_grid(args.grid)
     ranges = parse_ranges(args.ranges)
-    if args.indicator not in maps.INDICATORS:
-        raise UserError(f"--indicator is megno or lyapunov, not {args.indicator!r}")
-    t_end = maps.DEFAULT_T_END if args.t_end is None else args.t_end
-    if not (math.isfinite(t_end) and t_end > 0):
-        raise UserError(f"--t-end must be a positive finite time, not {t_end!r}")
     with user_errors():
+        t_end = check_map_options(nx, ny, args.indicator, args.t_end, grid_text=args.grid)
         scene = load_scene(scene_name)
         mechanics = derive(scene)
-    reason = refusal(mechanics)
-    if reason:
-        raise UserError(f"{scene_name}: a chaos map is not available here: {reason}")
-    method = args.method or maps.default_map_method(mechanics)
-    wants = (STEPPERS[method].wants if method in STEPPERS else frozenset()) | {"hamiltonian"}
-    with user_errors():
-        compiled = compile_system(mechanics, wants)
-        y0 = check_start(compiled, None)
-    try:
-        tangent = load_tangent(compiled)
-        kernel = maps.map_kernel(tangent, t_end=t_end, method=args.method, dt=args.dt)
-    except NotApplicable as exc:
-        raise UserError(f"{scene_name}: {exc}") from exc
-    names = maps.state_names(mechanics)
-    if args.over:
-        if args.energy is not None:
-            raise UserError(
-                "--energy sets the section's energy; a map --over two variables has none"
-            )
-        over = tuple(part.strip() for part in args.over.split(","))
-        if len(over) != 2 or any(name not in names for name in over) or over[0] == over[1]:
-            raise UserError(
-                f"--over takes two different state variables of {', '.join(names)}, "
-                f"not {args.over!r}"
-            )
-        box = tuple(
-            ranges.get(name) or axis_range(scene, name, y0[names.index(name)]) for name in over
-        )
-        return scene, compiled, tangent, kernel, maps.variable_grid(compiled, over, nx, ny, box, y0)
-    section = _section(compiled, scene_name)
-    energy = args.energy
-    if energy is None:
-        energy = float(compiled.hamiltonian(0.0, y0[None, :])[0])
-    if not math.isfinite(energy):
-        raise UserError(f"--energy must be a finite number, not {energy!r}")
-    n = compiled.n
-    shown = (names[section.shown], names[n + section.shown])
-    unknown = set(ranges) - set(shown)
-    if unknown:
-        raise UserError(
-            f"--ranges: the section's axes are {shown[0]} and {shown[1]}, "
-            f"not {', '.join(sorted(unknown))}"
-        )
-    declared = dict(scene.view.get("ranges", {}) or {})
-    box = [
-        ranges.get(name) or (tuple(map(float, declared[name])) if name in declared else None)
-        for name in shown
-    ]
-    if None in box:
-        try:
-            found = maps.section_box(compiled, section, energy)
-        except ValueError as exc:
-            raise UserError(f"{exc} (--ranges {shown[0]}=a:b,{shown[1]}=c:d)") from exc
-        box = [given or guess for given, guess in zip(box, found, strict=True)]
-    grid = maps.section_grid(compiled, section, energy, nx, ny, tuple(box))
-    if not grid.valid.any():
-        raise UserError(
-            f"no start of the grid lies on the section at energy {energy:g}: give another "
-            "--energy or --ranges"
-        )
+        over = None if not args.over else tuple(part.strip() for part in args.over.split(","))
+        compiled, tangent, kernel, grid = map_setup(
+            mechanics, scene_name, nx=nx, ny=ny, t_end=t_end, method=args.method, dt=args.dt,
+            over=over, ranges=ranges, energy=args.energy,
+        )  # fmt: skip
     return scene, compiled, tangent, kernel, grid
-
-
-def _section(compiled, scene_name: str):
-    from systems.angles import angle_coordinates
-    from systems.section import Section
-
-    mechanics = compiled.mechanics
-    cls = mechanics.classification
-    if compiled.n != 2 or cls.time_dependent or not cls.hamiltonian_conserved:
-        raise UserError(
-            f"{scene_name}: a map on the Poincaré section needs two degrees of freedom and a "
-            "conserved H; span two state variables with --over NAME,NAME instead"
-        )
-    angles = tuple(angle_coordinates(mechanics))
-    return Section.from_scene(mechanics.scene, angles, tuple(mechanics.cyclic))
 
 
 def checked_output(out: str, suffixes: tuple[str, ...]) -> str:

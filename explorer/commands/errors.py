@@ -12,12 +12,14 @@ class UserError(Exception):
 
 @contextmanager
 def user_errors() -> Iterator[None]:
-    """Turn the physics core's input errors into ``UserError`` with their message."""
+    """Turn the physics core's input errors (and ``systems.usage``'s checks of options)
+    into ``UserError`` with their message."""
     from systems.expressions import ExpressionError
     from systems.mechanics import DerivationError
     from systems.scene import SceneError
+    from systems.usage import UsageError
 
     try:
         yield
-    except (SceneError, ExpressionError, DerivationError) as exc:
+    except (SceneError, ExpressionError, DerivationError, UsageError) as exc:
         raise UserError(str(exc)) from exc

@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 
 from explorer.commands.errors import UserError, user_errors
-from systems.limits import MIN_T_END
 
 DEFAULT_T_END = 1e4
 
@@ -60,40 +58,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from explorer.commands import stopping
     from explorer.commands.periodic_cmd import _start as parse_start
-    from systems.chaos.lyapunov import DEFAULT_METHOD, LyapunovRun, Spectrum, method_refusal
-    from systems.chaos.variational import NotApplicable, load_tangent, refusal
+    from systems.chaos.lyapunov import DEFAULT_METHOD, LyapunovRun, Spectrum
+    from systems.chaos.variational import NotApplicable, load_tangent
     from systems.compiled import compile_system
     from systems.integrators import STEPPERS
     from systems.mechanics import derive
     from systems.scene import load_scene
-    from systems.start_check import check_start
-    from systems.textbook.periodic_orbits import start_state
+    from systems.usage import check_lyapunov, check_lyapunov_options, start_state
 
     values = parse_start(args.start)
     t_end = args.t_end
-    if not (math.isfinite(t_end) and t_end >= MIN_T_END):
-        raise UserError(f"--t-end must be a finite number of at least {MIN_T_END:g}, not {t_end!r}")
     method = args.method or DEFAULT_METHOD
-    if method not in STEPPERS:
-        raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
     start = time.perf_counter()
     with user_errors():
+        check_lyapunov_options(method, t_end)
         scene = load_scene(args.scene)
         mechanics = derive(scene)
-    reason = refusal(mechanics)
-    if reason:
-        raise UserError(f"{args.scene}: Lyapunov exponents are not available here: {reason}")
-    reason = method_refusal(mechanics, method)
-    if reason:
-        raise UserError(f"method {method!r} cannot carry the tangent vectors: {reason}")
+        check_lyapunov(mechanics, method, args.scene)
     wants = STEPPERS[method].wants | {"hamiltonian"}
     with user_errors():
         compiled = compile_system(mechanics, wants)
-        try:
-            given = start_state(mechanics, values) if values else None
-        except ValueError as exc:
-            raise UserError(f"--start: {exc}") from None
-        y0 = check_start(compiled, given)
+        y0 = start_state(compiled, values)
     try:
         tangent = load_tangent(compiled)
         compile_s = compiled.build_seconds + tangent.build_seconds

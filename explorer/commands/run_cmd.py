@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import itertools
 import json
 import math
 import sys
@@ -16,7 +15,7 @@ import numpy as np
 
 from explorer.commands.errors import UserError, user_errors
 from explorer.commands.stopping import check, deferred, requested, status
-from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS, MIN_T_END
+from systems.limits import DEFAULT_ENERGY_TOLERANCE, DEFAULT_MAX_STEPS
 
 DEFAULT_SAMPLES = 10_000
 """Rows ``run --out`` writes by default: the states at this many evenly spaced times."""
@@ -60,21 +59,13 @@ def integration_options(args: argparse.Namespace, method: str, t_end: float) -> 
     """``stream`` keywords from the options of ``add_integration_options``, checked against
     the method and a run from 0 to ``t_end`` (``UserError``, exit 2, for a setting it does
     not take or cannot honour)."""
-    from systems.integrators import get_stepper
-    from systems.simulation import parse_energy_tolerance
+    from systems.usage import integration_settings
 
-    problem = get_stepper(method).setting_error(args.dt, args.tol, (0.0, t_end))
-    if problem:
-        raise UserError(problem)
-    if not args.max_steps > 0:
-        raise UserError(f"--max-steps must be a positive whole number, not {args.max_steps}")
-    try:
-        energy_tolerance = parse_energy_tolerance(args.energy_tolerance)
-    except ValueError as exc:
-        raise UserError(f"--energy-tolerance: {exc}") from None
-    return dict(
-        dt=args.dt, tol=args.tol, max_steps=args.max_steps, energy_tolerance=energy_tolerance
-    )
+    with user_errors():
+        return integration_settings(
+            method, t_end, dt=args.dt, tol=args.tol, max_steps=args.max_steps,
+            energy_tolerance=args.energy_tolerance,
+        )  # fmt: skip
 
 
 def prepare(
@@ -91,46 +82,25 @@ def prepare(
 
     Raises ``UserError`` for an unknown method or one the system does not allow.
     """
-    from systems.compiled import compile_system
-    from systems.integrators import STEPPERS, choose_method
-    from systems.integrators.measured import ALTERNATIVE, measured_choice
     from systems.mechanics import derive
     from systems.scene import load_scene
-    from systems.simulation import required_wants
-    from systems.start_check import check_start
+    from systems.usage import prepare_run
 
     with user_errors():
         scene = load_scene(scene_name)
         mechanics = derive(scene)
-    auto, auto_why = choose_method(mechanics)
-    requested = method
-    if method is None:
-        method, why = auto, auto_why
-    else:
-        if method not in STEPPERS:
-            raise UserError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
-        check_method(mechanics, method)
-        why = f"requested (the automatic choice would be {auto}: {auto_why})"
-    measured = measure and requested is None
-    wants = required_wants(method) | {"hamiltonian", *extra_wants}
-    if measured:  # the choice is measured against DOP853 on the compiled system
-        wants |= required_wants(ALTERNATIVE)
-    with user_errors():
-        compiled = compile_system(mechanics, wants)
-        check_start(compiled)
-    if measured:
-        t_end = float(scene.view.get("t_end", 10.0)) if t_end is None else t_end
-        method, why = measured_choice(compiled, method, why, 0.0, compiled.initial_state(), t_end)
+        method, why, compiled = prepare_run(
+            mechanics, method, extra_wants=extra_wants, t_end=t_end, measure=measure
+        )
     return scene, mechanics, method, why, compiled
 
 
 def check_method(mechanics, method: str) -> None:
     """``UserError`` when ``method`` does not apply to the system (the registry says why)."""
-    from systems.integrators import STEPPERS
+    from systems.usage import check_method as checked
 
-    refusal = STEPPERS[method].applies_to(mechanics)
-    if refusal is not None:
-        raise UserError(f"method {method!r} does not apply: {refusal}")
+    with user_errors():
+        checked(mechanics, method)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -251,13 +221,10 @@ def check_t_end(t_end: float, given: str = "--t-end", alternative: str = "") -> 
     ``given`` names where the time came from; ``alternative`` is added to the message
     (" (or inf, with --out and --every)").
     """
-    if not (math.isfinite(t_end) and t_end > 0):
-        raise UserError(f"{given} must be a positive finite time{alternative}, not {t_end:g}")
-    if t_end < MIN_T_END:
-        raise UserError(
-            f"{given} must be at least {MIN_T_END:g}, not {t_end:g}: a shorter time cannot "
-            "be divided into steps"
-        )
+    from systems.usage import check_t_end as checked
+
+    with user_errors():
+        checked(t_end, given, alternative)
 
 
 def check_output(args: argparse.Namespace, endless: bool) -> None:
@@ -350,19 +317,10 @@ def sample_times(args: argparse.Namespace, t_end: float):
     """The simulation times whose states are written: ``--samples`` evenly spaced (default
     10 000) or one every ``--every`` (endlessly, for an endless run). Chosen by simulation
     time, never by wall time, so the same command writes the same file on any machine."""
-    if args.every is not None:
-        if not (math.isfinite(args.every) and args.every > 0):
-            raise UserError(f"--every must be a positive time, not {args.every}")
-        if math.isinf(t_end):
-            return (k * args.every for k in itertools.count(1))
-        count = t_end / args.every
-        if count > 1e7:
-            raise UserError(f"--every {args.every:g} asks for {count:.3g} rows; at most 1e7")
-        return np.append(np.arange(0.0, t_end, args.every), t_end)
-    count = DEFAULT_SAMPLES if args.samples is None else args.samples
-    if not 1 <= count <= 10**7:
-        raise UserError(f"--samples must be between 1 and 10000000, not {count}")
-    return np.linspace(0.0, t_end, count + 1)
+    from systems.usage import sample_times as times
+
+    with user_errors():
+        return times(t_end, samples=args.samples, every=args.every, default=DEFAULT_SAMPLES)
 
 
 def write_trajectory(path: str, scene, t, y, qdot, H, n: int, multipliers=None) -> None:
