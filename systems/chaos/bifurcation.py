@@ -308,9 +308,11 @@ def periods(
     N, K, _ = S.shape
     result = np.zeros(N, dtype=np.int64)
     for r in range(N):
-        rows = S[r]
+        rows = S[r].copy()
         if not np.isfinite(rows).all():
             continue
+        for i in angles:  # a turning angle's size says nothing of its precision
+            rows[:, i] = np.pi - np.mod(np.pi - rows[:, i], 2 * np.pi)
         scale = max(1.0, float(np.abs(rows).max()))
         for p in range(1, K // 2 + 1):
             gap = rows[p:] - rows[:-p]

@@ -109,3 +109,17 @@ def test_a_run_with_a_strobe_gives_the_states_once_per_period(pendulum):
     assert np.abs(np.array(states) - expected).max() < 1e-9
     with pytest.raises(ValueError, match="strobe must be a positive period"):
         Run(pendulum, strobe=T, section=(0, 0.0, 1))
+
+
+def test_a_turning_angle_is_compared_modulo_two_pi_at_its_own_scale():
+    k = np.arange(16)
+    theta = 1e4 + 2 * np.pi * k + 0.01 * (k % 2)  # turning, and alternating by 0.01
+    p = 1.0 + 0.0 * k
+    samples = np.stack([theta, p], axis=-1)[None]
+    diagram = bf.OrbitDiagram(
+        parameter="A", values=np.array([1.0]), samples=samples, periods_T=np.array([1.0]),
+        status=np.array([0]), names=("theta", "p_theta"), method="rk4", per_period=200,
+        transient_periods=0, t0=0.0, wall_s=0.0, complete=True,
+    )  # fmt: skip
+    assert list(bf.periods(diagram, 1e-4, angles=(0,))) == [2]
+    assert list(bf.periods(diagram, 1e-1, angles=(0,))) == [1]
