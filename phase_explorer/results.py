@@ -163,6 +163,9 @@ class Section:
     cut : str
         What was cut: ``"x = 0"``, or ``"t = 2.0944 k"``.
     energy : float or None
+    status : tuple of str
+        How each orbit's run ended: ``"ok"`` at ``t_end``, else the problem that stopped
+        it early (``"energy_error"``, ``"unbounded"``, ...), as ``Trajectory.status``.
     """
 
     t: np.ndarray
@@ -173,6 +176,7 @@ class Section:
     kind: str
     cut: str
     energy: float | None
+    status: tuple[str, ...] = ()
     title: str = ""
 
     def points(self) -> np.ndarray:

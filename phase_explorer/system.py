@@ -235,7 +235,9 @@ class System:
             H = compiled.hamiltonian(t, y)
             qdot = compiled.velocities(t, y)
         last = sampler.last if sampler.last is not None else run.stop("interrupted", "")
-        status, message = ("interrupted" if sampler.interrupted else last.status), last.message
+        status, message = last.status, last.message
+        if sampler.interrupted:  # Ctrl+C (a notebook's interrupt): the rows so far
+            status, message = "interrupted", f"interrupted at t = {t[-1]:.6g}"
         conserved = mechanics.classification.hamiltonian_conserved
         max_rel = None
         if conserved:
@@ -320,7 +322,6 @@ class System:
                 )
             kind, cut, run_options = "stroboscopic", f"t = {period:.6g} k", {"strobe": period}
             axes = (names[0], names[n])
-            section_energy = None
         else:
             try:
                 section = map_section(compiled, label, spell=str)
@@ -333,11 +334,18 @@ class System:
             cut = f"{names[section.coordinate]} = {section.value:g}"
             run_options = {"section": (section.coordinate, section.value, 1)}
             axes = (names[section.shown], names[n + section.shown])
-            section_energy = energy
+            if energy is not None and points is None:
+                raise UsageError(
+                    "energy is the energy of points on the section: give points=[(q, p), ...] "
+                    "with it (starts carry their own energy)"
+                )
         y0s = self._section_starts(compiled, points, energy, starts, section)
-        if period is None:
-            section_energy = float(compiled.hamiltonian(0.0, y0s[:1])[0])
-        ts, ys, orbit = [], [], []
+        section_energy = None
+        if period is None:  # one energy when every orbit has it
+            H = compiled.hamiltonian(0.0, y0s)
+            if np.allclose(H, H[0], rtol=1e-9, atol=1e-12):
+                section_energy = float(H[0])
+        ts, ys, orbit, ended = [], [], [], []
         for k, y0 in enumerate(y0s):
             run = Run(compiled, method=method, y0=y0, t_end=t_end, **options, **run_options)
             block = None
@@ -346,9 +354,11 @@ class System:
                 ts.append(np.asarray(block.events_t, dtype=float))
                 ys.append(np.asarray(block.events_y, dtype=float).reshape(-1, 2 * n))
                 orbit.append(np.full(len(block.events_t), k))
+            ended.append(block.status)
         return results.Section(
             t=np.concatenate(ts), y=np.concatenate(ys), orbit=np.concatenate(orbit),
-            axes=axes, names=names, kind=kind, cut=cut, energy=section_energy, title=self.title,
+            axes=axes, names=names, kind=kind, cut=cut, energy=section_energy,
+            status=tuple(ended), title=self.title,
         )  # fmt: skip
 
     def _section_starts(self, compiled, points, energy, starts, section) -> np.ndarray:

@@ -132,3 +132,19 @@ def test_a_chaos_map_over_two_variables_keeps_the_rest_of_the_start():
     assert found.megno.shape == (2, 3) and found.axes == (names[0], names[1])
     np.testing.assert_array_equal(found.xs, [-1.0, 0.0, 1.0])
     assert found.energy is None and found.chaotic_fraction == 0.0
+
+
+def test_a_section_says_how_each_orbit_ended_and_its_energy():
+    henon = pe.load("henon_heiles")
+    two = henon.section(t_end=50, starts=[{"y": 0.1}, {"y": 0.2}])
+    assert two.status == ("ok", "ok") and two.energy is None  # two energies
+    assert set(two.orbit) <= {0, 1} and two.points().shape == (len(two.t), 2)
+    on = henon.section(t_end=50, points=[(0.1, 0.0)], energy=0.1)
+    assert on.energy == pytest.approx(0.1) and on.status == ("ok",)
+    with pytest.raises(pe.UsageError, match="give points"):
+        henon.section(energy=0.1)
+    with pytest.raises(pe.UsageError, match="two degrees of freedom"):
+        pe.load("simple_pendulum").section()
+    strobe = pe.load("driven_damped_pendulum").section(t_end=60)
+    assert strobe.kind == "stroboscopic"
+    np.testing.assert_allclose(np.diff(strobe.t), 3 * np.pi, rtol=1e-12)
