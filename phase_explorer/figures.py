@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import matplotlib.axes
+    import matplotlib.figure
 
 NO_VALUE = (0.85, 0.85, 0.85, 1.0)
 """Light grey: a pixel of a map with no value (no state there, or the orbit stopped)."""
@@ -20,11 +25,11 @@ class Figure:
         The matplotlib figure itself, to change before showing or saving it.
     """
 
-    def __init__(self, figure) -> None:
+    def __init__(self, figure: matplotlib.figure.Figure) -> None:
         self.figure = figure
 
     @property
-    def axes(self):
+    def axes(self) -> matplotlib.axes.Axes:
         """The figure's first axes (``matplotlib.axes.Axes``)."""
         return self.figure.axes[0]
 
@@ -44,7 +49,7 @@ class Figure:
         return path
 
 
-def new_figure(size: tuple[float, float] = (7.0, 4.5)):
+def new_figure(size: tuple[float, float] = (7.0, 4.5)) -> matplotlib.figure.Figure:
     """A matplotlib figure on the Agg canvas (no pyplot: nothing global, no window)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure as MplFigure

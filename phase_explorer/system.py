@@ -73,10 +73,12 @@ class System:
 
     @property
     def title(self) -> str:
+        """The scene's title."""
         return self.scene.title
 
     @property
     def coordinates(self) -> tuple[str, ...]:
+        """The generalized coordinates' names, (n,)."""
         return tuple(self.scene.coordinates)
 
     @property

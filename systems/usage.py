@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from systems.limits import MIN_T_END
+
+if TYPE_CHECKING:
+    from systems.section import Section
 
 MAX_ROWS = 10**7
 """The most rows a run's output holds (``samples``, ``t_end / every``)."""
@@ -73,7 +77,7 @@ def integration_settings(
     tol: float | None = None,
     max_steps: int,
     energy_tolerance: float | str | None,
-    spell=cli_name,
+    spell: Callable[[str], str] = cli_name,
 ) -> dict:
     """``systems.simulation.Run`` keywords, checked against ``method`` and a run from 0 to
     ``t_end``: the setting the method takes (``dt`` or ``tol``), a positive step budget,
@@ -119,7 +123,7 @@ def sample_times(
     samples: int | None = None,
     every: float | None = None,
     default: int = 10_000,
-    spell=cli_name,
+    spell: Callable[[str], str] = cli_name,
 ) -> np.ndarray | Iterator[float]:
     """The simulation times whose states are written: ``samples`` evenly spaced
     (default ``default``) or one every ``every`` (endlessly, for an endless run).
@@ -263,7 +267,7 @@ def check_map_options(
     t_end: float | None,
     *,
     grid_text: str | None = None,
-    spell=cli_name,
+    spell: Callable[[str], str] = cli_name,
 ) -> float:
     """``UsageError`` for a grid, indicator or end time a chaos map cannot take, before
     anything is derived; returns the end time (default ``maps.DEFAULT_T_END``).
@@ -288,7 +292,9 @@ def check_map_options(
     return float(t_end)
 
 
-def check_ranges(ranges: Mapping[str, tuple[float, float]], spell=cli_name) -> dict:
+def check_ranges(
+    ranges: Mapping[str, tuple[float, float]], spell: Callable[[str], str] = cli_name
+) -> dict[str, tuple[float, float]]:
     """``{name: (low, high)}`` checked: finite ends, low below high."""
     checked = {}
     for name, bounds in ranges.items():
@@ -319,7 +325,7 @@ def map_setup(
     over: tuple[str, ...] | None = None,
     ranges: Mapping[str, tuple[float, float]] | None = None,
     energy: float | None = None,
-    spell=cli_name,
+    spell: Callable[[str], str] = cli_name,
 ):
     """Compile ``mechanics`` for a chaos map and lay out its grid: on the Poincaré
     section at ``energy`` (default the start's), or ``over`` two state variables.
@@ -411,7 +417,7 @@ def map_setup(
     return compiled, tangent, kernel, grid
 
 
-def map_section(compiled, scene: str, spell=cli_name):
+def map_section(compiled, scene: str, spell: Callable[[str], str] = cli_name) -> Section:
     """The Poincaré section a map (or ``phase_explorer``'s ``section``) lies on:
     ``systems.section.Section`` of a system of two degrees of freedom with H conserved."""
     from systems.angles import angle_coordinates
@@ -439,7 +445,7 @@ def diagram_setup(
     steps_per_period: int | None = None,
     start: Mapping[str, float] | None = None,
     variable: str | None = None,
-    spell=cli_name,
+    spell: Callable[[str], str] = cli_name,
 ):
     """Compile ``mechanics`` for an orbit diagram over ``parameter``.
 
