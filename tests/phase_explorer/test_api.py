@@ -148,3 +148,25 @@ def test_a_section_says_how_each_orbit_ended_and_its_energy():
     strobe = pe.load("driven_damped_pendulum").section(t_end=60)
     assert strobe.kind == "stroboscopic"
     np.testing.assert_allclose(np.diff(strobe.t), 3 * np.pi, rtol=1e-12)
+
+
+def test_the_api_and_the_command_line_compute_the_same_map_and_diagram(tmp_path, capsys):
+    out = tmp_path / "map.npz"
+    argv = ["chaosmap", "henon_heiles", "--grid", "5x4", "--energy", "0.125", "--t-end", "40"]
+    assert main([*argv, "--out", str(out), "--json"]) == 0
+    capsys.readouterr()
+    said = np.load(out)
+    found = pe.load("henon_heiles").chaosmap((5, 4), energy=0.125, t_end=40)
+    np.testing.assert_array_equal(found.megno, said["megno"])
+    np.testing.assert_array_equal(found.lyapunov, said["lyapunov"])
+    np.testing.assert_array_equal(found.xs, said["x"])
+
+    out = tmp_path / "diagram.npz"
+    argv = ["bifurcation", "driven_damped_pendulum", "--parameter", "A", "--range", "1.0:1.1:4"]
+    assert main([*argv, "--transient", "300", "--samples", "8", "--out", str(out)]) == 0
+    capsys.readouterr()
+    said = np.load(out)
+    diagram = pe.load("driven_damped_pendulum").bifurcation(
+        "A", np.linspace(1.0, 1.1, 4), transient=300, samples=8
+    )
+    np.testing.assert_array_equal(diagram.samples, said["samples"])
