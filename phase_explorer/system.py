@@ -5,7 +5,7 @@ line's operations as methods (``run``, ``section``, ``lyapunov``, ``chaosmap``,
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -448,6 +448,7 @@ class System:
         dt: float | None = None,
         over: tuple[str, str] | None = None,
         ranges: Mapping[str, tuple[float, float]] | None = None,
+        progress: Callable[[int, int], None] | None = None,
     ) -> results.ChaosMap:
         """MEGNO or the maximal exponent over a grid of starts, as ``python main.py
         chaosmap``: on the Poincaré section at ``energy`` (default: the start's), or
@@ -462,6 +463,9 @@ class System:
             section's allowed region).
         t_end : float, optional
             How long each orbit runs (default 500).
+        progress : callable, optional
+            ``progress(done, total)`` after each chunk of orbits (a progress bar's
+            update).
 
         Returns
         -------
@@ -481,7 +485,7 @@ class System:
             self.mechanics, label, nx=nx, ny=ny, t_end=t_end, method=method, dt=dt, over=over,
             ranges=check_ranges(ranges or {}, spell=str), energy=energy, spell=str,
         )  # fmt: skip
-        found = maps.chaos_map(kernel, map_grid)
+        found = maps.chaos_map(kernel, map_grid, progress=progress)
         return results.ChaosMap(
             xs=map_grid.xs, ys=map_grid.ys, axes=tuple(map_grid.names), megno=found.megno,
             lyapunov=found.lyapunov, status=found.status, indicator=indicator,
@@ -502,11 +506,13 @@ class System:
         steps_per_period: int | None = None,
         start: Mapping[str, float] | None = None,
         variable: str | None = None,
+        progress: Callable[[int, int], None] | None = None,
     ) -> results.OrbitDiagram:
         """The orbit diagram of a periodically driven system over ``parameter``, as
         ``python main.py bifurcation``: for each of ``values`` (N,), the orbit from the
         scene's start (or ``start``) runs ``transient`` (default 300 periods of the
         drive), then ``samples`` periods, its state kept at each period's end.
+        ``progress(done, total)`` is called after each chunk of values.
 
         Returns
         -------
@@ -529,7 +535,7 @@ class System:
             samples=samples, method=method, steps_per_period=steps_per_period, start=start,
             variable=variable, spell=str,
         )  # fmt: skip
-        diagram = bf.orbit_diagram(kernel, values, y0=y0)
+        diagram = bf.orbit_diagram(kernel, values, y0=y0, progress=progress)
         names = tuple(diagram.names)
         return results.OrbitDiagram(
             parameter=parameter, values=values, samples=diagram.samples, variable=variable,
