@@ -34,13 +34,12 @@ def cli_name(keyword: str) -> str:
     return "--" + keyword.replace("_", "-")
 
 
-def check_method_name(method: str, choices: tuple[str, ...] | None = None) -> None:
-    """``UsageError`` unless ``method`` is a registered method (or one of ``choices``)."""
+def check_method_name(method: str) -> None:
+    """``UsageError`` unless ``method`` is a registered method."""
     from systems.integrators import STEPPERS
 
-    names = tuple(STEPPERS) if choices is None else choices
     if method not in STEPPERS:
-        raise UsageError(f"unknown method {method!r}; choose from {', '.join(names)}")
+        raise UsageError(f"unknown method {method!r}; choose from {', '.join(STEPPERS)}")
 
 
 def check_method(mechanics, method: str) -> None:
