@@ -44,14 +44,18 @@ def main() -> bool:
         result = maps.chaos_map(kernel, grid)
         return time.perf_counter() - start, result
 
+    load = os.getloadavg()[0]
     serial, one = timed(1)
     parallel, many = timed(threads)
+    load = max(load, os.getloadavg()[0])
     steps = orbits * kernel.nsteps
     print(
         f"  {SIZE}x{SIZE} grid, {orbits} orbits on the section, {kernel.method} dt = "
         f"{kernel.dt:.3g}, t = {kernel.t:g}: {steps / serial:.3g} orbit-steps/s on 1 thread "
         f"({serial:.1f} s), {steps / parallel:.3g} on {threads} ({parallel:.1f} s; "
-        f"{cores} cores); chaotic fraction {many.chaotic_fraction():.3f}"
+        f"{cores} cores); chaotic fraction {many.chaotic_fraction():.3f}; load average "
+        f"{load:.1f} (above about {cores - threads + 1} other work takes the cores the "
+        "threads would share: the speed-up then says nothing)"
     )
     same = bool((one.status == many.status).all()) and bool(
         ((one.megno == many.megno) | (one.status != 0)).all()
