@@ -25,6 +25,7 @@ SCRIPTS = (
     "scene_switches",
     "worker_latency",
     "window_close",
+    "chaos_map",
 )
 
 
