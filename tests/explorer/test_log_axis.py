@@ -21,8 +21,14 @@ def _labels(qtbot, axis_item, span, height):
     widget.resize(300, height)
     widget.show()
     qtbot.waitExposed(widget)
+    axis, box = plot.getAxis("left"), plot.getViewBox()
+
+    def laid_out() -> bool:  # a fixed 20 ms wait found a busy machine's axis unsized, bare
+        return box.height() > 10 and abs(axis.height() - box.height()) < 1
+
+    qtbot.waitUntil(laid_out, timeout=20000)
     qtbot.wait(20)
-    return drawn_labels(plot.getAxis("left"))
+    return drawn_labels(axis)
 
 
 def drawn_labels(axis) -> list:
