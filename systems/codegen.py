@@ -309,8 +309,18 @@ def _collection_paused():
             gc.enable()
 
 
+def module_name(system_source: str, *, with_templates: bool = False) -> str:
+    """The name of ``build_module``'s module (and file, with ``.py``) for these
+    arguments, without building it."""
+    return _name(_module_key(system_source, with_templates)[1], with_templates)
+
+
+def _name(key: str, drivers: bool) -> str:
+    return f"pe_{'drivers' if drivers else 'kernels'}_{key}"
+
+
 def _import(source: str, data: bytes, key: str, prefix: str, drivers: bool) -> ModuleType:
-    name = f"pe_{'drivers' if drivers else 'kernels'}_{key}"
+    name = _name(key, drivers)
     path = cache_dir() / f"{name}.py"
     on_disk = read_entry(path)  # anything but a readable file is removed and reported
     if on_disk != data:

@@ -33,14 +33,13 @@ from numba import prange
 
 
 @functools.cache
-def loop_module():
-    """The module of the templates below the marker instantiated for each fixed-step
-    family with an ensemble loop, after the drivers' templates (each loop compiled on
-    first use, then loaded from numba's cache)."""
+def _loop_source() -> str:
+    """The templates below the marker instantiated for each fixed-step family with an
+    ensemble loop."""
     import inspect
     import re
 
-    from systems.codegen import TEMPLATE_MARKER, build_module
+    from systems.codegen import TEMPLATE_MARKER
     from systems.integrators.registry import FAMILIES
 
     _, _, body = inspect.getsource(sys.modules[__name__]).partition(TEMPLATE_MARKER)
@@ -51,7 +50,24 @@ def loop_module():
             instance = body.replace("DRIVER_", f"{kernel}_")
             instance = re.sub(r"\bSTEP\(", f"{kernel}_step(", instance)
             parts.append(re.sub(r"\bWORK\(", f"{kernel}_work(", instance))
-    return build_module("\n\n".join(parts), with_templates=True)
+    return "\n\n".join(parts)
+
+
+@functools.cache
+def loop_module():
+    """The module of the loops (``_loop_source``) after the drivers' templates (each loop
+    compiled on first use, or by ``python main.py warm``, then loaded from numba's
+    cache)."""
+    from systems.codegen import build_module
+
+    return build_module(_loop_source(), with_templates=True)
+
+
+def loop_module_name() -> str:
+    """The name of ``loop_module``'s file in the cache, without building the module."""
+    from systems.codegen import module_name
+
+    return module_name(_loop_source(), with_templates=True)
 
 
 # --- kernels ---

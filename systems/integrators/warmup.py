@@ -103,31 +103,56 @@ def warm_drivers(progress=None) -> float:
         if family.ensemble:
             Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
             ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
+    if progress is not None:
+        progress("chaos maps")
+    warm_map_loops(systems["free"])
     _warm.set()
     return time.perf_counter() - start
 
 
+MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4")
+"""The methods whose chaos-map loops the warm-up compiles: those a map or an orbit
+diagram takes by default (``systems.chaos.maps.default_map_method``). Another method's
+loop compiles on its first use, about 6 s, then comes from numba's cache."""
+
+
+def warm_map_loops(compiled) -> None:
+    """Compile (or load) the chaos map's loop of each of ``MAP_METHODS`` with a map of
+    one orbit and one step on ``compiled`` (a conservative, separable system)."""
+    from systems.chaos.maps import map_chunk, map_kernel
+    from systems.chaos.variational import load_tangent
+
+    tangent = load_tangent(compiled)
+    start = compiled.initial_state()[None]
+    for method in MAP_METHODS:
+        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, dt=1e-3), start)
+
+
 def copy_drivers(source: Path, target: Path) -> bool:
-    """Copy the drivers' module of this source and numba's cache files of it from the
-    cache directory ``source`` into the cache directory ``target`` (both roots as
-    ``PHASE_EXPLORER_CACHE`` names them); nothing else (no scene's derivation or
-    functions), so that ``target`` is a cold cache for scenes on an installation whose
-    drivers are compiled. False where ``source`` has no such drivers or a copy fails
-    (``target`` then compiles them afresh)."""
+    """Copy the drivers' module of this source and the chaos maps' loops, with numba's
+    cache files of them, from the cache directory ``source`` into the cache directory
+    ``target`` (both roots as ``PHASE_EXPLORER_CACHE`` names them); nothing else (no
+    scene's derivation or functions), so that ``target`` is a cold cache for scenes on an
+    installation whose drivers are compiled. False where ``source`` has no such drivers
+    or a copy fails (``target`` then compiles them afresh)."""
     import shutil
 
+    from systems.chaos.map_kernels import loop_module_name
     from systems.codegen import _driver_key
 
-    name = f"pe_drivers_{_driver_key()}"
     installed, kernels = Path(source) / "kernels", Path(target) / "kernels"
+    name = f"pe_drivers_{_driver_key()}"
     if not (installed / f"{name}.py").is_file():
         return False
     try:
         (kernels / "__pycache__").mkdir(parents=True, exist_ok=True)
-        shutil.copy2(installed / f"{name}.py", kernels / f"{name}.py")
-        for entry in (installed / "__pycache__").glob(f"{name}.*"):
-            if entry.is_file() and not entry.is_symlink():
-                shutil.copy2(entry, kernels / "__pycache__" / entry.name)
+        for module in (name, loop_module_name()):
+            if not (installed / f"{module}.py").is_file():
+                continue  # compiled afresh where used
+            shutil.copy2(installed / f"{module}.py", kernels / f"{module}.py")
+            for entry in (installed / "__pycache__").glob(f"{module}.*"):
+                if entry.is_file() and not entry.is_symlink():
+                    shutil.copy2(entry, kernels / "__pycache__" / entry.name)
     except OSError:
         return False
     return True

@@ -39,9 +39,51 @@ def test_after_the_warm_up_a_scenes_calls_load_no_loop():
 
 def test_copy_drivers_takes_the_drivers_and_nothing_else(tmp_path):
     from systems.cache_integrity import cache_root
+    from systems.chaos.map_kernels import loop_module
 
-    driver_module()  # written into the session's cache
+    modules = (driver_module().__name__, loop_module().__name__)  # in the session's cache
     assert copy_drivers(cache_root(), tmp_path)
     names = sorted(p.name for p in (tmp_path / "kernels").rglob("*") if p.is_file())
-    assert names and all(name.startswith(driver_module().__name__) for name in names)
+    assert {name.split(".")[0] for name in names} == set(modules)
     assert not copy_drivers(tmp_path / "nothing here", tmp_path / "other")
+
+
+def test_the_default_chaos_map_loops_come_from_the_cache_in_a_new_process():
+    """``warm_drivers`` (the session's, as ``python main.py warm``) compiled the map loops
+    of the methods maps take by default: a new process loads them, compiles none."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = """
+import json
+from systems.chaos.map_kernels import loop_module
+from systems.chaos.maps import map_chunk, map_kernel
+from systems.chaos.variational import load_tangent
+from systems.compiled import compile_system
+from systems.integrators.registry import STEPPERS
+from systems.integrators.warmup import MAP_METHODS
+from systems.mechanics import derive
+from systems.scene import load_scene
+
+for name, method in (("henon_heiles", "yoshida4"), ("henon_heiles", "gauss_legendre4"),
+                     ("damped_pendulum", "rk4")):
+    assert method in MAP_METHODS
+    compiled = compile_system(derive(load_scene(name)), ("rhs", "hamiltonian", "separable"))
+    tangent = load_tangent(compiled)
+    map_chunk(map_kernel(tangent, method=method, t_end=0.1), compiled.initial_state()[None])
+loops = [getattr(loop_module(), f"{STEPPERS[m].family.kernel}_megno_parallel")
+         for m in MAP_METHODS]
+print(json.dumps({"misses": sum(sum(loop.stats.cache_misses.values()) for loop in loops),
+                  "hits": sum(sum(loop.stats.cache_hits.values()) for loop in loops)}))
+"""
+    root = Path(__file__).resolve().parents[3]
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=root,
+        env=dict(os.environ, PYTHONPATH=str(root)), timeout=600,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report == {"misses": 0, "hits": 3}, report
