@@ -22,9 +22,11 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/activate
 	$(BIN)/pip install -e ".[test]"
 	touch $@ $(VENV)/.installed
 
-# the integrators' stepping loops, compiled once into numba's cache (python main.py warm);
-# again only when their source changes
-$(VENV)/.warm: $(VENV)/.installed systems/integrators/kernels.py systems/integrators/codes.py systems/codegen.py
+# the integrators' stepping loops and the chaos maps' default loops, compiled once into
+# numba's cache (python main.py warm); again only when their source changes
+WARM_SOURCES := systems/integrators/kernels.py systems/integrators/codes.py \
+	systems/codegen.py systems/chaos/map_kernels.py
+$(VENV)/.warm: $(VENV)/.installed $(WARM_SOURCES)
 	$(BIN)/python main.py warm
 	touch $@
 
