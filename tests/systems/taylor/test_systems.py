@@ -1,0 +1,160 @@
+"""Whole systems: the Taylor coefficients of the solution through a state, against the
+exact series (the harmonic oscillator) and against recursive differentiation of the
+right-hand side (y^(k) = D^(k-1) f with D = f . grad + d/dt, symengine, evaluated in
+double precision after one common-subexpression elimination), for catalogue scenes and
+a system with every function of the parser (abs aside: symengine cannot differentiate
+its derivative, sign; its recurrence is checked in test_elementary)."""
+
+import math
+
+import numpy as np
+import pytest
+import symengine as se
+import sympy as sp
+
+from systems.mechanics import derive
+from systems.scene import load_scene, parse_scene
+from systems.taylor.coefficients import evaluate, taylor_coefficients
+from systems.taylor.decompose import NotDecomposable, decompose, decompose_mechanics
+
+EVERY_HAMILTONIAN = " + ".join(
+    [
+        "p_x**2/2 + p_y**2/2*(2 + tanh(x)) + a*sin(x)*cos(y) + exp(x/4)*log(3 + y)",
+        "sqrt(5 + x**2) + atan(x*y) + asin(y/3) + acos(x/4) + atan2(y, 3 + x)",
+        "b*sinh(x/2)*cosh(y/3) + tan(y/2) + (2 + x)**1.5 + (4 + y)**(-2.5) + x**3*y**2",
+        "(2 + cos(t))*x + p_x*(asin(y/3) + acos(x/4) + atan(x*y) + atan2(y, 3 + x))",
+    ]
+)
+EVERY_FUNCTION = f"""
+title = "every function"
+[system]
+coordinates = ["x", "y"]
+parameters = {{ a = 0.7, b = 1.3 }}
+hamiltonian = "{EVERY_HAMILTONIAN}"
+[initial]
+x = 0.3
+y = -0.2
+p_x = 0.4
+p_y = 0.1
+"""
+
+
+def _mechanics(name):
+    if name == "every_function":
+        return derive(parse_scene(EVERY_FUNCTION))
+    return derive(load_scene(name))
+
+
+def _lie_series(mechanics, t0, y0, P, order):
+    """[y]_k by recursive differentiation of the rhs, (order + 1, m), to 50 digits."""
+    variables = [se.Symbol(str(s)) for s in (*mechanics.q, *mechanics.p)]
+    t = se.Symbol(str(mechanics.t))
+    parameters = [se.Symbol(str(mechanics.params[n])) for n, _ in mechanics.scene.parameters]
+    f = [se.sympify(sp.sympify(e)) for e in mechanics.hamilton_equations]
+    point = [t0, *y0, *P]
+    rows = [np.array(y0, dtype=float)]
+    current = list(variables)
+    for k in range(1, order + 1):
+        current = [
+            sum((se.diff(c, v) * fv for v, fv in zip(variables, f, strict=True)), se.diff(c, t))
+            for c in current
+        ]
+        function = se.Lambdify([t, *variables, *parameters], current, cse=True, real=True)
+        rows.append(np.asarray(function(point), dtype=float).ravel() / math.factorial(k))
+    return np.array(rows)
+
+
+def test_the_harmonic_oscillator_has_the_cosine_and_sine_series():
+    mechanics = _mechanics("harmonic_oscillator")
+    d = decompose_mechanics(mechanics)
+    omega = math.sqrt(1.7 / 0.8)
+    c = taylor_coefficients(d, 0.0, [1.0, 0.0], [0.8, 1.7], 20)  # m = 0.8, k = 1.7
+    k = np.arange(21)
+    factorials = np.array([math.factorial(j) for j in k], dtype=float)
+    cosine = np.where(k % 2 == 0, (-1.0) ** (k // 2) * omega**k / factorials, 0.0)
+    sine = np.where(k % 2 == 1, (-1.0) ** (k // 2) * omega**k / factorials, 0.0)
+    np.testing.assert_allclose(c[:, 0], cosine, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(c[:, 1], -0.8 * omega * sine, rtol=1e-14, atol=0)
+
+
+@pytest.mark.parametrize(
+    ("name", "order"),
+    # the derivatives' size grows about sixfold an order: the double pendulum's 7th
+    # took 3 s, its 8th 90 s
+    [
+        ("kepler_cartesian", 9),
+        ("planetary_motion", 14),
+        ("double_pendulum", 6),
+        ("every_function", 4),
+    ],
+)
+def test_the_coefficients_are_those_of_recursive_differentiation(name, order):
+    mechanics = _mechanics(name)
+    d = decompose_mechanics(mechanics)
+    P = np.array([v for _, v in mechanics.scene.parameters]) * 1.1
+    rng = np.random.default_rng(3)
+    y0 = np.array([v for _, v in mechanics.scene.initial], dtype=float)
+    y0 = y0 + rng.uniform(-0.1, 0.1, y0.shape)
+    got = taylor_coefficients(d, 0.4, y0, P, order)
+    exact = _lie_series(mechanics, 0.4, y0, P, order)
+    for k in range(order + 1):
+        scale = np.abs(exact[k]).max()
+        assert np.abs(got[k] - exact[k]).max() <= 1e-12 * scale, (k, got[k] - exact[k])
+
+
+@pytest.mark.parametrize("name", ["kepler_cartesian", "planetary_motion", "double_pendulum"])
+def test_order_20_steps_reproduce_a_tight_dop853_run(name):
+    from scipy.integrate import solve_ivp
+
+    from systems.compiled import compile_system
+    from systems.taylor.coefficients import horner
+
+    mechanics = _mechanics(name)
+    compiled = compile_system(mechanics, ("rhs",))
+    d = decompose_mechanics(mechanics)
+    P = compiled.parameters
+    y = compiled.initial_state()
+    t, h = 0.0, 0.01  # the double pendulum's series converges within about 0.4 at its start
+    for _ in range(50):
+        y = horner(taylor_coefficients(d, t, y, P, 20), h)
+        t += h
+    reference = solve_ivp(
+        compiled.rhs, (0.0, t), compiled.initial_state(), method="DOP853", rtol=2.3e-14, atol=1e-16
+    ).y[:, -1]
+    assert np.abs(y - reference).max() <= 1e-13 * np.abs(reference).max()
+
+
+def test_the_decomposition_evaluates_to_the_equations_and_shares_subexpressions():
+    mechanics = _mechanics("every_function")
+    d = decompose_mechanics(mechanics)
+    rhs = sp.lambdify(
+        [
+            mechanics.t,
+            *mechanics.q,
+            *mechanics.p,
+            *(mechanics.params[n] for n, _ in mechanics.scene.parameters),
+        ],
+        list(mechanics.hamilton_equations),
+    )
+    rng = np.random.default_rng(5)
+    Y = rng.uniform(-0.5, 0.5, (50, 4))
+    got = evaluate(d, 0.3, Y, [0.7, 1.3])
+    exact = np.array([rhs(0.3, *y, 0.7, 1.3) for y in Y], dtype=float)
+    np.testing.assert_allclose(got, exact, rtol=1e-13, atol=1e-14)
+    keys = [(node.op, node.args) for node in d.nodes]
+    assert len(keys) == len(set(keys))  # every node once
+    counts = d.counts()
+    for op in ("sin", "cos", "sinh", "cosh", "tan", "tanh", "asin", "acos", "atan", "atan2"):
+        assert counts.get(op, 0) >= 1, op
+
+
+def test_refusals_name_the_reason():
+    x, y = sp.symbols("x y")
+    with pytest.raises(NotDecomposable, match="gamma"):
+        decompose([sp.gamma(x), y], [x, y])
+    with pytest.raises(NotDecomposable, match="unknown symbol z"):
+        decompose([sp.Symbol("z"), y], [x, y])
+    chain = derive(load_scene("pendulum_chain"))
+    if chain.matrix_form is not None:
+        with pytest.raises(NotDecomposable, match="matrix form"):
+            decompose_mechanics(chain)
