@@ -42,7 +42,9 @@ abs, sign  (a,)                   ()  |a| = sign(a_0) a, analytic where a_0 != 0
 =========  =====================  ==========================================
 
 Integer powers are products: ``x**5 = square(square(x)) * x``, ``x**-2 = 1 / square(x)``,
-so they hold where x = 0. ``tanh`` has its own recurrence (1 - tanh^2, as ``tan``).
+so they hold where x = 0. A quotient by a constant is a product with its reciprocal (a
+constant node), as the LLVM kernels compute ``x/m``: a scaling, O(1) an order.
+``tanh`` has its own recurrence (1 - tanh^2, as ``tan``).
 Anything else raises ``NotDecomposable`` naming the function.
 """
 
@@ -254,6 +256,8 @@ class _Builder:
                 if a.kind != "num"
                 else Arg("num", a.value / b.value)
             )
+        if self.constant(b) and not self.constant(a):  # a * (1/b): a scaling, as the kernels
+            return self.mul(a, self.node("div", Arg("num", 1.0), b))
         return self.node("div", a, b)
 
     def integer_power(self, a: Arg, k: int) -> Arg:
