@@ -181,14 +181,17 @@ def warm_numba() -> None:
 def preload_drivers() -> None:
     """Import the drivers' module (``systems.codegen.driver_module``) and load from
     numba's cache the loops that call a scene's functions one at a time or over rows
-    (``call4``: rhs; ``batch_scalar``: H; ``batch_vector``: the velocities and the
-    drawing), for the function types every scene's functions have. Once per process,
-    the same for every scene: 0.1 s that a scene opened first would otherwise pay.
-    The function values are placeholders at address 0, typed, never called."""
+    (``call4``: rhs; ``c_bilateral_rhs``: a constrained scene's; ``batch_scalar``: H;
+    ``batch_vector``: the velocities and the drawing; the times of one row come
+    read-only, of several writable: both), for the function types every scene's
+    functions have. Once per process, the same for every scene: 0.1 s that a scene
+    opened first would otherwise pay. The function values are placeholders at address
+    0, typed, never called."""
     from numba.core import sigutils
     from numba.core.typing import signature
 
     from systems.codegen import SIGNATURES, driver_module, entry_point, function_value
+    from systems.constraints import PRIMITIVES
 
     def placeholder(name: str):
         args, result = sigutils.normalize_signature(SIGNATURES[name])
@@ -196,10 +199,16 @@ def preload_drivers() -> None:
 
     drivers = driver_module()
     v, P, rows = np.zeros(2), np.zeros(1), np.zeros((1, 2))
+    fixed = np.zeros(2)
+    fixed.flags.writeable = False  # np.broadcast_to's times of a single row
     entry_point(drivers.call4, (placeholder("rhs"), 0.0, v, P, v))
-    entry_point(drivers.batch_scalar, (placeholder("hamiltonian"), v, rows, P, v))
-    entry_point(drivers.batch_vector, (placeholder("velocities"), v, rows, P, rows))
-    entry_point(drivers.batch_vector, (placeholder("drawing"), v, rows, P, np.zeros((1, 1, 2))))
+    cs = (*(placeholder(name) for name in PRIMITIVES), np.zeros(4, dtype=np.int64))
+    entry_point(drivers.c_bilateral_rhs, (cs, 0.0, v, P, v))
+    for ts in (v, fixed):
+        entry_point(drivers.batch_scalar, (placeholder("hamiltonian"), ts, rows, P, v))
+        entry_point(drivers.batch_vector, (placeholder("velocities"), ts, rows, P, rows))
+        drawing = (placeholder("drawing"), ts, rows, P, np.zeros((1, 1, 2)))
+        entry_point(drivers.batch_vector, drawing)
 
 
 def numba_is_warm() -> bool:
