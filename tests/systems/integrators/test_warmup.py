@@ -3,38 +3,62 @@ functions load nothing more, and the drivers can be copied into a cold cache."""
 
 from __future__ import annotations
 
-import numpy as np
+from systems.codegen import driver_module
+from systems.integrators.warmup import copy_drivers
 
+PRELOADED = """
+import json
+import numpy as np
 from systems.codegen import driver_module
 from systems.compiled import compile_system
-from systems.integrators.warmup import copy_drivers, preload_drivers, warm_numba
+from systems.integrators.warmup import warm_numba
 from systems.mechanics import derive
 from systems.scene import load_scene
 
-
-def _loaded() -> dict[str, int]:
-    drivers = driver_module()
-    return {
-        name: len(getattr(drivers, name).signatures)
-        for name in ("call4", "batch_scalar", "batch_vector")
-    }
-
-
-def test_after_the_warm_up_a_scenes_calls_load_no_loop():
-    """``preload_drivers`` loads the loops for the very types a scene's functions have:
-    the rhs, H, the velocities and the drawing of a catalogue scene then find them."""
-    warm_numba()
-    preload_drivers()  # again: a process that warmed before this test's session
-    before = _loaded()
-    compiled = compile_system(
-        derive(load_scene("double_pendulum")), ("rhs", "hamiltonian", "velocities", "drawing")
-    )
+warm_numba()
+drivers = driver_module()
+NAMES = ("call4", "c_bilateral_rhs", "batch_scalar", "batch_vector")
+before = {name: len(getattr(drivers, name).signatures) for name in NAMES}
+wants = ("rhs", "hamiltonian", "velocities", "drawing")
+for scene in ("double_pendulum", "cartesian_pendulum"):
+    compiled = compile_system(derive(load_scene(scene)), wants)
     y0 = compiled.initial_state()
     compiled.rhs(0.0, y0)
     compiled.hamiltonian(0.0, y0[None])
+    compiled.hamiltonian(np.zeros(3), np.tile(y0, (3, 1)))
     compiled.velocities(np.zeros(3), np.tile(y0, (3, 1)))
+    compiled.velocities(0.0, y0[None])
     compiled.drawing(0.0, y0[None])
-    assert _loaded() == before
+after = {name: len(getattr(drivers, name).signatures) for name in NAMES}
+print(json.dumps({"before": before, "after": after}))
+"""
+
+
+def _fresh(script: str) -> dict:
+    """Run ``script`` in a new process on the session's cache; its last line as JSON."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=root,
+        env=dict(os.environ, PYTHONPATH=str(root)), timeout=600,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_after_the_warm_up_a_scenes_calls_load_no_loop():
+    """``warm_numba`` (``preload_drivers``) loads the loops for the very types a scene's
+    functions have: the rhs (a constrained scene's too), H and the velocities over one
+    row and over several, and the drawing of two catalogue scenes then find them, in a
+    new process."""
+    report = _fresh(PRELOADED)
+    assert report["after"] == report["before"], report
+    assert all(count >= 1 for count in report["before"].values()), report
 
 
 def test_copy_drivers_takes_the_drivers_and_nothing_else(tmp_path):
@@ -51,12 +75,6 @@ def test_copy_drivers_takes_the_drivers_and_nothing_else(tmp_path):
 def test_the_default_chaos_map_loops_come_from_the_cache_in_a_new_process():
     """``warm_drivers`` (the session's, as ``python main.py warm``) compiled the map loops
     of the methods maps take by default: a new process loads them, compiles none."""
-    import json
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
     script = """
 import json
 from systems.chaos.map_kernels import loop_module
@@ -79,11 +97,5 @@ loops = [getattr(loop_module(), f"{STEPPERS[m].family.kernel}_megno_parallel")
 print(json.dumps({"misses": sum(sum(loop.stats.cache_misses.values()) for loop in loops),
                   "hits": sum(sum(loop.stats.cache_hits.values()) for loop in loops)}))
 """
-    root = Path(__file__).resolve().parents[3]
-    out = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, cwd=root,
-        env=dict(os.environ, PYTHONPATH=str(root)), timeout=600,
-    )  # fmt: skip
-    assert out.returncode == 0, out.stderr
-    report = json.loads(out.stdout.strip().splitlines()[-1])
+    report = _fresh(script)
     assert report == {"misses": 0, "hits": 3}, report
