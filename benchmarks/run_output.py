@@ -20,8 +20,9 @@ dop853 at tol 1e-12 (1 794 steps, 2.7 ms) it is missed: about 4x (12 ms) while e
 dense output (``kernels.dop853_sample``): three more stages and the dense coefficients
 for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms). The drivers are
 warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
-second otherwise), as ``python main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the
-cache. Timings on a shared machine vary: read the numbers, not only PASS.
+second otherwise), as ``python main.py warm`` does once per installation;
+``PHASE_EXPLORER_CACHE`` chooses the cache. Timings on a shared machine vary: read the
+numbers, not only PASS.
 """
 
 from __future__ import annotations
