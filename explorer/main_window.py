@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
+from PySide6.QtCore import QEvent, QObject, QSize, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
     QDockWidget,
@@ -67,6 +67,25 @@ CLOSE_SECONDS = 0.8
 MESSAGE_MS = 20000
 STATUS_GAP = 14
 """Pixels between the status bar's readouts (time, rate, energy error, method)."""
+
+
+class Readout(QLabel):
+    """A status-bar readout as wide as the widest text it shows (``widest``) in its
+    current font: a new value never resizes it, nor cuts it while the bar lays out
+    again (presentation mode's larger type included)."""
+
+    def __init__(self, text: str, *, widest: str):
+        super().__init__(text)
+        self.widest = widest
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        hint = super().sizeHint()
+        margins = self.contentsMargins()
+        room = self.fontMetrics().horizontalAdvance(self.widest) + margins.left()
+        return QSize(max(hint.width(), room + margins.right() + 2), hint.height())
+
+    def minimumSizeHint(self) -> QSize:  # noqa: N802
+        return self.sizeHint()
 
 
 class MainWindow(QMainWindow):
@@ -255,9 +274,9 @@ class MainWindow(QMainWindow):
 
     def _build_status_bar(self) -> None:
         bar = self.statusBar()
-        self.time_label = QLabel("t = 0")
-        self.rate_label = QLabel("")
-        self.error_label = QLabel("")
+        self.time_label = Readout("t = 0", widest="t = -8.888e+88")
+        self.rate_label = Readout("", widest="8.88e+88 steps/s")
+        self.error_label = Readout("", widest="|ΔH/H₀| = 8.88e+88")
         self.method_label = QLabel("")
         self.busy_bar = QProgressBar()
         self.busy_bar.setRange(0, 0)
