@@ -43,6 +43,7 @@ import numpy as np
 import sympy
 
 from systems import calculus, llvm_kernels
+from systems.expressions import as_expr
 
 TANGENT_NAMES = {
     "rhs": "tangent_rhs",
@@ -233,20 +234,21 @@ class _Writer(llvm_kernels._Writer):
 
 
 def _number(expr) -> float | None:
-    """The value of a numeric expression (a constant entry of J), else None."""
-    expr = sympy.sympify(expr)
+    """The value of a numeric expression (a constant entry of J), else None. ``as_expr``,
+    never ``sympify``: no text is ever parsed here."""
+    expr = as_expr(expr)
     if expr.is_Number:
         return float(expr)
     return None
 
 
 def _nonzero(expr) -> bool:
-    return not (sympy.sympify(expr).is_Number and sympy.sympify(expr) == 0)
+    expr = as_expr(expr)
+    return not (expr.is_Number and expr == 0)
 
 
 def _shapes(mechanics) -> list[tuple[str, tuple, _Shape]]:
     """(name, arguments, shape) of each tangent function of ``mechanics``."""
-    from systems.expressions import as_expr
 
     scene = mechanics.scene
     n = mechanics.n
@@ -288,7 +290,6 @@ def _matrix_form_shape(mechanics, calc, f, reads, values) -> _Shape:
     so for a vector (dq, dp) dqdot solves ``M dqdot = dp - R dq`` with
     ``R_ik = sum_j dM_ij/dq_k qdot_j + da_i/dq_k`` (qdot held), and
     ``dpdot = g_q dq + g_qdot dqdot + g_p dp`` for ``pdot = g(q, qdot, p, t)``."""
-    from systems.expressions import as_expr
 
     form = mechanics.matrix_form
     n = mechanics.n
