@@ -20,6 +20,7 @@ SCRIPTS = (
     "compile_latency",
     "gui_latency",
     "max_speed",
+    "paced_playback",
     "run_output",
     "large_systems",
     "scene_switches",
