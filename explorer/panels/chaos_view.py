@@ -35,7 +35,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.curves import set_title, style_plot
-from explorer.panels.offered_dock import OfferedDockLink
+from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from systems import processes
 
 DOCK_KEY = "chaos"
@@ -368,13 +368,4 @@ class ChaosDockLink(OfferedDockLink):
 def attach(window, key: str = DOCK_KEY) -> ChaosView:
     """Add the chaos view to ``window`` (a ``MainWindow``) in a dock tabbed with the
     conserved quantities, hidden (View > Chaos); returns the view."""
-    view = ChaosView()
-    dock = window._add_dock(key, "Chaos", view, Qt.DockWidgetArea.BottomDockWidgetArea)
-    bottom = window.docks.get("conserved")
-    if bottom is not None:
-        window.tabifyDockWidget(bottom, dock)
-        bottom.raise_()
-    window.panels[key] = view
-    dock.hide()
-    view.link = ChaosDockLink(window, view, dock)
-    return view
+    return attach_hidden(window, key, "Chaos", ChaosView(), ChaosDockLink)

@@ -52,7 +52,7 @@ from explorer.panels.curves import (
     style_plot,
 )
 from explorer.panels.log_axis import SparseLogAxis
-from explorer.panels.offered_dock import OfferedDockLink
+from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from explorer.trajectories import is_gap
 from systems import constraint_forces as cf
 from systems import processes
@@ -658,13 +658,6 @@ def attach(window, key: str = DOCK_KEY) -> ConstraintForcesView:
 
     The window calls ``view.set_system(compiled)`` whenever it starts a system.
     """
-    view = ConstraintForcesView()
-    dock = window._add_dock(key, "Constraint forces", view, Qt.DockWidgetArea.BottomDockWidgetArea)
-    bottom = window.docks.get("conserved")
-    if bottom is not None:
-        window.tabifyDockWidget(bottom, dock)
-        bottom.raise_()
-    window.panels[key] = view
-    dock.hide()
-    view.link = ConstraintDockLink(window, view, dock)
-    return view
+    return attach_hidden(
+        window, key, "Constraint forces", ConstraintForcesView(), ConstraintDockLink
+    )

@@ -39,7 +39,7 @@ from PySide6.QtWidgets import (
 from explorer.buffers import GrowingArray
 from explorer.panels.curves import OutsideLegend, RangeKeeper, set_title, style_plot
 from explorer.panels.log_axis import SparseLogAxis
-from explorer.panels.offered_dock import OfferedDockLink
+from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from explorer.trajectories import is_gap
 from systems import processes
 from systems.display import pretty_name
@@ -591,13 +591,4 @@ class ModeDockLink(OfferedDockLink):
 def attach(window, key: str = DOCK_KEY) -> ModeEnergyView:
     """Add the mode view to ``window`` (a ``MainWindow``) in a dock tabbed with the
     conserved quantities, hidden until a system with modes opens; returns the view."""
-    view = ModeEnergyView()
-    dock = window._add_dock(key, "Normal modes", view, Qt.DockWidgetArea.BottomDockWidgetArea)
-    bottom = window.docks.get("conserved")
-    if bottom is not None:
-        window.tabifyDockWidget(bottom, dock)
-        bottom.raise_()
-    window.panels[key] = view
-    dock.hide()
-    view.link = ModeDockLink(window, view, dock)
-    return view
+    return attach_hidden(window, key, "Normal modes", ModeEnergyView(), ModeDockLink)

@@ -54,3 +54,20 @@ class OfferedDockLink(QObject):
         if watched is self.window and event.type() == QEvent.Type.Close:
             self.view.shutdown()
         return False
+
+
+def attach_hidden(window, key: str, title: str, view, link_class):
+    """Add ``view`` to ``window`` (a ``MainWindow``) as the dock ``key`` titled ``title``,
+    tabbed with the conserved quantities and hidden until offered or asked for, linked by
+    ``link_class(window, view, dock)``; returns the view."""
+    from PySide6.QtCore import Qt
+
+    dock = window._add_dock(key, title, view, Qt.DockWidgetArea.BottomDockWidgetArea)
+    bottom = window.docks.get("conserved")
+    if bottom is not None:
+        window.tabifyDockWidget(bottom, dock)
+        bottom.raise_()
+    window.panels[key] = view
+    dock.hide()
+    view.link = link_class(window, view, dock)
+    return view

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.background import ProgressControls, RelayThread
-from explorer.panels.offered_dock import OfferedDockLink
+from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 
 DOCK_KEY = "orbit_diagram"
 VALUES = 200
@@ -277,13 +277,4 @@ class OrbitDiagramDockLink(OfferedDockLink):
 def attach(window, key: str = DOCK_KEY) -> OrbitDiagramView:
     """Add the orbit diagram to ``window`` (a ``MainWindow``) in a dock tabbed with the
     conserved quantities, hidden (View > Orbit diagram); returns the view."""
-    view = OrbitDiagramView()
-    dock = window._add_dock(key, "Orbit diagram", view, Qt.DockWidgetArea.BottomDockWidgetArea)
-    bottom = window.docks.get("conserved")
-    if bottom is not None:
-        window.tabifyDockWidget(bottom, dock)
-        bottom.raise_()
-    window.panels[key] = view
-    dock.hide()
-    view.link = OrbitDiagramDockLink(window, view, dock)
-    return view
+    return attach_hidden(window, key, "Orbit diagram", OrbitDiagramView(), OrbitDiagramDockLink)
