@@ -128,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
 
     times = sample_times(args, t_end)
     start = time.perf_counter()
-    run_ = Run(compiled, method=method, y0=y0, t_end=t_end, diagnostics=("H",), **options)
+    # the energy at the rows: per block for a stream, else once over all rows below
+    diagnostics = ("H",) if endless else ()
+    run_ = Run(compiled, method=method, y0=y0, t_end=t_end, diagnostics=diagnostics, **options)
     if args.out:
         print(
             f"integrating to t = {t_end:g}; Ctrl+C stops and writes what is done", file=sys.stderr
