@@ -4,6 +4,7 @@ line's operations as methods (``run``, ``section``, ``lyapunov``, ``chaosmap``,
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -449,6 +450,7 @@ class System:
         over: tuple[str, str] | None = None,
         ranges: Mapping[str, tuple[float, float]] | None = None,
         progress: Callable[[int, int], None] | None = None,
+        dask: str | object | None = None,
     ) -> results.ChaosMap:
         """MEGNO or the maximal exponent over a grid of starts, as ``python main.py
         chaosmap``: on the Poincaré section at ``energy`` (default: the start's), or
@@ -466,6 +468,11 @@ class System:
         progress : callable, optional
             ``progress(done, total)`` after each chunk of orbits (a progress bar's
             update).
+        dask : str or distributed.Client, optional
+            Compute chunks of the starts on a Dask cluster: ``"auto"`` (a
+            ``LocalCluster`` of this machine's cores, closed afterwards), a scheduler's
+            address ``"tcp://HOST:PORT"``, or a ``Client`` of your own. The same numbers
+            as without. Needs the extra: ``pip install -e ".[dask]"``.
 
         Returns
         -------
@@ -480,12 +487,14 @@ class System:
         except (TypeError, ValueError):
             raise UsageError(f"grid is (nx, ny), a number of starts a side, not {grid!r}") from None
         t_end = check_map_options(nx, ny, indicator, t_end, spell=str)
+        cluster = _cluster(dask)
         label = self.name or "the scene"
         compiled, _, kernel, map_grid = map_setup(
             self.mechanics, label, nx=nx, ny=ny, t_end=t_end, method=method, dt=dt, over=over,
             ranges=check_ranges(ranges or {}, spell=str), energy=energy, spell=str,
         )  # fmt: skip
-        found = maps.chaos_map(kernel, map_grid, progress=progress)
+        with cluster as client:
+            found = maps.chaos_map(kernel, map_grid, progress=progress, client=client)
         return results.ChaosMap(
             xs=map_grid.xs, ys=map_grid.ys, axes=tuple(map_grid.names), megno=found.megno,
             lyapunov=found.lyapunov, status=found.status, indicator=indicator,
@@ -507,12 +516,14 @@ class System:
         start: Mapping[str, float] | None = None,
         variable: str | None = None,
         progress: Callable[[int, int], None] | None = None,
+        dask: str | object | None = None,
     ) -> results.OrbitDiagram:
         """The orbit diagram of a periodically driven system over ``parameter``, as
         ``python main.py bifurcation``: for each of ``values`` (N,), the orbit from the
         scene's start (or ``start``) runs ``transient`` (default 300 periods of the
         drive), then ``samples`` periods, its state kept at each period's end.
-        ``progress(done, total)`` is called after each chunk of values.
+        ``progress(done, total)`` is called after each chunk of values; ``dask`` as
+        ``chaosmap``'s (chunks of the values on a Dask cluster).
 
         Returns
         -------
@@ -530,12 +541,14 @@ class System:
             )
         if not np.isfinite(values).all():
             raise UsageError("values must be finite numbers")
+        cluster = _cluster(dask)
         compiled, kernel, y0, variable, angles = diagram_setup(
             self.mechanics, self.name or "the scene", parameter=parameter, transient=transient,
             samples=samples, method=method, steps_per_period=steps_per_period, start=start,
             variable=variable, spell=str,
         )  # fmt: skip
-        diagram = bf.orbit_diagram(kernel, values, y0=y0, progress=progress)
+        with cluster as client:
+            diagram = bf.orbit_diagram(kernel, values, y0=y0, progress=progress, client=client)
         names = tuple(diagram.names)
         return results.OrbitDiagram(
             parameter=parameter, values=values, samples=diagram.samples, variable=variable,
@@ -544,3 +557,29 @@ class System:
             transient_periods=kernel.transient_periods,
             wrap=names.index(variable) in angles, title=self.title,
         )  # fmt: skip
+
+
+def _cluster(dask: str | object | None) -> contextlib.AbstractContextManager:
+    """The ``dask`` argument as a context manager giving a ``distributed.Client`` (or
+    None): an address is checked (and the extra) now, connected to on entry, closed on
+    exit; a client of the caller's is used as it is and left open.
+
+    Raises
+    ------
+    UsageError
+        A malformed address, the extra not installed, or something else given.
+    """
+    from systems.chaos import distributed
+
+    if dask is None:
+        return contextlib.nullcontext(None)
+    if isinstance(dask, str):
+        distributed.check_address(dask, spell=str)
+        distributed.require_dask(spell=str)
+        return distributed.connect(dask, spell=str)
+    if callable(getattr(dask, "submit", None)) and callable(getattr(dask, "scatter", None)):
+        return contextlib.nullcontext(dask)
+    raise UsageError(
+        "dask is 'auto', a scheduler's address 'tcp://HOST:PORT' or a distributed.Client, "
+        f"not {type(dask).__name__}"
+    )

@@ -261,10 +261,12 @@ def orbit_diagram(
     chunk: int = CHUNK,
     progress: Callable[[int, int], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
+    client=None,
 ) -> OrbitDiagram:
     """The orbit diagram over ``values`` (N,) of the kernel's parameter, every orbit from
-    ``y0`` (default: the scene's start); ``progress`` and ``cancelled`` as ``chaos_map``'s."""
-    from systems.chaos.maps import state_names
+    ``y0`` (default: the scene's start); ``progress``, ``cancelled`` and ``client`` (the
+    chunks computed on a Dask cluster) as ``maps.chaos_map``'s."""
+    from systems.chaos.maps import each_chunk, state_names
 
     start = time.perf_counter()
     compiled = kernel.compiled
@@ -274,21 +276,20 @@ def orbit_diagram(
     samples = np.full((N, kernel.samples, m), np.nan)
     periods = np.full(N, np.nan)
     status = np.full(N, -1, dtype=np.int64)
-    complete = True
-    for first in range(0, N, chunk):
-        if cancelled is not None and cancelled():
-            complete = False
-            break
-        part = slice(first, first + chunk)
-        samples[part], periods[part], status[part] = strobe_chunk(kernel, values[part], y0)
-        if progress is not None:
-            progress(min(first + chunk, N), N)
+    chunks = each_chunk(
+        strobe_chunk, kernel, np.arange(N), lambda index: (values[index], y0), chunk=chunk,
+        client=client, cancelled=cancelled, progress=progress,
+    )  # fmt: skip
+    done = 0
+    for index, (found, drive, stopped) in chunks:
+        samples[index], periods[index], status[index] = found, drive, stopped
+        done += len(index)
     return OrbitDiagram(
         parameter=compiled.parameter_names[kernel.parameter], values=values, samples=samples,
         periods_T=periods, status=status, names=tuple(state_names(compiled.mechanics)),
         method=kernel.method, per_period=kernel.per_period,
         transient_periods=kernel.transient_periods, t0=kernel.t0,
-        wall_s=time.perf_counter() - start, complete=complete,
+        wall_s=time.perf_counter() - start, complete=done == N,
     )  # fmt: skip
 
 

@@ -23,9 +23,10 @@ growing linearly (a regular orbit's) shows at time t.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -261,6 +262,20 @@ def map_kernel(
     )
 
 
+def extended_rows(starts: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """``variational.extended`` of every row of ``starts`` (N, 2n) with the one tangent
+    vector ``vector`` (2n,), as one contiguous array (N, 4n) = (q, dq, p, dp) per row
+    (a Python loop over the rows was a serial 4 us a row between the compiled calls)."""
+    N, m = starts.shape
+    n = m // 2
+    Y = np.empty((N, 2 * m))
+    Y[:, :n] = starts[:, :n]
+    Y[:, n : 2 * n] = vector[:n]
+    Y[:, 2 * n : 3 * n] = starts[:, n:]
+    Y[:, 3 * n :] = vector[n:]
+    return Y
+
+
 def map_chunk(kernel: MapKernel, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The indicators of the orbits from ``starts``: the unit of a map's work.
 
@@ -283,11 +298,7 @@ def map_chunk(kernel: MapKernel, starts: np.ndarray) -> tuple[np.ndarray, np.nda
 
     starts = np.asarray(starts, dtype=float)
     N = len(starts)
-    Y = np.ascontiguousarray(
-        np.stack([extended(y, kernel.vector[:, None]) for y in starts])
-        if N
-        else np.empty((0, 4 * kernel.tangent.n))
-    )
+    Y = extended_rows(starts, kernel.vector)
     clock = np.zeros(CLOCK_SIZE)
     clock[Clock.T] = clock[Clock.T0] = kernel.t0
     clock[Clock.H] = kernel.dt
@@ -355,28 +366,30 @@ def chaos_map(
     chunk: int = CHUNK,
     progress: Callable[[int, int], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
+    client=None,
 ) -> ChaosMap:
     """The map of ``grid`` by ``kernel``, ``chunk`` starts per compiled call.
 
     ``progress(done, total)`` is called after each chunk (rows with a state); a true
-    ``cancelled()`` between chunks ends the map early (``complete`` False).
+    ``cancelled()`` between chunks ends the map early (``complete`` False). With a
+    ``distributed.Client`` as ``client`` the chunks (smaller where the cluster's threads
+    would otherwise wait: ``distributed.chunk_size``) are computed on its workers
+    (``systems.chaos.distributed``), the same numbers as here.
     """
     start = time.perf_counter()
     rows = np.flatnonzero(grid.valid)
     total = grid.starts.shape[0]
     values = np.full((total, 3), np.nan)
     status = np.full(total, -1, dtype=np.int64)
-    complete = True
-    for first in range(0, len(rows), chunk):
-        if cancelled is not None and cancelled():
-            complete = False
-            break
-        index = rows[first : first + chunk]
-        v, s = map_chunk(kernel, grid.starts[index])
+    chunks = each_chunk(
+        map_chunk, kernel, rows, lambda index: (grid.starts[index],), chunk=chunk,
+        client=client, cancelled=cancelled, progress=progress,
+    )  # fmt: skip
+    done = 0
+    for index, (v, s) in chunks:
         v[s != 0] = np.nan
         values[index], status[index] = v, s
-        if progress is not None:
-            progress(min(first + chunk, len(rows)), len(rows))
+        done += len(index)
     shape = grid.shape
     return ChaosMap(
         grid=grid,
@@ -388,11 +401,50 @@ def chaos_map(
         dt=kernel.dt,
         t_end=kernel.t,
         wall_s=time.perf_counter() - start,
-        complete=complete,
+        complete=done == len(rows),
     )
 
 
+def each_chunk(
+    compute: Callable,
+    kernel,
+    rows: np.ndarray,
+    arguments: Callable[[np.ndarray], tuple],
+    *,
+    chunk: int,
+    client=None,
+    cancelled: Callable[[], bool] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Iterator[tuple[np.ndarray, tuple]]:
+    """``(index, compute(kernel, *arguments(index)))`` for chunks ``index`` of ``rows``
+    (N,), ``chunk`` rows each: here one after the other, or with a ``distributed.Client``
+    on its workers, in the order they finish (``distributed.submitted``). Stops early
+    when ``cancelled()`` is true before a chunk is taken; ``progress(done, N)`` after
+    each chunk the caller has taken. ``compute`` is ``map_chunk`` or
+    ``bifurcation.strobe_chunk``."""
+    if client is not None:
+        from systems.chaos import distributed
+
+        chunk = distributed.chunk_size(client, len(rows), chunk)
+    pieces = [rows[first : first + chunk] for first in range(0, len(rows), chunk)]
+    if client is None:
+        results = ((index, compute(kernel, *arguments(index))) for index in pieces)
+    else:
+        task, spec = distributed.remote(compute, kernel)
+        results = distributed.submitted(client, task, spec, list(map(arguments, pieces)), pieces)
+    done = 0
+    with contextlib.closing(results):
+        for _ in pieces:
+            if cancelled is not None and cancelled():
+                return
+            index, result = next(results)
+            yield index, result
+            done += len(index)
+            if progress is not None:
+                progress(done, len(rows))
+
+
 __all__ = [
-    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "map_chunk",
+    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "each_chunk", "map_chunk",
     "map_kernel", "map_methods", "section_box", "section_grid", "variable_grid",
 ]  # fmt: skip
