@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from explorer.commands.chaosmap_cmd import add_dask_option
 from explorer.commands.errors import UserError, user_errors
 from systems.usage import MAX_DIAGRAM_VALUES as MAX_VALUES
 
@@ -61,6 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "angle, else the first coordinate)",
     )  # fmt: skip
     parser.add_argument("--out", required=True, help="FILE.png or FILE.npz")
+    add_dask_option(parser, "values")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -86,8 +88,9 @@ def parse_span(text: str) -> np.ndarray:
 
 def run(args: argparse.Namespace) -> int:
     from explorer.commands import stopping
-    from explorer.commands.chaosmap_cmd import checked_output
+    from explorer.commands.chaosmap_cmd import check_dask, checked_output, dask_client
     from explorer.commands.periodic_cmd import _start as parse_start
+    from explorer.commands.progress import terminal_progress
     from systems.chaos import bifurcation as bf
     from systems.chaos.maps import state_names
     from systems.files import atomic_path
@@ -98,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
     suffix = checked_output(args.out, SUFFIXES)
     values = parse_span(args.span)
     start_values = parse_start(args.start)
+    check_dask(args.dask)
     start = time.perf_counter()
     with user_errors():
         scene = load_scene(args.scene)
@@ -111,11 +115,20 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         print(
             f"{len(values)} orbits, {kernel.transient_periods} + {kernel.samples} periods "
-            f"each ({kernel.method}, {kernel.per_period} steps a period); Ctrl+C stops",
+            f"each ({kernel.method}, {kernel.per_period} steps a period)"
+            + (f" on the Dask cluster {args.dask}" if args.dask else "")
+            + "; Ctrl+C stops",
             file=sys.stderr,
             flush=True,
         )
-    diagram = bf.orbit_diagram(kernel, values, y0=y0, cancelled=stopping.requested)
+    with (
+        dask_client(args.dask) as client,
+        terminal_progress("values", json_output=args.json) as progress,
+    ):
+        diagram = bf.orbit_diagram(
+            kernel, values, y0=y0, cancelled=stopping.requested, progress=progress,
+            client=client,
+        )  # fmt: skip
     if not diagram.complete:
         raise KeyboardInterrupt
     index = names.index(variable)

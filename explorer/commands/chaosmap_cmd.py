@@ -11,11 +11,13 @@ rest of the state from the scene's start. Exit status 1 when some orbits stopped
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import re
 import sys
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -64,7 +66,44 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "the section's allowed region)",
     )  # fmt: skip
     parser.add_argument("--out", required=True, help="FILE.png, FILE.npz or FILE.csv")
+    add_dask_option(parser, "starts")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def add_dask_option(parser: argparse.ArgumentParser, rows: str) -> None:
+    """``--dask auto|tcp://HOST:PORT`` (shared with ``bifurcation``)."""
+    parser.add_argument(
+        "--dask", default=None, metavar="auto|tcp://HOST:PORT",
+        help=f"compute chunks of the {rows} on a Dask cluster: auto starts one of this "
+        "machine's cores, tcp://HOST:PORT uses a running scheduler (`dask scheduler`, "
+        "`dask worker tcp://HOST:PORT`); the same numbers as without. Needs the dask "
+        'extra: pip install -e ".[dask]"',
+    )  # fmt: skip
+
+
+@contextlib.contextmanager
+def dask_client(address: str | None) -> Iterator[object]:
+    """The ``distributed.Client`` of ``--dask`` (``systems.chaos.distributed.connect``),
+    or None without it; a scheduler that does not answer is a ``UserError``."""
+    if address is None:
+        yield None
+        return
+    from systems.chaos.distributed import connect
+
+    with contextlib.ExitStack() as stack:
+        with user_errors():
+            client = stack.enter_context(connect(address))
+        yield client
+
+
+def check_dask(address: str | None) -> None:
+    """``--dask``'s value and the extra, checked before the work (``UserError``)."""
+    if address is not None:
+        from systems.chaos.distributed import check_address, require_dask
+
+        with user_errors():
+            check_address(address)
+            require_dask()
 
 
 def parse_grid(text: str) -> tuple[int, int]:
@@ -133,21 +172,30 @@ def checked_output(out: str, suffixes: tuple[str, ...]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from explorer.commands import stopping
+    from explorer.commands.progress import terminal_progress
     from systems.chaos import maps
     from systems.files import atomic_path
 
     suffix = checked_output(args.out, SUFFIXES)
+    check_dask(args.dask)
     start = time.perf_counter()
     scene, compiled, tangent, kernel, grid = prepare_map(args, args.scene)
     orbits = int(grid.valid.sum())
     if not args.json:
+        where = f" on the Dask cluster {args.dask}" if args.dask else ""
         print(
-            f"{orbits} orbits to t = {kernel.t:g} ({kernel.method}, dt {kernel.dt:.3g}); "
-            "Ctrl+C stops",
+            f"{orbits} orbits to t = {kernel.t:g} ({kernel.method}, dt {kernel.dt:.3g})"
+            f"{where}; Ctrl+C stops",
             file=sys.stderr,
             flush=True,
         )
-    result = maps.chaos_map(kernel, grid, cancelled=stopping.requested)
+    with (
+        dask_client(args.dask) as client,
+        terminal_progress("orbits", json_output=args.json) as progress,
+    ):
+        result = maps.chaos_map(
+            kernel, grid, cancelled=stopping.requested, progress=progress, client=client
+        )
     if not result.complete:
         raise KeyboardInterrupt
     indicator = args.indicator

@@ -115,3 +115,56 @@ def test_bifurcation_png(tmp_path, capsys):
 def test_bifurcation_mistakes(tmp_path, capsys, argv, message):
     assert main(["bifurcation", *argv, "--out", str(tmp_path / "b.npz")]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["chaosmap", "bifurcation"])
+def test_a_malformed_dask_value_is_refused_before_the_work(tmp_path, capsys, command):
+    argv = ["henon_heiles"] if command == "chaosmap" else ["driven_damped_pendulum",
+            "--parameter", "A", "--range", "1:1.1:3"]  # fmt: skip
+    assert main([command, *argv, "--out", str(tmp_path / "m.npz"), "--dask", "host:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "--dask takes auto" in err and "tcp://HOST:PORT, not 'host:8786'" in err
+    assert "orbits" not in err  # refused before the work was announced
+
+
+@pytest.mark.parametrize("command", ["chaosmap", "bifurcation"])
+def test_dask_without_the_extra_names_it(tmp_path, capsys, monkeypatch, command):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
+    argv = ["henon_heiles"] if command == "chaosmap" else ["driven_damped_pendulum",
+            "--parameter", "A", "--range", "1:1.1:3"]  # fmt: skip
+    assert main([command, *argv, "--out", str(tmp_path / "m.npz"), "--dask", "auto"]) == 2
+    assert 'an optional extra that is not installed: pip install -e ".[dask]"' in (
+        capsys.readouterr().err
+    )
+
+
+class _Terminal:
+    """A text stream that says it is a terminal."""
+
+    def __init__(self):
+        import io
+
+        self.buffer = io.StringIO()
+        self.write = self.buffer.write
+        self.flush = self.buffer.flush
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_the_progress_bar_is_drawn_on_a_terminal_only_and_never_with_json():
+    import io
+
+    from explorer.commands.progress import terminal_progress
+
+    terminal = _Terminal()
+    with terminal_progress("orbits", stream=terminal) as progress:
+        progress(256, 1000)
+        progress(1000, 1000)
+    assert "orbits" in terminal.buffer.getvalue() and "1000/1000" in terminal.buffer.getvalue()
+    with terminal_progress("orbits", stream=_Terminal(), json_output=True) as progress:
+        assert progress is None
+    with terminal_progress("orbits", stream=io.StringIO()) as progress:
+        assert progress is None
