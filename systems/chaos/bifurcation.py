@@ -36,6 +36,8 @@ orbit at A = 1.06 is then kept to about 1e-7 a period)."""
 DEFAULT_TRANSIENT_PERIODS = 300
 DEFAULT_SAMPLES = 64
 CHUNK = 64
+"""Values per call of the compiled loop, at least (``maps.chunk_rows``)."""
+ROWS_PER_THREAD = 8
 
 
 def drive_frequencies(mechanics) -> list | None:
@@ -258,15 +260,16 @@ def orbit_diagram(
     values: np.ndarray,
     *,
     y0: np.ndarray | None = None,
-    chunk: int = CHUNK,
+    chunk: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
     client=None,
 ) -> OrbitDiagram:
     """The orbit diagram over ``values`` (N,) of the kernel's parameter, every orbit from
-    ``y0`` (default: the scene's start); ``progress``, ``cancelled`` and ``client`` (the
-    chunks computed on a Dask cluster) as ``maps.chaos_map``'s."""
-    from systems.chaos.maps import each_chunk, state_names
+    ``y0`` (default: the scene's start); ``chunk`` (default ``maps.chunk_rows(CHUNK,
+    ROWS_PER_THREAD)``), ``progress``, ``cancelled`` and ``client`` (the chunks computed
+    on a Dask cluster) as ``maps.chaos_map``'s."""
+    from systems.chaos.maps import chunk_rows, each_chunk, state_names
 
     start = time.perf_counter()
     compiled = kernel.compiled
@@ -276,6 +279,7 @@ def orbit_diagram(
     samples = np.full((N, kernel.samples, m), np.nan)
     periods = np.full(N, np.nan)
     status = np.full(N, -1, dtype=np.int64)
+    chunk = chunk or chunk_rows(CHUNK, ROWS_PER_THREAD)
     chunks = each_chunk(
         strobe_chunk, kernel, np.arange(N), lambda index: (values[index], y0), chunk=chunk,
         client=client, cancelled=cancelled, progress=progress,

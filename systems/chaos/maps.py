@@ -40,7 +40,12 @@ DEFAULT_T_END = 500.0
 """Long enough for Hénon–Heiles' chaotic orbits at E = 1/8 to pass <Y> = 4 by far
 (lambda ~ 0.05: <Y> ~ 12); a 200 x 200 map of it in well under a minute on two cores."""
 CHUNK = 256
-"""Starts per call of the compiled loop: a progress report and a cancel check apart."""
+"""Starts per call of the compiled loop, at least (``chunk_rows``): a progress report and
+a cancel check apart."""
+ROWS_PER_THREAD = 64
+"""A chunk gives each of the loop's threads at least this many rows (``chunk_rows``): on
+many cores, the Python between two calls and each call's last rows (one thread still
+busy) would otherwise take a growing share of the time."""
 STEPS_PER_PERIOD = 40
 """Fixed steps per fastest period at the scene's start for a map's default step: the
 maps' verdicts, not the energy, set it (Hénon–Heiles' fraction at E = 1/8 moved by less
@@ -276,7 +281,9 @@ def extended_rows(starts: np.ndarray, vector: np.ndarray) -> np.ndarray:
     return Y
 
 
-def map_chunk(kernel: MapKernel, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def map_chunk(
+    kernel: MapKernel, starts: np.ndarray, *, final: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The indicators of the orbits from ``starts``: the unit of a map's work.
 
     Parameters
@@ -284,6 +291,9 @@ def map_chunk(kernel: MapKernel, starts: np.ndarray) -> tuple[np.ndarray, np.nda
     kernel : MapKernel
     starts : ndarray, shape (N, 2n)
         Finite states (leave out a grid's NaN rows).
+    final : ndarray, shape (N, 2n), optional
+        Receives each orbit's state at the end (or where it stopped): the accuracy of
+        the map's orbits (``benchmarks/chaos_map.py`` compares their energy).
 
     Returns
     -------
@@ -312,6 +322,9 @@ def map_chunk(kernel: MapKernel, starts: np.ndarray) -> tuple[np.ndarray, np.nda
     if kernel._entry is None:
         kernel._entry = entry_point(kernel.loop, args)
     kernel._entry(*args)
+    if final is not None:
+        n = kernel.tangent.n
+        final[:, :n], final[:, n:] = Y[:, :n], Y[:, 2 * n : 3 * n]
     return values, status
 
 
@@ -363,12 +376,13 @@ def chaos_map(
     kernel: MapKernel,
     grid: MapGrid,
     *,
-    chunk: int = CHUNK,
+    chunk: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
     client=None,
 ) -> ChaosMap:
-    """The map of ``grid`` by ``kernel``, ``chunk`` starts per compiled call.
+    """The map of ``grid`` by ``kernel``, ``chunk`` starts per compiled call (default
+    ``chunk_rows(CHUNK, ROWS_PER_THREAD)``).
 
     ``progress(done, total)`` is called after each chunk (rows with a state); a true
     ``cancelled()`` between chunks ends the map early (``complete`` False). With a
@@ -381,6 +395,7 @@ def chaos_map(
     total = grid.starts.shape[0]
     values = np.full((total, 3), np.nan)
     status = np.full(total, -1, dtype=np.int64)
+    chunk = chunk or chunk_rows(CHUNK, ROWS_PER_THREAD)
     chunks = each_chunk(
         map_chunk, kernel, rows, lambda index: (grid.starts[index],), chunk=chunk,
         client=client, cancelled=cancelled, progress=progress,
@@ -403,6 +418,14 @@ def chaos_map(
         wall_s=time.perf_counter() - start,
         complete=done == len(rows),
     )
+
+
+def chunk_rows(least: int, per_thread: int) -> int:
+    """Rows a chunk: ``least``, or ``per_thread`` for each of the compiled loop's threads
+    (``numba.get_num_threads()``) where that is more."""
+    import numba
+
+    return max(least, per_thread * numba.get_num_threads())
 
 
 def each_chunk(
@@ -445,6 +468,7 @@ def each_chunk(
 
 
 __all__ = [
-    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "each_chunk", "map_chunk",
-    "map_kernel", "map_methods", "section_box", "section_grid", "variable_grid",
+    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "chunk_rows", "each_chunk",
+    "extended_rows", "map_chunk", "map_kernel", "map_methods", "section_box", "section_grid",
+    "variable_grid",
 ]  # fmt: skip

@@ -122,6 +122,28 @@ def test_the_map_does_not_depend_on_its_chunks_or_threads(henon_heiles):
     assert reports[-1] == (orbits, orbits) and len(reports) == math.ceil(orbits / 7)
 
 
+def test_the_final_states_are_the_orbits_at_the_end(henon_heiles):
+    compiled, tangent = henon_heiles
+    starts = states_on_section(compiled, SECTION, 1 / 8, np.array([0.1, -0.2]), np.zeros(2))
+    whole = maps.map_kernel(tangent, t_end=20.0, dt=0.1)
+    half = maps.map_kernel(tangent, t_end=10.0, dt=0.1)
+    final, middle, again = (np.full_like(starts, np.nan) for _ in range(3))
+    assert (maps.map_chunk(whole, starts, final=final)[1] == 0).all()
+    maps.map_chunk(half, starts, final=middle)
+    maps.map_chunk(half, middle, final=again)  # the orbit goes on from where it was
+    assert np.abs(final - again).max() < 1e-12 and np.abs(final - starts).min() > 1e-3
+    assert np.abs(compiled.hamiltonian(0.0, final) - 1 / 8).max() < 1e-5
+
+
+def test_chunks_grow_with_the_threads(monkeypatch):
+    import numba
+
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
+    assert maps.chunk_rows(256, 64) == 256
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 16)
+    assert maps.chunk_rows(256, 64) == 1024
+
+
 def test_a_cancelled_map_stops_between_chunks(henon_heiles):
     compiled, tangent = henon_heiles
     calls = []
