@@ -464,7 +464,8 @@ class System:
             ``{name: (low, high)}`` of the axes (default: ``[view] ranges``, or the
             section's allowed region).
         t_end : float, optional
-            How long each orbit runs (default 500).
+            How long each orbit runs (default 500; 100 where the method is implicit,
+            gauss_legendre4 for a non-separable H).
         progress : callable, optional
             ``progress(done, total)`` after each chunk of orbits (a progress bar's
             update).

@@ -267,9 +267,10 @@ def check_map_options(
     *,
     grid_text: str | None = None,
     spell: Callable[[str], str] = cli_name,
-) -> float:
+) -> float | None:
     """``UsageError`` for a grid, indicator or end time a chaos map cannot take, before
-    anything is derived; returns the end time (default ``maps.DEFAULT_T_END``).
+    anything is derived; returns the end time given, or None: the method's default
+    (``maps.default_t_end``, once the method is known).
 
     ``grid_text`` is the grid as the user wrote it (default ``"{nx}x{ny}"``).
     """
@@ -285,7 +286,8 @@ def check_map_options(
         )
     if indicator not in maps.INDICATORS:
         raise UsageError(f"{spell('indicator')} is megno or lyapunov, not {indicator!r}")
-    t_end = maps.DEFAULT_T_END if t_end is None else t_end
+    if t_end is None:
+        return None
     if not (math.isfinite(t_end) and t_end > 0):
         raise UsageError(f"{spell('t_end')} must be a positive finite time, not {t_end!r}")
     return float(t_end)
@@ -318,7 +320,7 @@ def map_setup(
     *,
     nx: int,
     ny: int,
-    t_end: float,
+    t_end: float | None,
     method: str | None = None,
     dt: float | None = None,
     over: tuple[str, ...] | None = None,
@@ -327,7 +329,8 @@ def map_setup(
     spell: Callable[[str], str] = cli_name,
 ):
     """Compile ``mechanics`` for a chaos map and lay out its grid: on the Poincaré
-    section at ``energy`` (default the start's), or ``over`` two state variables.
+    section at ``energy`` (default the start's), or ``over`` two state variables; every
+    orbit to ``t_end`` (None: ``maps.default_t_end`` of the method).
 
     ``scene`` names the system in messages. Returns ``(compiled, tangent, kernel, grid)``
     (``systems.chaos.maps.MapKernel``, ``MapGrid``).

@@ -24,7 +24,9 @@ from systems import processes
 
 GRID = 120
 CHUNK = 64
-T_END = 500.0
+T_END = None
+"""Each orbit's end time: None for the method's default (``maps.default_t_end``: 500, or
+100 for an implicit method)."""
 LEVELS = (0.0, 8.0)
 """MEGNO's colour scale: 2 regular, above 4 chaotic (the threshold), 8 and more yellow."""
 Z_VALUE = -25
@@ -67,6 +69,14 @@ class MapRun(RelayThread):
             self._emit("finished", result)
 
 
+def _t_end_text() -> str:
+    from systems.chaos import maps
+
+    if T_END is not None:
+        return f"{T_END:g}"
+    return f"{maps.DEFAULT_T_END:g} ({maps.IMPLICIT_T_END:g} with an implicit method)"
+
+
 def map_image(result) -> np.ndarray:
     """RGBA (nx, ny, 4) bytes of a map's MEGNO (viridis over ``LEVELS``, transparent
     where there is no value), in pyqtgraph's (x, y) order."""
@@ -100,8 +110,8 @@ class ChaosMapLayer(QObject):
         self.button = QPushButton("Chaos map")
         self.button.setToolTip(
             f"Colour the section by MEGNO: {GRID} x {GRID} orbits at this energy, each to "
-            f"t = {T_END:g} (dark: regular, <Y> near 2; yellow: chaotic). Click a pixel to "
-            "start that orbit."
+            f"t = {_t_end_text()} (dark: regular, <Y> near 2; yellow: chaotic). Click a "
+            "pixel to start that orbit."
         )
         self.button.clicked.connect(self._on_button_clicked)
         self.controls = ProgressControls(self.cancel)

@@ -39,6 +39,11 @@ INDICATORS = ("megno", "lyapunov")
 DEFAULT_T_END = 500.0
 """Long enough for Hénon–Heiles' chaotic orbits at E = 1/8 to pass <Y> = 4 by far
 (lambda ~ 0.05: <Y> ~ 12); a 200 x 200 map of it in well under a minute on two cores."""
+IMPLICIT_T_END = 100.0
+"""The default end time where the map's method is implicit (Gauss-Legendre, the default
+for a non-separable H): each step iterates its stages, about 40 times a yoshida4 step
+of Hénon–Heiles; the double pendulum's 100 x 100 map to t = 500 took 376 s on two cores.
+Its chaotic orbits (lambda of order 1) pass <Y> = 4 long before t = 100."""
 CHUNK = 256
 """Starts per call of the compiled loop, at least (``chunk_rows``): a progress report and
 a cancel check apart."""
@@ -211,17 +216,26 @@ def default_map_method(mechanics) -> str:
     return "gauss_legendre4"
 
 
+def default_t_end(method: str) -> float:
+    """A map's end time by default: ``IMPLICIT_T_END`` for an implicit method (one with
+    stages to solve), else ``DEFAULT_T_END``."""
+    from systems.integrators.registry import STEPPERS
+
+    stepper = STEPPERS.get(method)
+    return IMPLICIT_T_END if stepper is not None and stepper.stages else DEFAULT_T_END
+
+
 def map_kernel(
     tangent: Tangent,
     *,
-    t_end: float = DEFAULT_T_END,
+    t_end: float | None = None,
     method: str | None = None,
     dt: float | None = None,
     t0: float = 0.0,
 ) -> MapKernel:
     """The map loop of ``tangent``'s system: ``method`` (default ``default_map_method``)
     at step ``dt`` (default: ``STEPS_PER_PERIOD`` steps per fastest period at the
-    scene's start) from ``t0`` to ``t_end``.
+    scene's start) from ``t0`` to ``t_end`` (default ``default_t_end(method)``).
 
     Raises
     ------
@@ -244,6 +258,7 @@ def map_kernel(
     reason = method_refusal(mechanics, method)
     if reason:
         raise NotApplicable(reason)
+    t_end = default_t_end(method) if t_end is None else t_end
     if not (math.isfinite(t_end) and t_end > t0):
         raise NotApplicable(f"the map's end time must be finite and after {t0:g}, not {t_end!r}")
     compiled = tangent.compiled
@@ -468,7 +483,8 @@ def each_chunk(
 
 
 __all__ = [
-    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "chunk_rows", "each_chunk",
+    "CHAOTIC_MEGNO", "ChaosMap", "MapGrid", "MapKernel", "chaos_map", "chunk_rows", "default_t_end",
+    "each_chunk",
     "extended_rows", "map_chunk", "map_kernel", "map_methods", "section_box", "section_grid",
     "variable_grid",
 ]  # fmt: skip

@@ -52,7 +52,8 @@ def test_integration_settings():
 
 
 def test_map_options():
-    assert usage.check_map_options(3, 4, "megno", None) == 500.0
+    assert usage.check_map_options(3, 4, "megno", None) is None  # the method's default
+    assert usage.check_map_options(3, 4, "megno", 20) == 20.0
     with pytest.raises(UsageError, match="^--grid needs at least 2 starts a side .* not 1x9$"):
         usage.check_map_options(1, 9, "megno", None)
     with pytest.raises(UsageError, match="^indicator is megno or lyapunov, not 'sali'$"):

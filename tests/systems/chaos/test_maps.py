@@ -176,3 +176,11 @@ def test_methods_without_a_loop_are_refused_with_the_reason(henon_heiles):
         maps.map_kernel(tangent, method="dop853")
     with pytest.raises(NotApplicable, match="end time must be finite"):
         maps.map_kernel(tangent, t_end=math.inf)
+
+
+def test_an_implicit_method_maps_to_a_shorter_time_by_default():
+    assert maps.default_t_end("yoshida4") == maps.default_t_end("rk4") == 500.0
+    assert maps.default_t_end("gauss_legendre4") == maps.default_t_end("gauss_legendre6") == 100.0
+    mechanics = derive(load_scene("double_pendulum"))  # a non-separable H
+    kernel = maps.map_kernel(load_tangent(compile_system(mechanics, ("rhs", "hamiltonian"))))
+    assert (kernel.method, kernel.t) == ("gauss_legendre4", pytest.approx(100.0))
