@@ -108,8 +108,8 @@ def template_source() -> str:
     named codes of ``systems.integrators.codes`` and followed by
     ``systems.matrix_solve.solve_augmented``, with the driver templates (functions
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
-    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work``, ``SAMPLE``
-    ``X_sample`` and ``SWORK`` ``X_sample_work``.
+    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work`` and ``SAMPLE``
+    ``X_sample``.
     """
     from systems import constraints, matrix_solve
     from systems.integrators import kernels
@@ -131,7 +131,6 @@ def template_source() -> str:
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
         instance = re.sub(r"\bSAMPLE\(", f"{family}_sample(", instance)
-        instance = re.sub(r"\bSWORK\(", f"{family}_sample_work(", instance)
         parts.append(re.sub(r"\bWORK\(", f"{family}_work(", instance))
     return "\n\n".join(part.strip() + "\n" for part in parts)
 
@@ -177,9 +176,10 @@ def _split_drivers(body: str) -> tuple[str, str]:
     return "".join(shared), "".join(drivers)
 
 
-ALLOCATING = ("_work", "_run", "_parallel")
-"""Name endings of the generated functions that allocate arrays (the drivers, the work
-allocators): only these keep numba's reference counting (NRT)."""
+ALLOCATING = ("_work", "_parallel")
+"""Name endings of the generated functions that allocate arrays (the ensembles' parallel
+drivers, the work allocators): only these, and whatever calls them, keep numba's reference
+counting (NRT). ``X_run`` is handed its scratch arrays (``spare``) instead."""
 
 
 @functools.cache
@@ -208,7 +208,8 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     caller's flags, so a function that calls an allocating one (the constrained steps
     call the saddle-point solves) keeps reference counting too. With
     ``reference_counting`` every function keeps it (a system function that allocates:
-    the velocity solve of a system in matrix form).
+    the velocity solve of a system in matrix form). Steps and samples (``*_step``,
+    ``*_sample``) are inlined into their callers (``inline='always'``).
     """
     names = TOP_LEVEL_DEF.findall(source)  # a regex: ast.parse took 50 ms here
     chunks = dict(zip(names, re.split(r"(?m)^def \w+\(", source)[1:], strict=True))
@@ -228,6 +229,9 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
         options = "nogil=True, cache=True, error_model='numpy'"
         if name.endswith("_parallel"):
             options += ", parallel=True"
+        if name.endswith(("_sample", "_step")):
+            # a call handing on the tuples of arrays by value cost about a leapfrog step
+            options += ", inline='always'"
         if name not in allocating and _numba_can_skip_nrt():
             options += ", _nrt=False"
         lines.append(f"{name} = njit({options})({name})")

@@ -34,12 +34,12 @@ A family ``X`` provides two functions:
 The driver templates ``DRIVER_run``, ``DRIVER_ensemble_parallel`` and
 ``DRIVER_fictitious`` (the samples of the families that step in a fictitious time) are
 instantiated per family by ``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` ->
-``X_step``, ``WORK`` -> ``X_work``, ``SAMPLE`` -> ``X_sample``, ``SWORK`` ->
-``X_sample_work``), so numba compiles each as a plain function calling globals (which it
-can cache on disk); the ``fns`` argument is the same type for every scene, so the machine
-code is too. The driver owns what every method shares: rollback of a step that failed or
-went non-finite, the end time (never passed) and the pause time, section crossings,
-strided output, the states at requested times (``X_sample``) and the counters.
+``X_step``, ``WORK`` -> ``X_work``, ``SAMPLE`` -> ``X_sample``), so numba compiles each
+as a plain function calling globals (which it can cache on disk); the ``fns`` argument is
+the same type for every scene, so the machine code is too. The driver owns what every
+method shares: rollback of a step that failed or went non-finite, the end time (never
+passed) and the pause time, section crossings, strided output, the states at requested
+times (``X_sample``) and the counters.
 """
 
 import math
@@ -791,16 +791,13 @@ def dop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
     yprev = prev[0]
     t0 = prev[2][CLOCK_T]
     x = (s - t0) / (state[2][CLOCK_T] - t0)
+    w = 1.0 - x
     out = scratch[0]
-    for k in range(yprev.shape[0]):
-        v = 0.0
-        for i in range(7):
-            v += F[6 - i, k]
-            if i % 2 == 0:
-                v *= x
-            else:
-                v *= 1.0 - x
-        out[k] = yprev[k] + v
+    for k in range(yprev.shape[0]):  # scipy's loop over F's rows, written out
+        v = F[5, k] + x * F[6, k]
+        v = F[3, k] + x * (F[4, k] + w * v)
+        v = F[1, k] + x * (F[2, k] + w * v)
+        out[k] = yprev[k] + x * (F[0, k] + w * v)
     return STATUS_RUNNING, evals
 
 
@@ -1530,9 +1527,14 @@ def call5(f, a, b, c, d, e):
 # -- the drivers -------------------------------------------------------------------------------
 
 
-def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
+def DRIVER_run(fns, state, P, coef, work, spare, limits, section, samples, out, info):
     """Up to ``limits = (nsteps, stride)`` accepted steps of the family's ``STEP`` from
     ``state = (y, comp, clock)``.
+
+    ``spare = ((y, comp, clock), swork, (y, comp, clock))``, allocated by the caller: the
+    start of each step (to undo it), the family's sample work (``X_sample_work``) and a
+    sample's state. The loop allocates nothing, so numba compiles it, and every step and
+    sample it calls, without reference counting (``codegen.jit_wrappers``).
 
     With ``samples = (times, y, comp, clock)`` (times ascending, and the start of the last
     step a former call took, its clock's time nan if none; None: numba compiles the loop
@@ -1564,9 +1566,8 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
     nsteps, stride = limits
     out_t, out_y, ev_t, ev_y = out
     m = y.shape[0]
-    yprev = np.empty(m)
-    cprev = np.empty(m)
-    kprev = np.empty(clock.shape[0])
+    prev, swork, scratch = spare
+    yprev, cprev, kprev = prev
     ev_index = -1
     ev_value = 0.0
     ev_dir = 0.0
@@ -1576,8 +1577,6 @@ def DRIVER_run(fns, state, P, coef, work, limits, section, samples, out, info):
         ev_dir = section[2]
     t_end = clock[CLOCK_T_END]
     slack = 1e-12 * max(abs(t_end), abs(clock[CLOCK_H]))
-    swork = SWORK(coef, m)
-    scratch = (np.empty(m), np.empty(m), np.empty(clock.shape[0]))
     status = STATUS_RUNNING
     steps = 0
     evals = 0

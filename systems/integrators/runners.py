@@ -32,14 +32,15 @@ def _as_python(function):
     """A generated work allocator run as plain Python, the generated functions it calls too.
 
     numba would spend about a second compiling each function that only allocates arrays
-    (the ensembles' drivers call their own compiled copies). The allocators call at most
-    one other (``gauss_work`` calls ``_collocation_work``), which calls none.
+    (the ensembles' drivers call their own compiled copies). The allocators call other
+    allocators only (``gauss_work`` calls ``_collocation_work``).
     """
     python = function.py_func
     env = dict(python.__globals__)
     for name in python.__code__.co_names:
         value = env.get(name)
-        env[name] = getattr(value, "py_func", value)
+        if hasattr(value, "py_func"):
+            env[name] = _as_python(value)
     return types.FunctionType(python.__code__, env, python.__name__)
 
 
@@ -97,6 +98,12 @@ class KernelRunner:
         drivers = driver_module()
         allocate = _as_python(getattr(drivers, f"{family.kernel}_work"))
         self.work = allocate(self.coef, self.m)
+        sample_work = _as_python(getattr(drivers, f"{family.kernel}_sample_work"))
+        self.spare = (  # the loop's scratch (its ``spare``: it allocates nothing itself)
+            (np.empty(self.m), np.empty(self.m), np.empty(CLOCK_SIZE)),
+            sample_work(self.coef, self.m),
+            (np.empty(self.m), np.empty(self.m), np.empty(CLOCK_SIZE)),
+        )
         if family.constrained:
             self.fns = compiled.constraint_functions()
         else:
@@ -124,7 +131,8 @@ class KernelRunner:
         self.clock[Clock.T_PAUSE] = until
         state = (self.y, self.comp, self.clock)
         limits = (int(nsteps), int(stride))
-        args = (self.fns, state, self.c.parameters, self.coef, self.work, limits, self.section)
+        args = (self.fns, state, self.c.parameters, self.coef, self.work, self.spare, limits)
+        args += (self.section,)
         if samples is None:
             self.last_step[2][Clock.T] = math.nan  # steps without samples: not kept
         else:
