@@ -160,8 +160,8 @@ def copy_drivers(source: Path, target: Path) -> bool:
 
 def warm_numba() -> None:
     """Initialise numba's CPU target by compiling a trivial array function (no cache),
-    then import the drivers' module and load the loops every scene calls whatever its
-    method (``preload_drivers``)."""
+    import what sympy imports at its first addition, then import the drivers' module and
+    load the loops every scene calls whatever its method (``preload_drivers``)."""
     if _warm.is_set():
         return
     from numba import njit
@@ -174,6 +174,11 @@ def warm_numba() -> None:
         return s
 
     _touch(np.zeros(2))
+    # sympy imports sympy.tensor.tensor, and with it sympy.combinatorics (40 ms), at the
+    # first addition a process makes (Add.flatten): an import, paid here, not by the
+    # first scene derived
+    import sympy.tensor.tensor  # noqa: F401
+
     preload_drivers()
     _warm.set()
 
