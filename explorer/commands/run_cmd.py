@@ -146,7 +146,10 @@ def run(args: argparse.Namespace) -> int:
         if not endless:
             with np.errstate(all="ignore"):
                 H = compiled.hamiltonian(t, y)
-                qdot = compiled.velocities(t, y)
+                # the rows' velocities go to --out; the report needs the last only
+                qdot = (
+                    compiled.velocities(t, y) if args.out else compiled.velocities(t[-1:], y[-1:])
+                )
         last, interrupted = sampler.last, sampler.interrupted
         constraints = compiled.constraints()
         violation = None
