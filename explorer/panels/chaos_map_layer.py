@@ -90,7 +90,15 @@ def map_image(result) -> np.ndarray:
 
 
 class ChaosMapLayer(QObject):
-    """The map's button, progress bar and image for one ``PhaseView``."""
+    """The map's button, progress bar and image for one ``PhaseView``.
+
+    Signals
+    -------
+    started()
+        A map was started (a session's ``chaos-map`` line).
+    """
+
+    started = Signal()
 
     def __init__(self, view):
         super().__init__(view)
@@ -148,6 +156,7 @@ class ChaosMapLayer(QObject):
         self._generation += 1
         generation, relay = self._generation, self._relay
         self._show_running(True)
+        self.started.emit()
         mechanics = self.view.compiled.mechanics
         code = self._codes.get(id(mechanics))
         if code is not None:

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
 
 from explorer.panels.background import ProgressControls, RelayThread
 from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
+from explorer.session.script import MAX_DIAGRAM_VALUES
 
 DOCK_KEY = "orbit_diagram"
 VALUES = 200
@@ -78,9 +79,13 @@ class OrbitDiagramView(QWidget):
     -------
     applies(object)
         None where the scene's drive is periodic, else the reason it is not.
+    started(str, float, float, int)
+        A diagram was started: the parameter, the range's ends and the number of values
+        (a session's ``orbit-diagram`` line).
     """
 
     applies = Signal(object)
+    started = Signal(str, float, float, int)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -103,7 +108,7 @@ class OrbitDiagramView(QWidget):
             box.setRange(-1e6, 1e6)
             box.setSingleStep(0.01)
         self.count = QSpinBox()
-        self.count.setRange(2, 5000)
+        self.count.setRange(2, MAX_DIAGRAM_VALUES)
         self.count.setValue(VALUES)
         self.draw_button = QPushButton("Draw")
         self.draw_button.clicked.connect(self.start)
@@ -187,6 +192,12 @@ class OrbitDiagramView(QWidget):
         self._thread.start()
         self._show_running(True)
         self.info.setText(f"Integrating {len(values)} orbits…")
+        self.started.emit(parameter, float(lo), float(hi), len(values))
+
+    @property
+    def running(self) -> bool:
+        """Whether a diagram is being computed."""
+        return self._thread is not None
 
     def cancel(self) -> None:
         """Stop the diagram being computed."""

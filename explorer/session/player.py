@@ -174,6 +174,9 @@ class Player(QObject):
 
     def _advance(self) -> None:
         now = time.monotonic()
+        if self._drawing():
+            self._settle_deadline = now + SETTLE_SECONDS  # a map ends by itself, however long
+            return
         if not self._idle():
             if now > self._settle_deadline:
                 raise self._error(
@@ -243,6 +246,12 @@ class Player(QObject):
                 f"{self.source}:{self.commands[self._index].line}: note: {lines} built in this "
                 "replay, though the build failed when the session was recorded"
             )
+
+    def _drawing(self) -> bool:
+        """Whether a chaos map or an orbit diagram is being computed: the next line waits
+        for it (a ``chaos-map``'s grid takes seconds to minutes: no settling deadline)."""
+        window = self.window
+        return window.phase_view.map_layer.running or window.orbit_diagram_view.running
 
     def _idle(self) -> bool:
         window = self.window
@@ -575,6 +584,36 @@ class Player(QObject):
             self.window.show_tab(command.value)
         except KeyError as exc:
             raise self._error(exc.args[0] if exc.args else f"no tab {command.value!r}") from None
+
+    def _do_chaos_map(self, _command: Command) -> None:
+        layer = self.window.phase_view.map_layer
+        if not layer.available:
+            raise self._error(
+                "a chaos map colours the Poincaré section: turn it on first (`section on`)"
+            )
+        layer.button.click()
+
+    def _do_orbit_diagram(self, command: Command) -> None:
+        parameter, low, high, count = command.value
+        view = self.window.orbit_diagram_view
+        if view.reason is not None:
+            raise self._error(f"no orbit diagram here: {view.reason}")
+        names = [view.parameter_combo.itemText(i) for i in range(view.parameter_combo.count())]
+        if parameter not in names:
+            raise self._error(
+                f"no parameter {parameter!r} to scan (parameters: {', '.join(names)})"
+            )
+        view.parameter_combo.setCurrentIndex(names.index(parameter))
+        view.low.setValue(low)
+        view.high.setValue(high)
+        view.count.setValue(count)
+        if (view.low.value(), view.high.value()) != (low, high):
+            raise self._error(
+                f"the range {low:g} to {high:g} does not fit the Orbit diagram's boxes "
+                f"({view.low.minimum():g} to {view.low.maximum():g}, "
+                f"{view.low.decimals()} decimals)"
+            )
+        view.draw_button.click()
 
     def _do_export(self, command: Command) -> None:
         panel, path = command.value

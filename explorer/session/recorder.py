@@ -82,6 +82,8 @@ class Recorder(QObject):
         phase.mode_changed.connect(self._on_phase_mode_changed)
         phase.pair_combo.currentIndexChanged.connect(self._on_pair_index_changed)
         phase.launch_requested.connect(self._on_launch_requested)
+        phase.map_layer.started.connect(self._on_chaos_map_started)
+        window.orbit_diagram_view.started.connect(self._on_orbit_diagram_started)
         editor = window.editor
         editor.parameters_changed.connect(self._on_parameters_changed)
         editor.scene_edited.connect(self._on_scene_edited)
@@ -242,6 +244,12 @@ class Recorder(QObject):
         values = np.asarray(state, dtype=float)
         words = [f"{name}={number(v)}" for name, v in zip(names, values, strict=True)]
         self.record(line("launch", *words))
+
+    def _on_chaos_map_started(self) -> None:
+        self.record("chaos-map")
+
+    def _on_orbit_diagram_started(self, parameter: str, low: float, high: float, count: int):
+        self.record(line("orbit-diagram", parameter, number(low), number(high), count))
 
     def _on_parameters_changed(self, values: dict) -> None:
         for name, value in values.items():

@@ -50,6 +50,8 @@ the player (20 ms) and often a build, so 10 000 already replay for minutes."""
 MAX_SCRIPT_BYTES = 8 * 2**20
 """Bytes a script file may hold (its ``edit`` lines carry scene texts)."""
 MAX_WAIT = 3600.0
+MAX_DIAGRAM_VALUES = 5000
+"""The most values an ``orbit-diagram`` line (and the Orbit diagram's values box) takes."""
 """The longest ``wait`` and ``run-until ... timeout=``, in seconds of wall time."""
 _ESCAPES = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "r": "\r"}
 
@@ -454,6 +456,23 @@ def _read_tab(args):
     return args[0]
 
 
+def _read_orbit_diagram(args):
+    usage = "orbit-diagram PARAMETER LOW HIGH VALUES"
+    _count(args, usage, 4)
+    low, high = _float(args[1], "LOW"), _float(args[2], "HIGH")
+    if not low < high:
+        raise _Refused(f"LOW must be below HIGH, not {_shown(args[1])} and {_shown(args[2])}")
+    try:
+        count = int(args[3])
+    except ValueError:
+        count = 0
+    if not 2 <= count <= MAX_DIAGRAM_VALUES:
+        raise _Refused(
+            f"VALUES is a whole number from 2 to {MAX_DIAGRAM_VALUES}, not {_shown(args[3])}"
+        )
+    return args[0], low, high, count
+
+
 def _read_export(args):
     _count(args, "export PANEL PATH (PANEL: phase, configuration, conserved, ... or csv)", 2)
     return args[0], _path(args[1], "export needs a file to write")
@@ -493,6 +512,8 @@ GRAMMAR: dict[str, Callable[[tuple[str, ...]], Any]] = {
     "run-until": _read_run_until,
     "wait": _read_wait,
     "tab": _read_tab,
+    "chaos-map": _no_arguments("chaos-map"),
+    "orbit-diagram": _read_orbit_diagram,
     "export": _read_export,
     "save": _read_save,
     "did-not-build": _read_did_not_build,

@@ -162,6 +162,10 @@ def test_a_script_with_every_command_reads_as_written():
         ('# fine\nexport phase "a.png', 2, 'a quote " is not closed'),
         ('save "C:\\new\\x.toml"', 1, "unknown escape \\x"),
         ("clear now", 1, "usage: clear"),
+        ("chaos-map 100", 1, "usage: chaos-map"),
+        ("orbit-diagram A 1.1 1.0 10", 1, "LOW must be below HIGH"),
+        ("orbit-diagram A 1 2 1", 1, "VALUES is a whole number from 2 to 5000, not '1'"),
+        ("orbit-diagram A 1 2", 1, "usage: orbit-diagram PARAMETER LOW HIGH VALUES"),
     ],
 )
 def test_grammar_errors_name_the_line_and_the_reason(text, line_number, words):
@@ -406,6 +410,31 @@ def test_files_and_tabs_replayed(qtbot, blank_window, tmp_path):
     assert player.message.startswith(f"{SOURCE}:1: could not export")
     player = replay(qtbot, window, "export sideways x.png", expect=2)
     assert "unknown panel 'sideways'" in player.message
+
+
+def test_chaos_map_and_orbit_diagram_recorded_and_replayed(qtbot, blank_window, monkeypatch):
+    from explorer.panels import chaos_map_layer, orbit_diagram_view
+    from explorer.session import Recorder
+
+    monkeypatch.setattr(chaos_map_layer, "GRID", 8)
+    monkeypatch.setattr(chaos_map_layer, "T_END", 20.0)
+    monkeypatch.setattr(orbit_diagram_view, "TRANSIENT_PERIODS", 5)
+    window = blank_window
+    recorder = Recorder(window)
+    script = "open henon_heiles\nsection on\nchaos-map\n"
+    replay(qtbot, window, script, recorder=recorder)
+    layer = window.phase_view.map_layer
+    assert layer.result is not None and layer.result.megno.shape == (8, 8)  # drawn before the end
+    script = "open driven_damped_pendulum\norbit-diagram A 1.0 1.1 5"
+    replay(qtbot, window, script, recorder=recorder)
+    diagram = window.orbit_diagram_view.diagram
+    assert diagram is not None and np.allclose(diagram.values, np.linspace(1.0, 1.1, 5))
+    assert diagram.parameter == "A"
+    assert "chaos-map" in recorder.lines and "orbit-diagram A 1 1.1 5" in recorder.lines
+    player = replay(qtbot, window, "orbit-diagram B 1 2 5", expect=2)
+    assert "no parameter 'B' to scan (parameters: " in player.message
+    player = replay(qtbot, window, "chaos-map", expect=2)
+    assert "turn it on first (`section on`)" in player.message
 
 
 @pytest.mark.qt_no_exception_capture  # a missing piece fails at once, with its message
