@@ -84,6 +84,9 @@ SIGNATURES: dict[str, str] = {
     "tangent_rhs": f"void({_F}, {_V}, {_V}, {_V})",
     "tangent_grad_kinetic": f"void({_V}, {_V}, {_V})",
     "tangent_grad_potential": f"void({_F}, {_V}, {_V}, {_V})",
+    # the Taylor coefficients of the solution through (t, y) (``systems.taylor.compiled``):
+    # out (N + 1, m + nodes), N read from its shape
+    "taylor_coefficients": f"void({_F}, {_V}, {_V}, {_M})",
 }
 """The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
 with C-contiguous float arrays. A scene's module compiles each it defines for exactly

@@ -1,0 +1,412 @@
+"""The Taylor coefficients of a scene's solution as machine code: one LLVM function per
+scene, written from its decomposition (``systems.taylor.decompose``) with the
+recurrences of ``systems.taylor.coefficients``.
+
+The function has the drivers' calling convention (``systems.codegen.SIGNATURES``)::
+
+    taylor_coefficients(t, y, P, out)     out (N + 1, m + nodes), C-contiguous
+
+It writes ``out[k, i] = [u_i]_k``: the state variables' coefficients (columns 0..m-1)
+for k = 0..N and every node's (columns m..) for k = 0..N-1 (order N of a node is not
+needed for the state's). N is read from ``out``'s shape at run time, so one function
+serves every tolerance. A constant node (free of the state and of time) is written at
+order 0 only: its higher coefficients are zero and no recurrence reads them (a product
+with it is a scaling, a sum with it touches order 0 only; elsewhere a read of a
+constant's order k > 0 is the number 0).
+
+The code is a prologue (order 0: the state copied, every node's value, the constant
+nodes among them, once) and one loop over the order k, each node's sum an inner loop
+over j: small IR, compiled in milliseconds whatever the order (``TaylorCode.seconds``,
+``TaylorKernels.seconds``). ``taylor_code`` writes it (remembered on disk per scene,
+like the tangent functions' IR); ``TaylorKernels`` turns it into machine code.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from systems import llvm_kernels
+from systems.taylor import decompose as taylor_decompose
+from systems.taylor.decompose import Arg, Decomposition
+
+NAME = "taylor_coefficients"
+"""The function's name (a key of ``systems.codegen.SIGNATURES``)."""
+
+_HEADER = re.compile(r"^; taylor m=(\d+) width=(\d+)$", re.MULTILINE)
+
+_LIBM = {"sinh", "cosh", "tan", "tanh", "asin", "acos", "atan", "atan2"}
+_INTRINSIC = {
+    "sqrt": "llvm.sqrt.f64",
+    "exp": "llvm.exp.f64",
+    "log": "llvm.log.f64",
+    "sin": "llvm.sin.f64",
+    "cos": "llvm.cos.f64",
+    "abs": "llvm.fabs.f64",
+    "pow": "llvm.pow.f64",
+}
+
+
+class _Writer(llvm_kernels._Writer):
+    """``taylor_coefficients`` of one decomposition."""
+
+    def __init__(self, module, decomposition: Decomposition):
+        spec = llvm_kernels.FunctionSpec(NAME, ("t", "y", "P", "out"), (), ())
+        super().__init__(module, spec, {})
+        self.d = decomposition
+        self.m = decomposition.m
+        self.width = decomposition.m + len(decomposition.nodes)
+        self.i64 = self.ir.IntType(64)
+        self.order0: dict[int, object] = {}  # column -> its value at order 0
+        self.parameters: dict[int, object] = {}
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def int(self, value: int):
+        return self.ir.Constant(self.i64, value)
+
+    def varying(self, arg: Arg) -> bool:
+        """Whether ``arg`` has coefficients of order > 0 (a column written at each k)."""
+        if arg.kind != "u":
+            return False
+        return arg.value < self.m or not self.d.nodes[arg.value - self.m].constant
+
+    def value0(self, arg: Arg):
+        """``arg``'s value at order 0."""
+        if arg.kind == "num":
+            return self.const(arg.value)
+        if arg.kind == "par":
+            found = self.parameters.get(arg.value)
+            if found is None:
+                pointer = self.b.gep(self.data["P"], [self.int(arg.value)])
+                found = self.parameters[arg.value] = self.b.load(pointer, name=f"P{arg.value}")
+            return found
+        return self.order0[arg.value]
+
+    def at(self, column: int, k):
+        """Pointer to ``out[k, column]`` (k an i64 value)."""
+        b = self.b
+        index = b.add(b.mul(k, self.int(self.width)), self.int(column))
+        return b.gep(self.data["out"], [index])
+
+    def coef(self, arg: Arg, k):
+        """``[arg]_k`` for an i64 value k: a load, or for a constant its value at k = 0."""
+        if self.varying(arg):
+            return self.b.load(self.at(arg.value, k))
+        b = self.b
+        return b.select(b.icmp_signed("==", k, self.int(0)), self.value0(arg), self.const(0.0))
+
+    def real(self, k):
+        return self.b.sitofp(k, self.double)
+
+    def sum(self, start, stop, term):
+        """``sum_{j=start}^{stop-1} term(j)`` as a loop (0.0 when empty): i64 bounds,
+        ``term`` writes the IR of one term for the i64 value j."""
+        b, ir = self.b, self.ir
+        before = b.block
+        header = self.function.append_basic_block("sum")
+        body = self.function.append_basic_block("term")
+        after = self.function.append_basic_block("summed")
+        b.branch(header)
+        b.position_at_end(header)
+        j = b.phi(self.i64, name="j")
+        total = b.phi(self.double, name="acc")
+        j.add_incoming(start, before)
+        total.add_incoming(ir.Constant(self.double, 0.0), before)
+        b.cbranch(b.icmp_signed("<", j, stop), body, after)
+        b.position_at_end(body)
+        added = b.fadd(total, term(j))
+        j.add_incoming(b.add(j, self.int(1)), b.block)
+        total.add_incoming(added, b.block)
+        b.branch(header)
+        b.position_at_end(after)
+        return total
+
+    def product_sum(self, a: Arg, c: Arg, k, start, stop, weight=None):
+        """``sum_{j=start}^{stop-1} w(j) [a]_j [c]_{k-j}`` with ``weight`` None (w = 1),
+        "j" (w = j) or "k-j"."""
+        b = self.b
+
+        def term(j):
+            back = b.sub(k, j)
+            product = b.fmul(self.coef(a, j), self.coef(c, back))
+            if weight == "j":
+                return b.fmul(self.real(j), product)
+            if weight == "k-j":
+                return b.fmul(self.real(back), product)
+            return product
+
+        return self.sum(start, stop, term)
+
+    # -- the function ----------------------------------------------------------------------
+
+    def write(self) -> None:
+        b = self.b
+        d, m = self.d, self.m
+        out_argument = self.function.args[3]
+        rows = b.extract_value(out_argument, [5, 0], name="rows")
+        N = b.sub(rows, self.int(1), name="N")
+        y = self.data["y"]
+        zero = self.int(0)
+        for i in range(m):
+            value = b.load(b.gep(y, [self.int(i)]), name=f"y{i}")
+            self.order0[i] = value
+            b.store(value, self.at(i, zero))
+        for index, node in enumerate(d.nodes):
+            column = m + index
+            value = self.value_of(node)
+            self.order0[column] = value
+            b.store(value, self.at(column, zero))
+        # orders 1 .. N - 1: the state's from the outputs' order k - 1, then the nodes'
+        before = b.block
+        header = self.function.append_basic_block("order")
+        body = self.function.append_basic_block("nodes")
+        last = self.function.append_basic_block("last")
+        b.branch(header)
+        b.position_at_end(header)
+        k = b.phi(self.i64, name="k")
+        k.add_incoming(self.int(1), before)
+        b.cbranch(b.icmp_signed("<", k, N), body, last)
+        b.position_at_end(body)
+        self.state_row(k)
+        for index, node in enumerate(d.nodes):
+            if not node.constant:
+                b.store(self.recurrence(node, m + index, k), self.at(m + index, k))
+        k.add_incoming(b.add(k, self.int(1)), b.block)
+        b.branch(header)
+        b.position_at_end(last)  # order N: the state's only
+        done = self.function.append_basic_block("done")
+        final = self.function.append_basic_block("final")
+        b.cbranch(b.icmp_signed(">=", N, self.int(1)), final, done)
+        b.position_at_end(final)
+        self.state_row(N)
+        b.branch(done)
+        b.position_at_end(done)
+        b.ret(self.ir.Constant(self.result_type, None))
+
+    def state_row(self, k) -> None:
+        """``[y_i]_k = [f_i]_{k-1} / k``."""
+        b = self.b
+        previous = b.sub(k, self.int(1))
+        kf = self.real(k)
+        for i, output in enumerate(self.d.outputs):
+            b.store(b.fdiv(self.coef(output, previous), kf), self.at(i, k))
+
+    def value_of(self, node):
+        """A node's value at order 0 (``coefficients.VALUES``)."""
+        b = self.b
+        op = node.op
+        if op == "time":
+            return self.scalars["t"]
+        a = [self.value0(arg) for arg in node.args]
+        if op == "neg":
+            return b.fneg(a[0])
+        if op in ("add", "sub", "mul", "div"):
+            method = {"add": b.fadd, "sub": b.fsub, "mul": b.fmul, "div": b.fdiv}[op]
+            return method(a[0], a[1])
+        if op == "square":
+            return b.fmul(a[0], a[0])
+        if op == "sign":
+            unit = self._call("llvm.copysign.f64", [self.const(1.0), a[0]])
+            is_zero = b.fcmp_ordered("==", a[0], self.const(0.0))
+            return b.select(is_zero, self.const(0.0), unit)
+        if op in _INTRINSIC:
+            return self._call(_INTRINSIC[op], a)
+        if op in _LIBM:
+            return self._call(op, a)
+        raise llvm_kernels.Unsupported(f"no order-0 value for the op {op}")
+
+    def recurrence(self, node, column: int, k):
+        """``[node]_k`` of the node in ``column`` for k >= 1 (``coefficients.RECURRENCES``)."""
+        b = self.b
+        op = node.op
+        args = node.args
+        me = Arg("u", column)
+        one = self.int(1)
+        kp1 = b.add(k, one)
+        kf = self.real(k)
+        if op == "time":
+            return b.select(b.icmp_signed("==", k, one), self.const(1.0), self.const(0.0))
+        if op == "sign":
+            return self.const(0.0)
+        a = args[0]
+        if op == "neg":
+            return b.fneg(self.coef(a, k))
+        if op in ("add", "sub"):
+            c = args[1]
+            if not self.varying(a):
+                value = self.coef(c, k)
+                return b.fneg(value) if op == "sub" else value
+            if not self.varying(c):
+                return self.coef(a, k)
+            method = b.fadd if op == "add" else b.fsub
+            return method(self.coef(a, k), self.coef(c, k))
+        if op == "mul":
+            c = args[1]
+            if not self.varying(a):
+                return b.fmul(self.value0(a), self.coef(c, k))
+            if not self.varying(c):
+                return b.fmul(self.coef(a, k), self.value0(c))
+            return self.product_sum(a, c, k, self.int(0), kp1)
+        if op == "square":
+            return self.product_sum(a, a, k, self.int(0), kp1)
+        if op == "div":
+            c = args[1]
+            if not self.varying(c):
+                return b.fdiv(self.coef(a, k), self.value0(c))
+            correction = self.product_sum(c, me, k, one, kp1)
+            top = b.fneg(correction) if not self.varying(a) else b.fsub(self.coef(a, k), correction)
+            return b.fdiv(top, self.value0(c))
+        if op == "pow":
+            e = self.value0(args[1])
+
+            def term(j):
+                back = b.sub(k, j)
+                factor = b.fsub(b.fmul(e, self.real(back)), self.real(j))
+                return b.fmul(b.fmul(factor, self.coef(a, back)), self.coef(me, j))
+
+            total = self.sum(self.int(0), k, term)
+            return b.fdiv(total, b.fmul(kf, self.value0(a)))
+        if op == "sqrt":
+            correction = self.product_sum(me, me, k, one, k)
+            top = b.fsub(self.coef(a, k), correction)
+            return b.fdiv(top, b.fmul(self.const(2.0), self.value0(me)))
+        if op == "exp":
+            return b.fdiv(self.product_sum(a, me, k, one, kp1, "j"), kf)
+        if op == "log":
+            correction = b.fdiv(self.product_sum(me, a, k, one, k, "j"), kf)
+            return b.fdiv(b.fsub(self.coef(a, k), correction), self.value0(a))
+        if op in ("sin", "cos", "sinh", "cosh", "tan", "tanh"):
+            partner = Arg("u", node.deps[0])
+            total = b.fdiv(self.product_sum(a, partner, k, one, kp1, "j"), kf)
+            if op == "cos":
+                return b.fneg(total)
+            if op == "tan":
+                return b.fadd(self.coef(a, k), total)
+            if op == "tanh":
+                return b.fsub(self.coef(a, k), total)
+            return total
+        if op in ("asin", "acos", "atan", "atan2"):
+            w = Arg("u", node.deps[0])
+            if op == "atan2":
+                x = args[1]
+                g = b.fsub(
+                    self.product_sum(a, x, k, one, kp1, "j"),
+                    self.product_sum(x, a, k, one, kp1, "j"),
+                )
+            else:
+                g = b.fmul(kf, self.coef(a, k))
+                if op == "acos":
+                    g = b.fneg(g)
+            correction = self.product_sum(w, me, k, one, k, "k-j")
+            return b.fdiv(b.fsub(g, correction), b.fmul(kf, self.value0(w)))
+        if op == "abs":
+            a0 = self.value0(a)
+            unit = self._call("llvm.copysign.f64", [self.const(1.0), a0])
+            is_zero = b.fcmp_ordered("==", a0, self.const(0.0))
+            sign = b.select(is_zero, self.const(0.0), unit)
+            return b.fmul(sign, self.coef(a, k))
+        raise llvm_kernels.Unsupported(f"no recurrence for the op {op}")
+
+
+def write_taylor_ir(decomposition: Decomposition) -> str:
+    """The LLVM IR text of ``taylor_coefficients`` for ``decomposition``, with a first
+    comment line giving m and the width of ``out`` (m + nodes).
+
+    Raises
+    ------
+    llvm_kernels.Unsupported
+        An op without a writer here (none of ``decompose.OPS``).
+    """
+    from llvmlite import ir
+
+    module = ir.Module(name="pe_taylor")
+    writer = _Writer(module, decomposition)
+    writer.write()
+    return f"; taylor m={writer.m} width={writer.width}\n{module}"
+
+
+@dataclass(frozen=True)
+class TaylorCode:
+    """The coefficient function as LLVM IR text (picklable), and the width of its
+    ``out``: ``m`` state variables and ``width - m`` nodes."""
+
+    text: str
+    m: int
+    width: int
+    seconds: float = 0.0
+
+
+def taylor_code(mechanics) -> TaylorCode:
+    """Write (or read from the disk cache) the coefficient function of ``mechanics``.
+
+    Raises
+    ------
+    NotDecomposable
+        With the reason (``decompose.refusal``, or the decomposition's own).
+    """
+    import sys
+
+    import llvmlite
+
+    from systems import derivation_cache
+
+    start = time.perf_counter()
+    reason = taylor_decompose.refusal(mechanics)
+    if reason:
+        raise taylor_decompose.NotDecomposable(reason)
+    code = derivation_cache.code_hash(sys.modules[__name__], taylor_decompose, llvm_kernels)
+    tag = f"taylor {code} llvmlite {llvmlite.__version__}"
+
+    def write() -> str:
+        return write_taylor_ir(taylor_decompose.decompose_mechanics(mechanics))
+
+    text = derivation_cache.remembered(mechanics.scene, tag, write)
+    found = _HEADER.search(text)
+    if found is None:  # remembered text is checked: only a writer's bug gets here
+        raise RuntimeError("the Taylor IR lacks its header line")
+    m, width = int(found.group(1)), int(found.group(2))
+    return TaylorCode(text, m, width, time.perf_counter() - start)
+
+
+class TaylorKernels:
+    """The coefficient function of one scene as machine code.
+
+    Attributes
+    ----------
+    function
+        The value the drivers take (``fns[0]`` of the taylor family).
+    m, width : int
+        State variables, and columns of ``out`` (m + nodes).
+    seconds : float
+        Writing (or reading) the IR and making (or loading) the machine code.
+    """
+
+    def __init__(self, code: TaylorCode):
+        start = time.perf_counter()
+        self.code = code
+        self.m, self.width = code.m, code.width
+        self.kernels = llvm_kernels.LLVMKernels(code.text, (NAME,))
+        self.function = self.kernels.functions[NAME]
+        self.seconds = code.seconds + time.perf_counter() - start
+
+    def coefficients(self, t: float, y: np.ndarray, P: np.ndarray, order: int) -> np.ndarray:
+        """``out`` (order + 1, width) of ``taylor_coefficients`` at one state ``y`` (m,)."""
+        out = np.zeros((order + 1, self.width))
+        y = np.ascontiguousarray(y, dtype=float)
+        self.kernels.taylor_coefficients(float(t), y, np.ascontiguousarray(P, dtype=float), out)
+        return out
+
+
+def load_taylor(mechanics) -> TaylorKernels:
+    """The coefficient function of ``mechanics`` as machine code.
+
+    Raises
+    ------
+    NotDecomposable
+        With the reason, for a system the family refuses.
+    """
+    return TaylorKernels(taylor_code(mechanics))

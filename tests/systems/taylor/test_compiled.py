@@ -1,0 +1,72 @@
+"""The compiled coefficient function (LLVM IR written from the decomposition) against the
+numpy reference evaluator, on catalogue scenes and a scene with every function."""
+
+import numpy as np
+import pytest
+
+from systems.compiled import compile_system
+from systems.taylor.coefficients import taylor_coefficients
+from systems.taylor.compiled import NAME, load_taylor, taylor_code
+from systems.taylor.decompose import NotDecomposable, decompose_mechanics
+from tests.systems.taylor.test_systems import _mechanics
+
+SCENES = (
+    "harmonic_oscillator",
+    "kepler_cartesian",
+    "planetary_motion",
+    "double_pendulum",
+    "henon_heiles",
+    "fpu_chain",
+    "driven_damped_pendulum",
+    "every_function",
+)
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_the_coefficients_are_the_reference_evaluators(name):
+    mechanics = _mechanics(name)
+    d = decompose_mechanics(mechanics)
+    kernels = load_taylor(mechanics)
+    assert kernels.width == d.m + len(d.nodes)
+    compiled = compile_system(mechanics, ("rhs",))
+    P = compiled.parameters * 1.1
+    y0 = compiled.initial_state()
+    y0 = y0 + np.random.default_rng(7).uniform(-0.1, 0.1, y0.shape)
+    for order in (20, 7, 1):  # one function, the order read from the array's shape
+        got = kernels.coefficients(0.4, y0, P, order)
+        want = taylor_coefficients(d, 0.4, y0, P, order, nodes=True)
+        assert got.shape == want.shape
+        # the state's to order N, the varying nodes' to N - 1 (order N of a node is not
+        # needed), the constant nodes' at order 0 only
+        varying = [d.m + i for i, node in enumerate(d.nodes) if not node.constant]
+        constant = [d.m + i for i, node in enumerate(d.nodes) if node.constant]
+        # relative to each column's largest: the state's to 1e-15, the nodes' (sums of
+        # up to 20 rounded products, summed in another order than numpy's) to 1e-14
+        parts = [
+            (got[:, : d.m], want[:, : d.m], 1e-15),
+            (got[:order, varying], want[:order, varying], 1e-14),
+            (got[:1, constant], want[:1, constant], 1e-15),
+        ]
+        for a, b, tolerance in parts:
+            if b.size:
+                column = np.abs(b).max(axis=0)
+                assert np.all(np.abs(a - b) <= tolerance * column), (name, order)
+
+
+def test_the_ir_is_remembered_per_scene(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    mechanics = _mechanics("double_pendulum")
+    first = taylor_code(mechanics)
+    second = taylor_code(mechanics)
+    assert second.text == first.text
+    assert f"@{NAME}(" in first.text or f'@"{NAME}"(' in first.text
+    d = decompose_mechanics(mechanics)
+    assert (first.m, first.width) == (d.m, d.m + len(d.nodes))
+    stored = list(tmp_path.rglob("*.txt"))
+    assert any(first.text.encode() in path.read_bytes() for path in stored)
+
+
+def test_a_system_in_matrix_form_is_refused_with_the_reason():
+    mechanics = _mechanics("pendulum_chain")
+    with pytest.raises(NotDecomposable, match="matrix form"):
+        taylor_code(mechanics)
