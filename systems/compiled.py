@@ -85,12 +85,38 @@ class CompiledSystem:
         first-class function values)."""
         key = ("functions", tuple(names))
         if key not in self._numeric:
-            if isinstance(self.kernels, llvm_kernels.LLVMKernels):
-                found = tuple(self.kernels.functions[name] for name in names)
-            else:
-                found = tuple(system_function(getattr(self.kernels, name)) for name in names)
-            self._numeric[key] = found
+            self._numeric[key] = tuple(self._function(name) for name in names)
         return self._numeric[key]
+
+    def _function(self, name: str):
+        from systems.taylor.compiled import NAME as TAYLOR
+
+        if name == TAYLOR:
+            return self.taylor().function
+        if isinstance(self.kernels, llvm_kernels.LLVMKernels):
+            return self.kernels.functions[name]
+        return system_function(getattr(self.kernels, name))
+
+    def taylor(self):
+        """The Taylor coefficients of the solution (``systems.taylor.compiled``): LLVM
+        code written from the decomposition of Hamilton's equations on first use (or read
+        from the disk cache), kept with the system, whichever backend compiled the rest.
+
+        Returns
+        -------
+        systems.taylor.compiled.TaylorKernels
+
+        Raises
+        ------
+        systems.taylor.decompose.NotDecomposable
+            With the reason, for a system the taylor family refuses.
+        """
+        found = self._numeric.get("taylor")
+        if found is None:
+            from systems.taylor.compiled import load_taylor
+
+            found = self._numeric["taylor"] = load_taylor(self.mechanics)
+        return found
 
     def require(self, want: str) -> None:
         if want not in self.wanted:

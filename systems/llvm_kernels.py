@@ -485,25 +485,27 @@ class _ObjectFile:
 
 class LLVMKernels:
     """A scene's system functions compiled from LLVM IR (``write_ir``'s text; ``names``
-    the functions in it): optimised and turned into machine code by LLVM alone.
+    the functions in it): optimised (LLVM's pipeline at ``speed_level``) and turned into
+    machine code by LLVM alone.
 
     ``functions[name]`` are the values the drivers take; attribute access gives a
     function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
     (through a small caller compiled once among the drivers).
     """
 
-    def __init__(self, ir_text: str, names: Sequence[str]):
+    def __init__(self, ir_text: str, names: Sequence[str], speed_level: int = 3):
         llvm = _llvm()
         if SOLVER_SYMBOL in ir_text:
             _bind_solver()
-        stored = _ObjectFile(ir_text)
+        # the machine code is keyed by what made it: the text, and a level other than 3
+        stored = _ObjectFile(ir_text if speed_level == 3 else f"; level {speed_level}\n{ir_text}")
         with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
             parsed = llvm.parse_assembly(ir_text)
             parsed.triple = llvm.get_process_triple()
             parsed.verify()
             machine = _target_machine()
             if stored.code is None:  # optimised only where machine code is made of it
-                options = llvm.create_pipeline_tuning_options(speed_level=3)
+                options = llvm.create_pipeline_tuning_options(speed_level=speed_level)
                 builder = llvm.create_pass_builder(machine, options)
                 builder.getModulePassManager().run(parsed, builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)

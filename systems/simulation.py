@@ -369,6 +369,14 @@ class Run:
             "(--max-steps), shorten the run or use a larger step or tolerance"
         )
 
+    def _dense(self) -> dict:
+        """How ``locate_crossings`` interpolates this run's steps: DOP853's dense output,
+        a Taylor step's series (of the run's order) or cubic Hermite."""
+        family = self.stepper.family.name
+        if family == "taylor":
+            return {"dense": "taylor", "order": self.runner.order}
+        return {"dense": family == "dop853"}
+
     def _periodic_crossings(self, before, t: np.ndarray, y: np.ndarray):
         """Crossings of the section on an angle among ``before`` and the steps (t, y)."""
         index, value, direction = self.section
@@ -382,9 +390,7 @@ class Run:
         )
         if not len(bt):
             return None
-        return locate_crossings(
-            self.compiled, bt, by, int(index), levels, dense=self.stepper.family.name == "dop853"
-        )
+        return locate_crossings(self.compiled, bt, by, int(index), levels, **self._dense())
 
     def advance(self, seconds: float = 0.03, until: float = math.inf, samples=None) -> Block:
         """The next block: about ``seconds`` of computing, ending early after the first
@@ -506,7 +512,7 @@ class Run:
         if self.section is not None and self.section_period is None and len(out.events[0]):
             events = locate_crossings(
                 self.compiled, out.events[0], out.events[1], int(self.section[0]),
-                float(self.section[1]), dense=self.stepper.family.name == "dop853",
+                float(self.section[1]), **self._dense(),
             )  # fmt: skip
         sampled = out.sampled if samples is not None and self.takes_samples else 0
         if strobing and sampled:

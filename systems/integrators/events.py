@@ -2,8 +2,9 @@
 
 The compiled loops only bracket a crossing of ``y[index] = value`` by the states before
 and after a step. Here the crossing is found on an interpolant of that step: DOP853's own
-7th-order dense output for DOP853 runs (``dop853_interpolant``), a cubic Hermite
-interpolant from the states and derivatives at both ends otherwise (error O(h^4)).
+7th-order dense output for DOP853 runs (``dop853_interpolant``), the step's own series
+for Taylor runs (``taylor_interpolant``), a cubic Hermite interpolant from the states
+and derivatives at both ends otherwise (error O(h^4)).
 
 A section on an angle coordinate is crossed at ``value + 2 pi j`` for every integer j:
 ``periodic_brackets`` finds those steps among consecutive states (the compiled loop only
@@ -65,6 +66,25 @@ def dop853_interpolant(compiled, t0, y0, t1, y1) -> Callable[[float], np.ndarray
             y += f
             y *= s if i % 2 == 0 else 1 - s
         return y + y0
+
+    return u
+
+
+def taylor_interpolant(compiled, t0, y0, t1, y1, order: int = 20) -> Callable[[float], np.ndarray]:
+    """The Taylor family's dense output over the step from ``(t0, y0)`` to ``(t1, y1)``:
+    the step's own polynomial (the coefficients to ``order`` through ``(t0, y0)``,
+    computed again by the scene's compiled coefficient function), as accurate as the
+    step at every point of it. Returns ``u(s)``, s in [0, 1] -> state (2n,)."""
+    h = t1 - t0
+    y0 = np.ascontiguousarray(y0, dtype=float)
+    C = compiled.taylor().coefficients(t0, y0, compiled.parameters, order)[:, : len(y0)]
+
+    def u(s: float) -> np.ndarray:
+        x = s * h
+        total = C[order].copy()
+        for k in range(order - 1, 0, -1):
+            total = total * x + C[k]
+        return y0 + total * x
 
     return u
 
@@ -144,7 +164,8 @@ def locate_crossings(
     index: int,
     value: float | np.ndarray,
     *,
-    dense: bool = False,
+    dense: bool | str = False,
+    order: int = 20,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crossings of ``y[index] = value`` inside bracketing steps.
 
@@ -156,8 +177,11 @@ def locate_crossings(
         States before and after.
     value : float or ndarray, shape (e,)
         The level, or one level per bracket (a section on an angle).
-    dense : bool
-        The steps are DOP853 steps: use its dense output instead of cubic Hermite.
+    dense : bool or "taylor"
+        The steps are DOP853 steps (True): use its dense output instead of cubic
+        Hermite; "taylor": Taylor steps of ``order``, whose dense output is the series.
+    order : int
+        The Taylor steps' order.
 
     Returns
     -------
@@ -170,6 +194,11 @@ def locate_crossings(
     m = brackets_y.shape[-1] if e else 0
     ts, ys = np.empty(e), np.empty((e, m))
     make = dop853_interpolant if dense else hermite_interpolant
+    if dense == "taylor":
+
+        def make(compiled, t0, y0, t1, y1):
+            return taylor_interpolant(compiled, t0, y0, t1, y1, order)
+
     levels = np.broadcast_to(np.asarray(value, dtype=float), (e,))
     for i in range(e):
         t0, t1 = brackets_t[i]

@@ -801,6 +801,109 @@ def dop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
     return STATUS_RUNNING, evals
 
 
+# -- Taylor series of adaptive order (Jorba & Zou), the coefficients from the derivation --------
+# fns = (taylor_coefficients,): the scene's coefficient function (systems.taylor.compiled),
+# coef = (width, kahan, order, hmax, factor): the columns of its out (m + nodes),
+# compensated sums, the order p (from the tolerance: Jorba and Zou's ceil(-ln(tol)/2 + 1)),
+# the longest step, and exp(-0.7 / (p - 1)) / e^2 (heyoka's safety factor).
+
+
+def taylor_work(coef, m):
+    width = coef[0]
+    order = coef[2]
+    # the coefficients of the last step (order + 1, width): its dense output; flags
+    # [coefficients valid]
+    return (np.empty((order + 1, width)), np.zeros(1))
+
+
+def _taylor_horner(C, order, i, h):
+    """sum_{k=1}^{order} C[k, i] h^k by Horner's rule (the increment over C[0, i])."""
+    d = C[order, i]
+    for k in range(order - 1, 0, -1):
+        d = d * h + C[k, i]
+    return d * h
+
+
+def taylor_step(fns, y, comp, clock, P, coef, work):
+    """One Taylor step: the coefficients of the solution through ``(t, y)`` to order p
+    (``fns[0]``), the step from the last two (Jorba and Zou with heyoka's safety factor:
+    ``rho = min(|[y]_{p-1}|^(-1/(p-1)), |[y]_p|^(-1/p))``, the norms the largest entry
+    relative to ``max(1, |y|)``; ``h = rho / e^2 exp(-0.7 / (p - 1))``, at most ``hmax``,
+    never past the end time), and the series summed by Horner's rule, the increment
+    added with Kahan's compensation. Never rejected: non-finite coefficients give a
+    non-finite state, which the driver undoes. The coefficients stay in ``work`` for the
+    dense output (``taylor_sample``); ``clock[CLOCK_H]`` is the step taken."""
+    kahan = coef[1]
+    order = coef[2]
+    hmax = coef[3]
+    factor = coef[4]
+    C, flags = work
+    m = y.shape[0]
+    t = clock[CLOCK_T]
+    fns[0](t, y, P, C)
+    flags[0] = 1.0
+    scale = 1.0
+    below = 0.0
+    top = 0.0
+    for i in range(m):
+        scale = max(scale, abs(y[i]))
+        below = max(below, abs(C[order - 1, i]))
+        top = max(top, abs(C[order, i]))
+    rho = math.inf
+    if below > 0.0:
+        rho = (below / scale) ** (-1.0 / (order - 1))
+    if top > 0.0:
+        rho = min(rho, (top / scale) ** (-1.0 / order))
+    t_end = clock[CLOCK_T_END]
+    if rho == math.inf:  # a polynomial solution: every coefficient zero
+        h = t_end - t if t_end < 1e300 else 1.0
+    else:
+        h = rho * factor
+    h = min(h, hmax)
+    last = h >= t_end - t
+    if last:
+        h = t_end - t
+    if not h > 4e-14 * max(abs(t), 1.0):
+        if h == h:
+            return STATUS_STEP_COLLAPSED, 1
+        h = 1.0  # nan coefficients: a non-finite state, undone by the driver
+    for i in range(m):
+        _add(y, comp, i, _taylor_horner(C, order, i, h), kahan)
+    if last:
+        clock[CLOCK_T] = t_end
+        clock[CLOCK_TC] = 0.0
+    else:
+        _tick(clock, h)
+    clock[CLOCK_H] = h
+    return STATUS_RUNNING, 1
+
+
+def taylor_sample_work(coef, m):
+    width = coef[0]
+    order = coef[2]
+    return (np.empty((order + 1, width)),)
+
+
+def taylor_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """The state at ``s`` from the polynomial of the last step: its coefficients (kept in
+    ``work``; computed again into ``swork`` from the step's start if the driver undid a
+    step since), summed at ``s - t`` with the start's compensation."""
+    order = coef[2]
+    yprev, cprev, kprev = prev
+    C = work[0]
+    evals = 0
+    if work[-1][0] == 0.0:
+        C = swork[0]
+        if first:
+            fns[0](kprev[CLOCK_T], yprev, P, C)
+            evals = 1
+    ds = (s - kprev[CLOCK_T]) + kprev[CLOCK_TC]
+    out = scratch[0]
+    for i in range(yprev.shape[0]):
+        out[i] = yprev[i] + (_taylor_horner(C, order, i, ds) - cprev[i])
+    return STATUS_RUNNING, evals
+
+
 # -- constrained systems: the multipliers, the projection, contacts and impacts ------------------
 # ``cs`` is the scene's tuple of constraint functions (``Family.functions`` of the
 # constrained families, in this order: ``c_free_rhs``, ``c_positions``, ``c_rows``,

@@ -368,6 +368,36 @@ def _constrained_dop853_coef(stepper, compiled, t0, y0, compensated):
     return (*_dop853_tableau(), sizes(compiled.mechanics))
 
 
+def _taylor_applies(mechanics, stepper: Stepper) -> str | None:
+    """None when Hamilton's equations decompose into the operations with recurrences
+    (``systems.taylor.decompose``), else why not (remembered with the derivation)."""
+    cache = getattr(mechanics, "_cache", {})
+    if "taylor refusal" not in cache:
+        from systems.taylor.decompose import NotDecomposable, decompose_mechanics, refusal
+
+        reason = refusal(mechanics)
+        if reason is None:
+            try:
+                decompose_mechanics(mechanics)
+            except NotDecomposable as exc:
+                reason = str(exc)
+        cache["taylor refusal"] = reason
+    reason = cache["taylor refusal"]
+    if reason is None:
+        return None
+    return f"{stepper.name} needs Hamilton's equations as elementary operations: {reason}"
+
+
+def _taylor_coef(stepper, compiled, t0, y0, compensated):
+    """The width of the coefficient function's ``out`` and the Kahan switch (the runner
+    appends the order and the longest step)."""
+    return (int(compiled.taylor().width), bool(compensated))
+
+
+def _taylor_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
+    return float(np.finfo(float).eps)
+
+
 def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
     return stepsize.STIFF_TOL if stepper.stiff else stepsize.DEFAULT_TOL
 
@@ -449,6 +479,19 @@ FAMILIES: dict[str, Family] = {
             coefficients=_dop853_coef,
             default_setting=_adaptive_tol,
             applies=_applies_always,
+            adaptive=True,
+        ),
+        Family(
+            name="taylor",
+            description="Taylor series of adaptive order from the derivation (Jorba-Zou): "
+            "machine precision by default, dense output from the series",
+            kernel="taylor",
+            setting="tol",
+            runner=runners.TaylorRunner,
+            coefficients=_taylor_coef,
+            default_setting=_taylor_tol,
+            applies=_taylor_applies,
+            functions=("taylor_coefficients",),
             adaptive=True,
         ),
         Family(
@@ -572,6 +615,13 @@ STEPPERS: dict[str, Stepper] = {
             finisher="gauss_legendre6",
         ),
         _method("dop853", 8, "dop853", "compiled adaptive Dormand-Prince 8(5,3)"),
+        _method(
+            "taylor",
+            20,
+            "taylor",
+            "Taylor series, order from the tolerance (20 at the default, machine epsilon), "
+            "step from the last two coefficients (Jorba-Zou)",
+        ),
         _method(
             "constrained_dop853",
             8,

@@ -94,7 +94,7 @@ class KernelRunner:
         self.clock[Clock.T_END] = self.t_end if math.isfinite(self.t_end) else ENDLESS
         self.clock[Clock.T_PAUSE] = math.inf
         family = stepper.family
-        self.coef = family.coefficients(stepper, compiled, t0, self.y, compensated)
+        self.coef = self._coefficients(t0)
         drivers = driver_module()
         allocate = _as_python(getattr(drivers, f"{family.kernel}_work"))
         self.work = allocate(self.coef, self.m)
@@ -114,6 +114,10 @@ class KernelRunner:
         # the start of the last step a call with samples took (y, comp, clock; nan time:
         # none): the next call answers the times inside that step from there
         self.last_step = (np.empty(self.m), np.empty(self.m), np.full(CLOCK_SIZE, math.nan))
+
+    def _coefficients(self, t0: float) -> tuple:
+        """The kernel's ``coef`` (the family's; a runner may append its own settings)."""
+        return self.s.family.coefficients(self.s, self.c, t0, self.y, self.compensated)
 
     @property
     def t(self) -> float:
@@ -310,6 +314,30 @@ class AdaptiveRunner(KernelRunner):
         self.coef = (*self.coef, self.rtol, self.atol, self.max_step)
         h = _initial_step(compiled, t0, self.y, self.rtol, self.atol, t_end)
         self.clock[Clock.H] = min(h, self.max_step)
+
+
+class TaylorRunner(KernelRunner):
+    """The Taylor family: ``value`` is the tolerance, which sets the order (Jorba and
+    Zou's ``ceil(-ln(tol)/2 + 1)``, at least 2: 20 at machine epsilon); each step's length
+    comes from the last two coefficients, at most ``max_step``."""
+
+    def __init__(
+        self, compiled, stepper, y0, t0, t_end, value, section, *args, max_step=math.inf, **kw
+    ):
+        self.max_step = float(max_step)
+        super().__init__(compiled, stepper, y0, t0, t_end, value, section, *args, **kw)
+
+    def _coefficients(self, t0: float) -> tuple:
+        from systems.taylor.coefficients import jorba_zou
+
+        order = max(2, jorba_zou(self.value))
+        factor = math.exp(-0.7 / (order - 1)) / math.e**2  # heyoka's safety factor
+        return (*super()._coefficients(t0), order, self.max_step, factor)
+
+    @property
+    def order(self) -> int:
+        """The order of the series."""
+        return int(self.coef[2])
 
 
 def _initial_step(compiled, t0, y, rtol, atol, t_end) -> float:

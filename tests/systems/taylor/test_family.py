@@ -1,0 +1,178 @@
+"""The compiled taylor family: its steps against the reference integrator's, the exact
+Kepler orbit after 100 periods, the order and step as documented, section crossings on
+the dense output."""
+
+import math
+
+import mpmath
+import numpy as np
+import pytest
+
+from systems.compiled import compile_system
+from systems.integrators.registry import STEPPERS, make_runner
+from systems.mechanics import derive
+from systems.scene import load_scene, parse_scene
+from systems.simulation import Run, stream
+from systems.taylor import reference
+from systems.taylor.coefficients import jorba_zou
+from systems.taylor.decompose import decompose_mechanics
+
+EPS = float(np.finfo(float).eps)
+
+
+def _compiled(name):
+    return compile_system(derive(load_scene(name)), ("rhs", "hamiltonian"))
+
+
+def kepler_start(e: float) -> np.ndarray:
+    """Pericentre of the orbit of eccentricity ``e``, a = 1, k = m = 1 (period 2 pi)."""
+    return np.array([1 - e, 0.0, 0.0, math.sqrt((1 + e) / (1 - e))])
+
+
+def kepler_exact(y0: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+    """The exact Cartesian Kepler state at ``t`` through ``y0`` as given (its rounded
+    values: their energy sets the period), in 40 digits; and the period."""
+    with mpmath.workdps(40):
+        x, y, vx, vy = (mpmath.mpf(float(v)) for v in y0)
+        r0 = mpmath.sqrt(x * x + y * y)
+        a = -1 / (2 * ((vx * vx + vy * vy) / 2 - 1 / r0))
+        n = mpmath.sqrt(1 / a**3)
+        h = x * vy - y * vx
+        ex, ey = vy * h - x / r0, -vx * h - y / r0
+        e, w = mpmath.sqrt(ex * ex + ey * ey), mpmath.atan2(ey, ex)
+        b = a * mpmath.sqrt(1 - e * e)
+        c, s = mpmath.cos(w), mpmath.sin(w)
+        E0 = mpmath.atan2((-x * s + y * c) / b, (x * c + y * s) / a + e)
+        M = E0 - e * mpmath.sin(E0) + n * t
+        E = mpmath.findroot(lambda E: E - e * mpmath.sin(E) - M, M)
+        X, Y = a * (mpmath.cos(E) - e), b * mpmath.sin(E)
+        rate = n / (1 - e * mpmath.cos(E))
+        VX, VY = -a * mpmath.sin(E) * rate, b * mpmath.cos(E) * rate
+        state = [c * X - s * Y, s * X + c * Y, c * VX - s * VY, s * VX + c * VY]
+        return np.array([float(v) for v in state]), float(2 * mpmath.pi / n)
+
+
+@pytest.mark.parametrize("name", ["kepler_cartesian", "double_pendulum", "henon_heiles"])
+def test_the_steps_are_the_reference_integrators(name):
+    compiled = _compiled(name)
+    d = decompose_mechanics(compiled.mechanics)
+    y0 = compiled.initial_state()
+    runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, math.inf, None, None)
+    assert runner.order == 20
+    outcome = runner.advance(30, 100)
+    t, y = 0.0, y0
+    for i in range(30):
+        step = reference.taylor_step(d, t, y, compiled.parameters)
+        t, y = step.t, step.y
+        # the same order and step rule; sums in another order: round-off apart
+        assert math.isclose(outcome.t[i], t, rel_tol=1e-13), (i, outcome.t[i], t)
+        assert np.abs(outcome.y[i] - y).max() <= 1e-13 * max(1.0, np.abs(y).max()), i
+
+
+@pytest.mark.parametrize(("e", "bound"), [(0.5, 1e-11), (0.9, 1e-9)])
+def test_kepler_after_100_periods_is_the_exact_orbit(e, bound):
+    compiled = _compiled("kepler_cartesian")
+    y0 = kepler_start(e)
+    exact, period = kepler_exact(y0, 0.0)
+    blocks = list(
+        stream(compiled, method="taylor", y0=y0, t_end=100 * period, energy_tolerance=None)
+    )
+    last = blocks[-1]
+    assert last.status == "ok" and last.t[-1] == 100 * period
+    exact, _ = kepler_exact(y0, 100 * period)
+    error = np.abs(last.y[-1] - exact).max() / np.abs(exact).max()
+    # measured: 3.6e-12 (e = 0.5, 3775 steps) and 1.8e-10 (e = 0.9, 7319 steps); heyoka
+    # 7.13 at its default tolerance, the same steps: 8.7e-13 and 1.2e-9. The energy's
+    # round-off alone moves the phase by about 2 pi 100 * 3 dE/|E| (~1e-13 a unit of
+    # round-off of E), so 1e-12 is the floor of double precision here, not of the method
+    assert error <= bound, error
+
+
+def test_the_order_follows_the_tolerance_and_the_step_the_motion():
+    compiled = _compiled("kepler_cartesian")
+    e = 0.9
+    y0 = kepler_start(e)
+    counts = {}
+    for tol in (EPS, 1e-10, 1e-6):
+        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 2 * math.pi, tol, None)
+        assert runner.order == max(2, jorba_zou(tol))  # 20, 13, 8
+        outcome = runner.advance(10**5, 10**5)
+        assert outcome.code.name == "END"
+        counts[tol] = outcome.steps
+        h = np.diff(np.concatenate([[0.0], outcome.t]))[:-1]  # the last lands on t_end
+        starts = np.concatenate([y0[None], outcome.y[:-2]])
+        r = np.hypot(starts[:, 0], starts[:, 1])
+        # the radius of convergence follows the distance to the complex singularity of
+        # the motion, ~ r^(3/2): the steps from pericentre and apocentre (r 0.1 and 1.9)
+        near, far = h[r < 0.15].min(), h[r > 1.8].max()
+        ratio = near / far
+        expected = (0.1 / 1.9) ** 1.5
+        assert expected / 3 < ratio < expected * 3, (tol, ratio, expected)
+    # Jorba and Zou: the tolerance sets the order, the step hardly changes with it
+    assert max(counts.values()) <= 1.5 * min(counts.values()), counts
+    # the truncation error of a step is about the tolerance (relative to max(1, |y|)):
+    # a step against the series of twice the order over the same h
+    d = decompose_mechanics(compiled.mechanics)
+    for tol in (1e-6, 1e-10, EPS):
+        step = reference.taylor_step(d, 0.0, y0, compiled.parameters, tol)
+        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, math.inf, tol, None)
+        outcome = runner.advance(1, 2)
+        assert math.isclose(outcome.t[0], step.h, rel_tol=1e-12)
+        from systems.taylor.coefficients import horner, taylor_coefficients
+
+        finer = horner(taylor_coefficients(d, 0.0, y0, compiled.parameters, 40), step.h)
+        error = np.abs(outcome.y[0] - finer).max() / max(1.0, np.abs(y0).max())
+        assert error <= max(10 * tol, 4 * EPS), (tol, error)
+        assert error >= tol / 1e3 or tol == EPS, (tol, error)  # not far shorter than needed
+
+
+OSCILLATOR = """
+[system]
+coordinates = ["x"]
+parameters = { m = 1.0, k = 2.0 }
+kinetic = "m*x_dot**2/2"
+potential = "k*x**2/2"
+[initial]
+x = 1.0
+x_dot = 0.0
+"""
+
+
+def test_section_crossings_are_located_on_the_series_to_round_off():
+    # the oscillator x = cos(w t) crosses x = 0.3 downward at (acos(0.3) + 2 pi j) / w
+    compiled = compile_system(derive(parse_scene(OSCILLATOR)), ("rhs", "hamiltonian"))
+    w = math.sqrt(2.0)
+    run = Run(compiled, method="taylor", t_end=40.0, section=(0, 0.3, -1))
+    events = []
+    while not run.finished:
+        block = run.advance(1.0)
+        events.extend(block.events_t)
+    expected = (math.acos(0.3) + 2 * math.pi * np.arange(len(events))) / w
+    assert len(events) == math.floor(40.0 * w / (2 * math.pi) + 1 - math.acos(0.3) / (2 * math.pi))
+    assert np.abs(np.array(events) - expected).max() <= 1e-13
+    # Kepler, e = 0.9: the crossings of y = 0 upward are the pericentre passages, at
+    # whole periods of the orbit through the rounded start, in steps of 0.01 to 1
+    compiled = _compiled("kepler_cartesian")
+    y0 = kepler_start(0.9)
+    _, period = kepler_exact(y0, 0.0)
+    run = Run(compiled, method="taylor", y0=y0, t_end=3.5 * period, section=(1, 0.0, 1))
+    found_t, found_y = [], []
+    while not run.finished:
+        block = run.advance(1.0)
+        found_t.extend(block.events_t)
+        found_y.extend(block.events_y)
+    assert len(found_t) == 3
+    for j, (t, y) in enumerate(zip(found_t, found_y, strict=True), start=1):
+        assert abs(t - j * period) <= 1e-13, (j, t - j * period)
+        exact, _ = kepler_exact(y0, j * period)
+        assert np.abs(y - exact).max() <= 1e-12 * np.abs(exact).max()
+
+
+def test_a_scene_in_matrix_form_or_with_constraints_is_refused_with_the_reason():
+    stepper = STEPPERS["taylor"]
+    chain = derive(load_scene("pendulum_chain"))
+    reason = stepper.applies_to(chain)
+    assert reason is not None and "taylor" in reason and "matrix form" in reason
+    reason = stepper.applies_to(derive(load_scene("cartesian_pendulum")))
+    assert reason is not None and "taylor" in reason and "constraints" in reason
+    assert stepper.applies_to(derive(load_scene("double_pendulum"))) is None
