@@ -235,11 +235,18 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
         if name.endswith(("_sample", "_step")):
             # a call handing on the tuples of arrays by value cost about a leapfrog step
             options += ", inline='always'"
+        if name in FUSED:
+            options += ", fastmath={'contract'}"
         if name not in allocating and _numba_can_skip_nrt():
             options += ", _nrt=False"
         lines.append(f"{name} = njit({options})({name})")
     return "\n".join(lines) + "\n"
 
+
+FUSED = ("_taylor_horner",)
+"""Generated functions compiled with ``fastmath={"contract"}``: each multiply and add a
+fused multiply-add where the CPU has one (a Taylor series' Horner sums: 21 against 35
+ns for four order-20 sums, and one rounding instead of two)."""
 
 ALLOCATION = re.compile(r"\bnp\.(empty|zeros|ones)\(")
 CALL = re.compile(r"\b(\w+)\(")

@@ -102,10 +102,19 @@ def _llvm():
     return llvm
 
 
-def _target_machine():
-    """A new target machine: an execution engine owns (and frees) the one it is given."""
+def _target_machine(host: bool = False):
+    """A new target machine: an execution engine owns (and frees) the one it is given.
+    ``host``: for this CPU and its features (FMA, AVX), not a generic x86-64 one."""
     llvm = _llvm()
-    return llvm.Target.from_default_triple().create_target_machine(opt=3, jit=True)
+    target = llvm.Target.from_default_triple()
+    if not host:
+        return target.create_target_machine(opt=3, jit=True)
+    return target.create_target_machine(
+        cpu=llvm.get_host_cpu_name(),
+        features=llvm.get_host_cpu_features().flatten(),
+        opt=3,
+        jit=True,
+    )
 
 
 @functools.cache
@@ -486,24 +495,28 @@ class _ObjectFile:
 class LLVMKernels:
     """A scene's system functions compiled from LLVM IR (``write_ir``'s text; ``names``
     the functions in it): optimised (LLVM's pipeline at ``speed_level``) and turned into
-    machine code by LLVM alone.
+    machine code by LLVM alone, for a generic x86-64 or (``host``) this CPU.
 
     ``functions[name]`` are the values the drivers take; attribute access gives a
     function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
     (through a small caller compiled once among the drivers).
     """
 
-    def __init__(self, ir_text: str, names: Sequence[str], speed_level: int = 3):
+    def __init__(
+        self, ir_text: str, names: Sequence[str], speed_level: int = 3, host: bool = False
+    ):
         llvm = _llvm()
         if SOLVER_SYMBOL in ir_text:
             _bind_solver()
         # the machine code is keyed by what made it: the text, and a level other than 3
-        stored = _ObjectFile(ir_text if speed_level == 3 else f"; level {speed_level}\n{ir_text}")
+        # or the host's own instructions (the key has the CPU and its features already)
+        options = "" if (speed_level, host) == (3, False) else f"; {speed_level} {host}\n"
+        stored = _ObjectFile(options + ir_text)
         with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
             parsed = llvm.parse_assembly(ir_text)
             parsed.triple = llvm.get_process_triple()
             parsed.verify()
-            machine = _target_machine()
+            machine = _target_machine(host)
             if stored.code is None:  # optimised only where machine code is made of it
                 options = llvm.create_pipeline_tuning_options(speed_level=speed_level)
                 builder = llvm.create_pass_builder(machine, options)

@@ -849,11 +849,14 @@ def taylor_step(fns, y, comp, clock, P, coef, work):
         scale = max(scale, abs(y[i]))
         below = max(below, abs(C[order - 1, i]))
         top = max(top, abs(C[order, i]))
-    rho = math.inf
+    # rho = min((below/scale)^(-1/(p-1)), (top/scale)^(-1/p)), by logarithms (two pows
+    # cost 23 ns, two logs and an exp 15)
+    exponent = -math.inf
     if below > 0.0:
-        rho = (below / scale) ** (-1.0 / (order - 1))
+        exponent = math.log(below / scale) / (order - 1)
     if top > 0.0:
-        rho = min(rho, (top / scale) ** (-1.0 / order))
+        exponent = max(exponent, math.log(top / scale) / order)
+    rho = math.exp(-exponent)
     t_end = clock[CLOCK_T_END]
     if rho == math.inf:  # a polynomial solution: every coefficient zero
         h = t_end - t if t_end < 1e300 else 1.0

@@ -7,18 +7,27 @@ The function has the drivers' calling convention (``systems.codegen.SIGNATURES``
     taylor_coefficients(t, y, P, out)     out (N + 1, m + nodes), C-contiguous
 
 It writes ``out[k, i] = [u_i]_k``: the state variables' coefficients (columns 0..m-1)
-for k = 0..N and every node's (columns m..) for k = 0..N-1 (order N of a node is not
-needed for the state's). N is read from ``out``'s shape at run time, so one function
-serves every tolerance. A constant node (free of the state and of time) is written at
-order 0 only: its higher coefficients are zero and no recurrence reads them (a product
-with it is a scaling, a sum with it touches order 0 only; elsewhere a read of a
-constant's order k > 0 is the number 0).
+for k = 0..N, every node's (columns m..) at k = 0 and, in the looped form, for
+k = 1..N-1 (order N of a node is not needed for the state's). N is read from ``out``'s
+shape at run time, so one function serves every tolerance. A constant node (free of
+the state and of time) is written at order 0 only: its higher coefficients are zero and
+no recurrence reads them (a product with it is a scaling, a sum with it touches order 0
+only; elsewhere a read of a constant's order k > 0 is the number 0).
 
-The code is a prologue (order 0: the state copied, every node's value, the constant
-nodes among them, once) and one loop over the order k, each node's sum an inner loop
-over j: small IR, compiled in milliseconds whatever the order (``TaylorCode.seconds``,
-``TaylorKernels.seconds``). ``taylor_code`` writes it (remembered on disk per scene,
-like the tangent functions' IR); ``TaylorKernels`` turns it into machine code.
+The code is a prologue (order 0: the parameters read, the state copied, every node's
+value, the constant nodes among them, once), then one of two forms, chosen by N:
+
+- *unrolled*, for N = ``UNROLLED`` (the order at the default tolerance) where the
+  scene's products (``unrolled_terms``) are at most ``UNROLL_BUDGET``: every order's
+  terms written out, a constant's terms dropped, the nodes' coefficients kept in
+  registers (only the state's are stored: node columns of orders >= 1 are left as they
+  were), divisions by an order-0 value products with its reciprocal;
+- *looped*, for any other N (or every N of a larger system): a loop over k, each node's
+  sum an inner loop over j: small IR, compiled in milliseconds whatever the order.
+
+``taylor_code`` writes it (remembered on disk per scene, like the tangent functions'
+IR); ``TaylorKernels`` turns it into machine code (``TaylorCode.seconds``,
+``TaylorKernels.seconds``).
 """
 
 from __future__ import annotations
@@ -58,7 +67,9 @@ system has the looped form alone (the double pendulum's 2970 compile in about 0.
 SPEED_LEVEL = 2
 """LLVM's pipeline for the coefficient function: at level 3 the unrolled form compiled
 1.5-2x slower and ran 1.3-1.5x slower (the double pendulum 1.75 against 1.21 us a call,
-Kepler 0.53 against 0.36); the looped form is the same at both."""
+Kepler 0.53 against 0.36); the looped form is the same at both. Compiled for this CPU
+(``LLVMKernels(host=True)``): Kepler 0.32 us a call against 0.36 for a generic x86-64;
+with FMA contraction allowed in the sums it was 0.40."""
 
 
 def unrolled_terms(decomposition: Decomposition, order: int) -> int:
@@ -185,6 +196,8 @@ class _Writer(llvm_kernels._Writer):
         N = b.sub(rows, self.int(1), name="N")
         y = self.data["y"]
         zero = self.int(0)
+        for j in range(len(d.parameters)):  # in the entry block: it dominates every use
+            self.value0(Arg("par", j))
         for i in range(m):
             value = b.load(b.gep(y, [self.int(i)]), name=f"y{i}")
             self.order0[i] = value
@@ -239,6 +252,7 @@ class _Writer(llvm_kernels._Writer):
         d, m = self.d, self.m
         self.V: dict[tuple[int, int], object] = {}
         self.inverses: dict[int, object] = {}
+        self.weighted: dict[tuple, object] = {}
         for column, value in self.order0.items():
             self.V[column, 0] = value
         for k in range(1, N + 1):
@@ -301,8 +315,14 @@ class _Writer(llvm_kernels._Writer):
             x, y = self.cv(a, j), self.cv(c, k - j)
             if x is None or y is None:
                 continue
-            w = 1.0 if weight is None else float(j if weight == "j" else k - j)
-            terms.append(self.b.fmul(self.scaled(x, w), y))
+            if weight == "j":  # j [a]_j, shared by the terms of every order (and by pairs)
+                key = (a, j)
+                if key not in self.weighted:
+                    self.weighted[key] = self.scaled(x, float(j))
+                x = self.weighted[key]
+            elif weight is not None:
+                x = self.scaled(x, float(k - j))
+            terms.append(self.b.fmul(x, y))
         return self.total(terms)
 
     def symmetric(self, a: Arg, k: int, start: int, stop: int):
@@ -604,7 +624,7 @@ class TaylorKernels:
         start = time.perf_counter()
         self.code = code
         self.m, self.width = code.m, code.width
-        self.kernels = llvm_kernels.LLVMKernels(code.text, (NAME,), SPEED_LEVEL)
+        self.kernels = llvm_kernels.LLVMKernels(code.text, (NAME,), SPEED_LEVEL, host=True)
         self.function = self.kernels.functions[NAME]
         self.seconds = code.seconds + time.perf_counter() - start
 

@@ -84,3 +84,35 @@ def test_a_system_in_matrix_form_is_refused_with_the_reason():
     mechanics = _mechanics("pendulum_chain")
     with pytest.raises(NotDecomposable, match="matrix form"):
         taylor_code(mechanics)
+
+
+FALL = """
+[system]
+coordinates = ["x"]
+parameters = { F = 0.5 }
+hamiltonian = "p_x**2/2 - F*x"
+[initial]
+x = 1.0
+p_x = -2.0
+"""
+
+
+def test_a_parameter_as_an_equation_and_a_polynomial_solution():
+    # dx/dt = p, dp/dt = F (a parameter read, no node): x = 1 - 2t + F t^2/2
+    from systems.mechanics import derive
+    from systems.scene import parse_scene
+    from systems.simulation import stream
+
+    mechanics = derive(parse_scene(FALL))
+    kernels = load_taylor(mechanics)
+    for order in (UNROLLED, 5):
+        got = kernels.coefficients(0.0, np.array([1.0, -2.0]), np.array([0.5]), order)
+        want = np.zeros((order + 1, 2))
+        want[:3, 0] = [1.0, -2.0, 0.25]
+        want[:2, 1] = [-2.0, 0.5]
+        np.testing.assert_array_equal(got[:, :2], want)
+    # every coefficient beyond the second is zero: one step to the end, exact
+    compiled = compile_system(mechanics, ("rhs",))
+    blocks = list(stream(compiled, method="taylor", t_end=10.0, energy_tolerance=None))
+    assert blocks[-1].status == "ok" and blocks[-1].steps == 1
+    np.testing.assert_allclose(blocks[-1].y[-1], [1.0 - 20.0 + 25.0, -2.0 + 5.0], rtol=1e-15)
