@@ -89,7 +89,21 @@ def method_refusal(mechanics, method: str) -> str | None:
             "the tangent vectors would change; use dop853 (the default), gauss_legendre6 "
             "or a yoshida composition"
         )
+    if not _carries_tangents(family):
+        return (
+            f"{method} steps with functions of its own ({', '.join(family.functions)}) "
+            "that have no tangent counterpart: the Taylor series of the variational "
+            "equations are not written; use dop853 (the default), gauss_legendre6 or a "
+            "yoshida composition"
+        )
     return stepper.applies_to(mechanics)
+
+
+def _carries_tangents(family) -> bool:
+    """Whether every system function ``family`` steps with has a tangent counterpart."""
+    from systems.chaos.variational import TANGENT_NAMES
+
+    return family.constrained or all(name in TANGENT_NAMES for name in family.functions)
 
 
 def lyapunov_methods() -> tuple[str, ...]:
@@ -100,7 +114,7 @@ def lyapunov_methods() -> tuple[str, ...]:
         name
         for name, s in STEPPERS.items()
         if s.family.kernel is not None and not s.family.time_transformed
-        and not s.family.constrained
+        and not s.family.constrained and _carries_tangents(s.family)
     )  # fmt: skip
 
 

@@ -223,6 +223,8 @@ def test_methods_and_settings_that_cannot_carry_vectors_are_refused_with_the_rea
     assert "fictitious time" in ly.method_refusal(mechanics, "logh_yoshida6")
     assert "fictitious time" in ly.method_refusal(mechanics, "gauss_legendre6_tt")
     assert "scipy" in ly.method_refusal(mechanics, "radau")
+    assert "no tangent counterpart" in ly.method_refusal(mechanics, "taylor")
+    assert "taylor" not in ly.lyapunov_methods()
     assert "unknown method" in ly.method_refusal(mechanics, "nope")
     assert ly.method_refusal(mechanics, "yoshida8") is None
     pendulum = derive(load_scene("double_pendulum"))
