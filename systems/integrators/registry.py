@@ -370,7 +370,8 @@ def _constrained_dop853_coef(stepper, compiled, t0, y0, compensated):
 
 def _taylor_applies(mechanics, stepper: Stepper) -> str | None:
     """None when Hamilton's equations decompose into the operations with recurrences
-    (``systems.taylor.decompose``), else why not (remembered with the derivation)."""
+    (``systems.taylor.decompose``) and take no ``abs`` or ``sign`` of the state (their
+    series are one side's), else why not (remembered with the derivation)."""
     cache = getattr(mechanics, "_cache", {})
     if "taylor refusal" not in cache:
         from systems.taylor.decompose import NotDecomposable, decompose_mechanics, refusal
@@ -378,14 +379,26 @@ def _taylor_applies(mechanics, stepper: Stepper) -> str | None:
         reason = refusal(mechanics)
         if reason is None:
             try:
-                decompose_mechanics(mechanics)
+                kinks = set(decompose_mechanics(mechanics).counts()) & {"abs", "sign"}
             except NotDecomposable as exc:
                 reason = str(exc)
-        cache["taylor refusal"] = reason
+            else:
+                if kinks:
+                    cache["taylor refusal"] = (
+                        f"cannot follow a kink: Hamilton's equations take "
+                        f"{' and '.join(sorted(kinks))} of the state, whose series follows "
+                        "the side it starts on, and a step's length does not see where the "
+                        "argument changes sign (in V = |x| one step would cross x = 0 to the "
+                        "end of the run); use dop853"
+                    )
+                    return f"{stepper.name} {cache['taylor refusal']}"
+        cache["taylor refusal"] = (
+            None
+            if reason is None
+            else f"needs Hamilton's equations as elementary operations: {reason}"
+        )
     reason = cache["taylor refusal"]
-    if reason is None:
-        return None
-    return f"{stepper.name} needs Hamilton's equations as elementary operations: {reason}"
+    return None if reason is None else f"{stepper.name} {reason}"
 
 
 def _taylor_coef(stepper, compiled, t0, y0, compensated):

@@ -176,3 +176,17 @@ def test_a_scene_in_matrix_form_or_with_constraints_is_refused_with_the_reason()
     reason = stepper.applies_to(derive(load_scene("cartesian_pendulum")))
     assert reason is not None and "taylor" in reason and "constraints" in reason
     assert stepper.applies_to(derive(load_scene("double_pendulum"))) is None
+
+
+def test_equations_with_a_kink_are_refused():
+    # sign(x) (dp/dt in V = |x|) has the series of the side it starts on: the motion is a
+    # parabola whose series ends at order 2, so one step would have crossed x = 0 to the
+    # end (the energy guard caught it; with damping nothing would have)
+    text = '[system]\ncoordinates = ["x"]\nhamiltonian = "p_x**2/2 + abs(x)"\n'
+    text += "[initial]\nx = 0.5\np_x = 0.0\n"
+    reason = STEPPERS["taylor"].applies_to(derive(parse_scene(text)))
+    assert reason is not None and "taylor" in reason and "sign of the state" in reason
+    # a constant's kink is no kink: |a| of a parameter is a number
+    text = '[system]\ncoordinates = ["x"]\nparameters = { a = -2.0 }\n'
+    text += 'hamiltonian = "p_x**2/2 + abs(a)*x**2/2"\n[initial]\nx = 0.5\np_x = 0.0\n'
+    assert STEPPERS["taylor"].applies_to(derive(parse_scene(text))) is None
