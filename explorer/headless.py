@@ -9,6 +9,7 @@ does).
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -27,14 +28,16 @@ EXPORT_SAMPLES = 20_000
 a smooth curve at print resolution, and the same figure on any machine."""
 
 
-def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=None):
+def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=None, strobe=None):
     """A ``TrajectoryStore`` holding the scene's main trajectory from 0 to ``t_end``.
 
     The trajectory is sampled at ``times`` (default: ``EXPORT_SAMPLES`` evenly spaced
     times; each sample is the state at exactly its time, ``systems.simulation.Sampler``)
     and keeps
     every section crossing, so memory does not grow with ``t_end``; the run has the
-    command line's step budget.
+    command line's step budget. With ``strobe`` (a driven system's period T) the events
+    are the states at t = T, 2T, ... up to ``t_end`` (the stroboscopic section), sampled
+    by the same run as the curve.
 
     Raises
     ------
@@ -54,6 +57,10 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=No
     if times is None:
         times = np.linspace(0.0, t_end, EXPORT_SAMPLES + 1)
     times = np.asarray(times, dtype=float)
+    strobe_times = np.empty(0)
+    if strobe is not None:
+        strobe_times = strobe * np.arange(1, math.floor(t_end / strobe + 1e-9) + 1)
+        times = np.union1d(times, strobe_times)
     store = TrajectoryStore(n_points=len(compiled.point_names), capacity=len(times) + 16)
     y0 = compiled.initial_state()
     trajectory = store.add(y0)
@@ -80,13 +87,17 @@ def integrate(built, t_end: float, *, diagnostics=("H",), section=None, times=No
             found["H"] = compiled.hamiltonian(t, y)
         if "drawing" in compiled.wanted:
             found["points"] = compiled.drawing(t, y)
+    events_t = np.array(sampler.events_t)
     events_y = np.array(sampler.events_y).reshape(-1, len(y0))
+    if strobe is not None:
+        on_strobe = np.isin(t, strobe_times)
+        events_t, events_y = t[on_strobe], y[on_strobe]
     block = dataclasses.replace(
         last,
         t=t,
         y=y,
         diagnostics=found,
-        events_t=np.array(sampler.events_t),
+        events_t=events_t,
         events_y=events_y,
     )
     store.append(trajectory.key, block)
@@ -132,21 +143,24 @@ def render_panel(
     try:
         view.resize(*size)
         y0 = compiled.initial_state()
-        section = None
+        section = strobe = None
         if panel == "phase":
             view.set_system(compiled, y0)
             if poincare:
                 view.set_mode("poincare")
-                if view.mode != "poincare" or view.section is None:
+                if view.mode != "poincare":
                     raise ValueError(
                         "a Poincaré section needs an autonomous conservative system "
-                        "of two degrees of freedom (a driven system's stroboscopic section "
-                        "is shown in the window, not exported yet)"
+                        "of two degrees of freedom, or a periodically driven one (its "
+                        "stroboscopic section)"
                     )
-                section = (view.section.coordinate, view.section.value, 1)
+                if view.section is not None:
+                    section = (view.section.coordinate, view.section.value, 1)
+                else:
+                    strobe = view.strobe_period
         else:
             view.set_system(compiled)
-        store = integrate(built, t_end, section=section)
+        store = integrate(built, t_end, section=section, strobe=strobe)
         with signals_held():  # Qt draws: a signal waits for it (explorer.export)
             view.show()
             app.processEvents()

@@ -45,7 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--poincare",
         action="store_true",
-        help="phase panel: the Poincaré section (two-degree autonomous systems)",
+        help="phase panel: the Poincaré section (two-degree autonomous systems), or the "
+        "stroboscopic section of a periodically driven one (t = T, 2T, ...)",
     )
     parser.add_argument("--width", type=int, default=None, help="figure width in pixels (PNG, SVG)")
     parser.add_argument(

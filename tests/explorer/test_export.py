@@ -125,6 +125,22 @@ def test_export_command_writes_png_and_svg(tmp_path, capsys):
     assert QImage(str(section)).width() > 300
 
 
+def test_a_driven_systems_stroboscopic_section_is_exported(tmp_path):
+    from explorer.builder import build
+    from explorer.headless import integrate
+    from systems.chaos.bifurcation import drive_period
+    from systems.scene import load_scene
+
+    built = build(load_scene("driven_damped_pendulum"))
+    period = drive_period(built.compiled)
+    points = integrate(built, 50 * period + 0.5, strobe=period).main.events.data
+    alone = integrate(built, 50 * period, times=period * np.arange(1, 51)).main.y.data[1:]
+    assert points.shape == (50, 2) and np.allclose(points, alone, rtol=0, atol=1e-8)
+    out = tmp_path / "strobe.png"
+    argv = ["export", "driven_damped_pendulum", "--poincare", "--t-end", "200", "--out", str(out)]
+    assert main(argv) == 0 and QImage(str(out)).width() > 300
+
+
 def test_export_command_user_errors(tmp_path, capsys):
     assert main(["export", "simple_pendulum", "--out", str(tmp_path / "x.jpg")]) == 2
     assert "must end in .png or .svg" in capsys.readouterr().err
