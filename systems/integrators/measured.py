@@ -18,6 +18,13 @@ always get the same choice.
 Over the scene's run a symplectic method's energy error stays bounded and DOP853's grows
 about linearly; DOP853's pilot error is extrapolated linearly to the whole run, so it is
 chosen only where its drift stays within the target by the end.
+
+Then ``taylor`` is priced against the winner (and against the classification's own
+``dop853`` on a conservative system): pilots at each of ``TAYLOR_TOLERANCES``, its error
+extrapolated as DOP853's, each step priced at ``taylor_equivalents`` evaluations (a
+count from the decomposition's nodes and the order, its weights fitted once to timings
+by ``benchmarks/taylor_cost.py``). A tolerance other than the default that wins reaches
+the run through ``chosen_tolerance``.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import weakref
 
 import numpy as np
 
+from systems.integrators.registry import get_stepper
 from systems.integrators.stepsize import (
     AIM_GROWTH,
     DEFAULT_TOL,
@@ -39,6 +47,17 @@ from systems.integrators.stepsize import (
 CANDIDATES = ("yoshida8", "gauss_legendre6", "logh_yoshida6")
 """The classification's choices that are measured against ``dop853``."""
 ALTERNATIVE = "dop853"
+TAYLOR = "taylor"
+"""Priced against the winner of the above (and against the classification's own
+``dop853`` on a conservative system)."""
+TAYLOR_TOLERANCES = (float(np.finfo(float).eps), 1e-14, 1e-13, 1e-12, 1e-11, 1e-10)
+"""The tolerances taylor is priced at (orders 20, 18, 16, 15, 14, 13): the step count
+hardly depends on the tolerance (the order does), so the cheapest is the one whose
+coefficient function is fastest: order 20 (the default, machine epsilon) has the
+unrolled form, the others the looped one (``systems.taylor.compiled``)."""
+LOOSER_GAIN = 0.8
+"""A looser tolerance replaces a tighter one only when priced at most this fraction of
+it (the price is a model, within a factor 0.8-1.4 of the timings)."""
 
 PILOT_STEPS = 4000
 """Steps of each pilot run at most: a few ms to a few tens of ms with compiled kernels."""
@@ -52,13 +71,24 @@ MARGIN = 0.5
 """DOP853 qualifies when its extrapolated error is within this fraction of the target."""
 
 _memory: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_tolerances: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Per compiled system: {(t0, y0, parameters, horizon): tol} where the choice took taylor
+at a tolerance other than its default (``chosen_tolerance``)."""
 _lock = threading.Lock()
 
 
 def measured_choice(
-    compiled, method: str, reason: str, t0: float, y0: np.ndarray, t_end: float
+    compiled,
+    method: str,
+    reason: str,
+    t0: float,
+    y0: np.ndarray,
+    t_end: float,
+    *,
+    taylor: bool = True,
 ) -> tuple[str, str]:
-    """``(method, reason)``: the classification's choice, or ``dop853`` where it is cheaper.
+    """``(method, reason)``: the classification's choice, or ``dop853`` or ``taylor``
+    where it is cheaper at the energy target.
 
     Parameters
     ----------
@@ -71,17 +101,24 @@ def measured_choice(
         The start, y0 of shape (2n,).
     t_end
         The run's end. An endless run (the window's) keeps ``method``: over unbounded
-        time a symplectic method's energy error stays bounded, DOP853's does not.
+        time a symplectic method's energy error stays bounded, DOP853's and taylor's do
+        not.
+    taylor
+        Whether ``taylor`` is priced too (False: the choice without it, for comparing).
 
     Remembered per compiled system and start, and on disk per scene (the derivation
     cache), so a scene opened again does not run the pilots again.
     """
-    if method not in CANDIDATES:
+    c = compiled.mechanics.classification
+    conserved = c.conservative and c.hamiltonian_conserved
+    if method not in CANDIDATES and not (method == ALTERNATIVE and conserved):
         return method, reason
     wanted = getattr(compiled, "wanted", frozenset())
     if not {"rhs", "hamiltonian"} <= set(wanted):
         return method, reason
     horizon = t_end - t0
+    if math.isinf(horizon) and method == ALTERNATIVE:
+        return method, reason
     if math.isinf(horizon):
         return method, reason + (
             "; kept for an endless run, where its energy error stays bounded and an "
@@ -91,7 +128,7 @@ def measured_choice(
         return method, reason
     y0 = np.asarray(y0, dtype=float)
     parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
-    key = (method, t0, y0.tobytes(), parameters.tobytes(), horizon)
+    key = (method, t0, y0.tobytes(), parameters.tobytes(), horizon, taylor)
     with _lock:
         try:
             memory = _memory.setdefault(compiled, {})
@@ -99,10 +136,15 @@ def measured_choice(
             memory = {}
         if key in memory:
             return memory[key]
-    answer = _remembered(compiled, key, lambda: _measure(compiled, method, reason, t0, y0, horizon))
+    chosen, why = _remembered(
+        compiled, key, lambda: _measure(compiled, method, reason, t0, y0, horizon, taylor)
+    )
+    if chosen.startswith(f"{TAYLOR} tol="):  # taylor at a tolerance of its own
+        _remember_tolerance(compiled, t0, y0, horizon, float(chosen.split("=", 1)[1]))
+        chosen = TAYLOR
     with _lock:
-        memory[key] = answer
-    return answer
+        memory[key] = (chosen, why)
+    return chosen, why
 
 
 def _remembered(compiled, key, compute) -> tuple[str, str]:
@@ -113,10 +155,11 @@ def _remembered(compiled, key, compute) -> tuple[str, str]:
 
     from systems import derivation_cache
     from systems.integrators import kernels, registry, stepsize
+    from systems.taylor import compiled as taylor_compiled
 
     start = hashlib.sha256(repr(key).encode()).hexdigest()[:16]
     tag = f"measured choice {start} " + derivation_cache.code_hash(
-        sys.modules[__name__], stepsize, registry, kernels
+        sys.modules[__name__], stepsize, registry, kernels, taylor_compiled
     )
     scene = compiled.mechanics.scene
     text = derivation_cache.remembered(scene, tag, lambda: "\n".join(compute()))
@@ -124,17 +167,46 @@ def _remembered(compiled, key, compute) -> tuple[str, str]:
     return chosen, why
 
 
-def _measure(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
-    from systems.integrators.registry import get_stepper
+def _measure(compiled, method, reason, t0, y0, horizon, taylor=True) -> tuple[str, str]:
+    if method == ALTERNATIVE:  # the classification's own DOP853 (rule 3), priced for taylor
+        chosen, why, cost = method, reason, _rate_of(compiled, method, t0, y0, horizon)
+    else:
+        chosen, why, cost = _fixed_or_dop853(compiled, method, reason, t0, y0, horizon)
+    if not taylor:
+        return chosen, why
+    return _with_taylor(compiled, chosen, why, cost, t0, y0, horizon)
 
+
+def _rate_of(compiled, method, t0, y0, horizon):
+    """A function giving ``method``'s priced evaluations per unit time (None: unknown),
+    by a pilot run only when asked."""
+
+    def price() -> float | None:
+        own = _pilot(compiled, method, t0, y0, horizon)
+        if own is None:
+            return None
+        return own[0] * PER_EVALUATION.get(get_stepper(method).family.kernel, 1.0)
+
+    return price
+
+
+def _fixed_or_dop853(compiled, method, reason, t0, y0, horizon):
+    """``(method, why, price)``: the classification's fixed-step method or ``dop853``,
+    whichever is cheaper and keeps the target; ``price()`` its evaluations per unit
+    time."""
     other = _pilot(compiled, ALTERNATIVE, t0, y0, horizon)
     if other is None:
-        return method, reason
+        return method, reason, _rate_of(compiled, method, t0, y0, horizon)
     other_rate, other_error = other
     if other_error > MARGIN * ENERGY_TARGET:
-        return method, reason + (
-            f"; measured: DOP853 at tolerance {DEFAULT_TOL:g} would let the energy error "
-            f"reach {other_error:.1e} over t = {horizon:g}"
+        return (
+            method,
+            reason
+            + (
+                f"; measured: DOP853 at tolerance {DEFAULT_TOL:g} would let the energy error "
+                f"reach {other_error:.1e} over t = {horizon:g}"
+            ),
+            _rate_of(compiled, method, t0, y0, horizon),
         )
     stepper = get_stepper(method)
     factor = PER_EVALUATION.get(stepper.family.kernel, 1.0)
@@ -145,17 +217,24 @@ def _measure(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
         if quick is not None:
             least = quick[0] * factor / AIM_GROWTH[1]
             if other_rate < least:
-                return _dop853(method, horizon, other_rate, other_error, least, "at best")
+                chosen, why = _dop853(method, horizon, other_rate, other_error, least, "at best")
+                return chosen, why, lambda: other_rate
     own = _pilot(compiled, method, t0, y0, horizon)
     if own is None:
-        return method, reason
+        return method, reason, lambda: None
     own_cost = own[0] * factor
     if other_rate >= own_cost:
-        return method, reason + (
-            f"; measured: {own_cost * horizon:.3g} evaluations over t = {horizon:g} against "
-            f"DOP853's {other_rate * horizon:.3g}"
+        return (
+            method,
+            reason
+            + (
+                f"; measured: {own_cost * horizon:.3g} evaluations over t = {horizon:g} "
+                f"against DOP853's {other_rate * horizon:.3g}"
+            ),
+            lambda: own_cost,
         )
-    return _dop853(method, horizon, other_rate, other_error, own_cost, "at its default step")
+    chosen, why = _dop853(method, horizon, other_rate, other_error, own_cost, "at its default step")
+    return chosen, why, lambda: other_rate
 
 
 def _dop853(method, horizon, rate, error, own_cost, how) -> tuple[str, str]:
@@ -167,15 +246,178 @@ def _dop853(method, horizon, rate, error, own_cost, how) -> tuple[str, str]:
     )
 
 
+def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, str]:
+    """``taylor`` at the tolerance of ``TAYLOR_TOLERANCES`` whose pilot keeps the energy
+    target at the least priced cost (``taylor_equivalents`` a step), where it applies and
+    that cost is below ``chosen``'s (``price()``, evaluations per unit time); else
+    ``(chosen, why)``, with taylor's price added where it was measured. A chosen
+    tolerance is remembered for the run (``chosen_tolerance``); the text's first line
+    then says it (``"taylor tol=1e-13"``)."""
+    from systems.taylor.decompose import decompose_mechanics
+
+    decomposition = None
+    best = None  # (cost per unit time, tol, order, each, steps per unit time, error)
+    worst_error = 0.0
+    for tol in TAYLOR_TOLERANCES:
+        pilot = _pilot(compiled, TAYLOR, t0, y0, horizon, tol=tol)
+        if pilot is None:
+            return chosen, why
+        steps_rate, error = pilot
+        if error > MARGIN * ENERGY_TARGET:
+            worst_error = max(worst_error, error)
+            continue
+        decomposition = decomposition or decompose_mechanics(compiled.mechanics)
+        order = taylor_order(tol)
+        each = taylor_equivalents(decomposition, order)
+        cost = steps_rate * each
+        if best is None or cost < LOOSER_GAIN * best[0]:
+            best = (cost, tol, order, each, steps_rate, error)
+    if best is None:
+        return chosen, why + (
+            f"; taylor would let the energy error reach {worst_error:.1e} over t = {horizon:g}"
+        )
+    cost, tol, order, each, steps_rate, error = best
+    theirs = price()
+    if theirs is None or cost >= theirs:
+        against = "" if theirs is None else f" against {theirs * horizon:.3g}"
+        return chosen, why + (
+            f"; taylor (order {order}) priced at {cost * horizon:.3g} evaluations{against}"
+        )
+    eps = tol == TAYLOR_TOLERANCES[0]
+    tolerance = f"tolerance {tol:.1e}" + (", machine epsilon" if eps else "")
+    return TAYLOR if eps else f"{TAYLOR} tol={tol!r}", (
+        f"measured on this system over t = {horizon:g}: Taylor series of order {order} "
+        f"({tolerance}) keep the relative energy error to {error:.1e} in "
+        f"{steps_rate * horizon:.3g} steps, priced at {each:.3g} right-hand-side "
+        f"evaluations each ({cost * horizon:.3g} in all), where {chosen} needs "
+        f"{theirs * horizon:.3g}"
+    )
+
+
+def taylor_order(tol: float) -> int:
+    """The order the taylor family takes at ``tol`` (Jorba and Zou's, at least 2)."""
+    from systems.taylor.coefficients import jorba_zou
+
+    return max(2, jorba_zou(tol))
+
+
+def chosen_tolerance(compiled, t0: float, y0: np.ndarray, t_end: float) -> float | None:
+    """The tolerance the measured choice gave ``taylor`` for this run (the compiled
+    system, its start ``y0`` (2n,) at ``t0`` and ``t_end``), or None where it did not
+    choose taylor for it (the family's default applies: machine epsilon)."""
+    parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
+    key = (float(t0), np.asarray(y0, dtype=float).tobytes(), parameters.tobytes(), t_end - t0)
+    with _lock:
+        try:
+            return _tolerances.get(compiled, {}).get(key)
+        except TypeError:
+            return None
+
+
+def _remember_tolerance(compiled, t0, y0, horizon, tol: float) -> None:
+    parameters = np.asarray(getattr(compiled, "parameters", ()), dtype=float)
+    key = (float(t0), np.asarray(y0, dtype=float).tobytes(), parameters.tobytes(), horizon)
+    with _lock:
+        try:
+            _tolerances.setdefault(compiled, {})[key] = tol
+        except TypeError:
+            pass
+
+
+LINEAR_OPS = frozenset({"time", "neg", "add", "sub", "abs", "sign"})
+"""Nodes whose coefficient of order k is one operation on the arguments' (no sum)."""
+TRANSCENDENTAL_OPS = frozenset(
+    "pow sqrt exp log sin cos sinh cosh tan tanh asin acos atan atan2".split()
+)
+"""Nodes whose value (order 0) is a library call rather than one arithmetic operation."""
+TRANSCENDENTAL_WEIGHT = 10.0
+"""A library call's value in arithmetic operations (order 0 of a node, in the
+right-hand side and in the Taylor step alike)."""
+EVALUATION_COST = (24.0, 0.65, 1.9)
+"""A DOP853 right-hand-side evaluation: (fixed, per order-0 operation, per state
+variable: the stage's combination of earlier stages and the error estimate), fitted by
+``benchmarks/taylor_cost.py`` in nanoseconds on the calibration machine; only the ratio
+to ``STEP_COST`` matters."""
+STEP_COST = (182.0, 0.25, {"unrolled": 0.19, "looped": 0.52})
+"""A Taylor step at order p: (fixed: the call, the norms, the step's logarithms and
+exponential, Kahan's sums and the driver's bookkeeping; per order-0 operation; per
+recurrence term by the coefficient function's form: ``systems.taylor.compiled``'s
+unrolled form keeps the coefficients in registers, the looped form loads them in inner
+loops), fitted with ``EVALUATION_COST``."""
+
+
+def _taylor_features(decomposition) -> dict[str, int]:
+    """The decomposition's node counts the cost model reads: ``m``, ``nodes`` (varying),
+    ``linear``, ``scalings`` (products with a constant), ``convolutions`` (the rest),
+    ``calls`` (library functions)."""
+    m = decomposition.m
+    found = dict(m=m, nodes=0, linear=0, scalings=0, convolutions=0, calls=0)
+    for node in decomposition.nodes:
+        if node.constant:
+            continue
+        found["nodes"] += 1
+        found["calls"] += node.op in TRANSCENDENTAL_OPS
+        if node.op in LINEAR_OPS:
+            found["linear"] += 1
+        elif node.op == "mul" and any(
+            a.kind != "u" or (a.value >= m and decomposition.nodes[a.value - m].constant)
+            for a in node.args
+        ):
+            found["scalings"] += 1
+        else:
+            found["convolutions"] += 1
+    return found
+
+
+def taylor_equivalents(decomposition, order: int) -> float:
+    """What one Taylor step of ``order`` costs, in DOP853 right-hand-side evaluations.
+
+    A deterministic count (never a timing) with weights fitted once to timings: the step
+    evaluates every node at order 0 (as the right-hand side does), then for each order
+    k = 1..p a convolution node sums about k + 1 products, a linear node or a scaling
+    does one operation, and each state variable's series is scaled and summed by
+    Horner's rule::
+
+        terms = convolutions p (p + 3) / 2 + (linear + scalings + 2 m) p
+        order0 = nodes + TRANSCENDENTAL_WEIGHT * calls
+        step = STEP_COST[0] + STEP_COST[1] order0 + STEP_COST[2][form] terms
+        evaluation = EVALUATION_COST[0] + EVALUATION_COST[1] order0 + EVALUATION_COST[2] m
+
+    The form is the coefficient function's at this order: unrolled at
+    ``systems.taylor.compiled.UNROLLED`` within its budget, else looped.
+    Calibrated by ``benchmarks/taylor_cost.py`` (docs/internals.md: within a factor
+    0.8-1.4 of the measured ratio on ten catalogue scenes).
+    """
+    from systems.taylor.compiled import UNROLL_BUDGET, UNROLLED, unrolled_terms
+
+    f = _taylor_features(decomposition)
+    p = int(order)
+    unrolled = p == UNROLLED and unrolled_terms(decomposition, p) <= UNROLL_BUDGET
+    order0 = f["nodes"] + TRANSCENDENTAL_WEIGHT * f["calls"]
+    terms = f["convolutions"] * p * (p + 3) / 2 + (f["linear"] + f["scalings"] + 2 * f["m"]) * p
+    fixed, per_value, per_term = STEP_COST
+    step = fixed + per_value * order0 + per_term["unrolled" if unrolled else "looped"] * terms
+    fixed, per_value, per_state = EVALUATION_COST
+    return step / (fixed + per_value * order0 + per_state * f["m"])
+
+
 QUICK_STEPS = 200
 """Steps of the pilot that prices a fixed step before any aiming."""
 
 
 def _pilot(
-    compiled, method, t0, y0, horizon, steps: int = PILOT_STEPS, aim: bool = True
+    compiled,
+    method,
+    t0,
+    y0,
+    horizon,
+    steps: int = PILOT_STEPS,
+    aim: bool = True,
+    tol: float | None = None,
 ) -> tuple[float, float] | None:
     """(evaluations per unit time, relative energy error over ``horizon``) of ``method``
-    at its default setting (``aim=False``: a fixed step before ``stepsize.aimed_step``),
+    at its default setting or ``tol`` (``aim=False``: a fixed step before
+    ``stepsize.aimed_step``),
     from a run of ``steps`` steps at most; None where the method does not apply or the
     pilot fails. DOP853's error is extrapolated linearly from the pilot's stretch to the
     whole horizon; a fixed-step symplectic method's bounded error is taken as measured."""
@@ -185,7 +427,7 @@ def _pilot(
     if stepper.applies_to(compiled.mechanics) is not None:
         return None
     end = t0 + horizon
-    setting = {}
+    setting = {} if tol is None else {"tol": tol}
     try:
         if stepper.setting == "dt":  # a fixed step: the pilot's stretch, not a budget stop
             dt = default_step(compiled, stepper, t0, y0, end, aim=aim)

@@ -408,7 +408,13 @@ def _taylor_coef(stepper, compiled, t0, y0, compensated):
 
 
 def _taylor_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
-    return float(np.finfo(float).eps)
+    """Machine epsilon, or the tolerance the measured automatic choice gave taylor for
+    this very run (``measured.chosen_tolerance``: the same compiled system, start and
+    end; it takes a looser one only where that is priced well below)."""
+    from systems.integrators.measured import chosen_tolerance
+
+    chosen = chosen_tolerance(compiled, t0, y0, t_end)
+    return float(np.finfo(float).eps) if chosen is None else chosen
 
 
 def _adaptive_tol(compiled, stepper, t0, y0, t_end, probe_start=None):
