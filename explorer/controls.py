@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QPoint, Qt, Signal
 from PySide6.QtGui import QDoubleValidator
 from PySide6.QtWidgets import (
     QComboBox,
@@ -13,6 +13,7 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QPushButton,
     QStyle,
+    QToolTip,
     QWidget,
 )
 
@@ -33,6 +34,14 @@ METHOD_TIP = (
     "The integration method. Automatic picks one for this system (why: below); methods "
     "that would drop an effect of the system are listed but disabled."
 )
+HIGHEST_ACCURACY = "taylor"
+"""The method the Max accuracy button switches to, at its default tolerance (machine
+epsilon: Taylor series of order 20 from the derivation)."""
+HIGHEST_ACCURACY_TIP = (
+    "Max accuracy: run this system with taylor, Taylor series of order 20 from its "
+    "derivation at machine-epsilon tolerance (about 1e-16 a step; the step field goes "
+    "back to its default). Choose a method in the list to go back."
+)
 
 
 class ControlsPanel(QWidget):
@@ -41,6 +50,8 @@ class ControlsPanel(QWidget):
     Signals
     -------
     method_changed(object)   stepper name, or None for the automatic choice
+    notice_posted(str)       a message for the status bar (what Max accuracy did,
+                             or why it could not)
     step_changed(object)     dt or tolerance (float), or None for the method's default
     speed_changed(float)     simulated time per wall second (``inf``: as fast as possible)
     play_toggled(bool)       True: running
@@ -50,6 +61,7 @@ class ControlsPanel(QWidget):
     """
 
     method_changed = Signal(object)
+    notice_posted = Signal(str)
     step_changed = Signal(object)
     speed_changed = Signal(float)
     play_toggled = Signal(bool)
@@ -70,6 +82,11 @@ class ControlsPanel(QWidget):
         self.method_combo.setToolTip(METHOD_TIP)
         self.method_combo.currentIndexChanged.connect(self._on_method_index_changed)
         self.reason = ""  # why the automatic choice chose what it did (in the tooltip)
+        # (the label "Highest accuracy" cut the method box at 1280 x 720 in presentation
+        # mode's large type)
+        self.accuracy_button = QPushButton("Max accuracy")
+        self.accuracy_button.setToolTip(HIGHEST_ACCURACY_TIP)
+        self.accuracy_button.clicked.connect(self._on_accuracy_button_clicked)
         self.step_edit = QLineEdit()
         self.step_edit.setPlaceholderText("auto")
         self.step_edit.setMaximumWidth(110)
@@ -119,6 +136,7 @@ class ControlsPanel(QWidget):
         for widget in (
             QLabel("Method:"),
             self.method_combo,
+            self.accuracy_button,
             self.step_label,
             self.step_edit,
             QLabel("Speed:"),
@@ -173,6 +191,12 @@ class ControlsPanel(QWidget):
         self.automatic = automatic
         self.reason = reason
         self.method_combo.setToolTip(f"{METHOD_TIP}\n\nAutomatic choice: {reason}")
+        refusal = self.refusal(HIGHEST_ACCURACY) if HIGHEST_ACCURACY in steppers else None
+        self.accuracy_button.setToolTip(
+            HIGHEST_ACCURACY_TIP
+            if refusal is None
+            else f"{HIGHEST_ACCURACY_TIP}\n\nNot for this system: {refusal}"
+        )
         self._setting = None
         self.step_edit.blockSignals(True)  # the window applies the new settings itself
         self._update_step_label(self.method)
@@ -187,6 +211,38 @@ class ControlsPanel(QWidget):
                     return None
                 return self.method_combo.itemData(index, Qt.ItemDataRole.ToolTipRole)
         return None
+
+    def choose_highest_accuracy(self) -> bool:
+        """Switch the run to ``HIGHEST_ACCURACY`` at its default tolerance (machine
+        epsilon), as choosing it in the method list and emptying the step field would;
+        where the system does not allow it, change nothing and say why. Either way the
+        message goes out by ``notice_posted``. Returns whether the method is now the one
+        asked for.
+        """
+        switched, message = self._switch_to_highest_accuracy()
+        self.notice_posted.emit(message)
+        return switched
+
+    def _switch_to_highest_accuracy(self) -> tuple[bool, str]:
+        index = self.method_combo.findData(HIGHEST_ACCURACY)
+        if index <= 0:
+            return False, (
+                f"Max accuracy is not available: no method {HIGHEST_ACCURACY!r} is offered"
+            )
+        refusal = self.refusal(HIGHEST_ACCURACY)
+        if refusal is not None:
+            return False, f"Max accuracy is not available here: {refusal}"
+        previous = self.method_combo.currentText()
+        if self.method == HIGHEST_ACCURACY and not self.step_edit.text().strip():
+            return True, f"Already at max accuracy: {HIGHEST_ACCURACY} at machine epsilon"
+        # a tolerance typed for the method before is not machine epsilon: the field goes
+        # back to the default first (a session records "dt auto", then "method taylor")
+        self.step_edit.clear()
+        self.method_combo.setCurrentIndex(index)
+        return True, (
+            f"Max accuracy: {HIGHEST_ACCURACY} (Taylor series of order 20 at machine "
+            f"epsilon); choose {previous} in the method list to go back"
+        )
 
     def show_setting_in_use(self, setting: str, value: float) -> None:
         """Show the step or tolerance the run uses when the field is left on automatic."""
@@ -272,6 +328,15 @@ class ControlsPanel(QWidget):
     def _fit_method_combo(self) -> None:
         """Room for the entry shown, at least 16 characters."""
         self.method_combo.setMinimumContentsLength(max(16, len(self.method_combo.currentText())))
+
+    def _on_accuracy_button_clicked(self) -> None:
+        switched, message = self._switch_to_highest_accuracy()
+        self.notice_posted.emit(message)
+        if not switched:
+            # the reason is longer than the status bar shows beside its readouts: in full
+            # at the button too
+            button = self.accuracy_button
+            QToolTip.showText(button.mapToGlobal(QPoint(0, button.height())), message, button)
 
     def _on_method_index_changed(self, _index: int) -> None:
         self._fit_method_combo()

@@ -204,6 +204,7 @@ class MainWindow(QMainWindow):
         self.phase_view.mode_changed.connect(self._on_phase_mode_changed)
         self.phase_view.orbit_delete_requested.connect(self.delete_orbit)
         self.controls.method_changed.connect(self._on_controls_method_changed)
+        self.controls.notice_posted.connect(self._on_controls_notice_posted)
         self.controls.step_changed.connect(self._on_controls_step_changed)
         self.controls.speed_changed.connect(self._on_controls_speed_changed)
         self.controls.play_toggled.connect(self._on_controls_play_toggled)
@@ -780,6 +781,9 @@ class MainWindow(QMainWindow):
 
     def _on_controls_method_changed(self, _name) -> None:
         self._apply_settings()
+
+    def _on_controls_notice_posted(self, message: str) -> None:
+        self.statusBar().showMessage(message, MESSAGE_MS)
 
     def _on_controls_step_changed(self, _value) -> None:
         self._apply_settings()
