@@ -18,7 +18,10 @@ default was gauss_legendre6 (14 310 steps: 1.07-1.23x). With the measured choice
 dop853 at tol 1e-12 (1 794 steps, 2.7 ms) it is missed: about 4x (12 ms) while each of the
 10 000 rows cost a shortened DOP853 step (11 evaluations), 2.0x (5.4 ms) with DOP853's
 dense output (``kernels.dop853_sample``): three more stages and the dense coefficients
-for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms). The drivers are
+for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms); 1.47-1.6x (4.8 ms
+at load 2-3) once the loop allocated nothing and inlined its samples (a row 94 -> 14 ns),
+and the command computed H at the rows once and the velocities at the last row only
+(no --out). The drivers are
 warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
 second otherwise), as ``python main.py warm`` does once per installation;
 ``PHASE_EXPLORER_CACHE`` chooses the cache. Timings on a shared machine vary: read the
