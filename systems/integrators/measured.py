@@ -257,13 +257,15 @@ def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, st
     then says it (``"taylor tol=1e-13"``)."""
     from systems.taylor.decompose import decompose_mechanics
 
+    if get_stepper(TAYLOR).applies_to(compiled.mechanics) is not None:
+        return chosen, why
     decomposition = None
     priced = []  # (cost per unit time, tol, order, each, steps per unit time, error)
     worst_error = 0.0
     for tol in TAYLOR_TOLERANCES:
         pilot = _pilot(compiled, TAYLOR, t0, y0, horizon, tol=tol)
-        if pilot is None:
-            return chosen, why
+        if pilot is None:  # a failed run (a singular state): this tolerance is out
+            continue
         steps_rate, error = pilot
         if error > MARGIN * ENERGY_TARGET:
             worst_error = max(worst_error, error)
@@ -276,6 +278,8 @@ def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, st
     looser = [p for p in priced[1:] if best and p[0] <= LOOSER_GAIN * best[0]]
     if looser:
         best = min(looser, key=lambda p: p[0])
+    if best is None and not worst_error:
+        return chosen, why  # no pilot ran to its end
     if best is None:
         return chosen, why + (
             f"; taylor would let the energy error reach {worst_error:.1e} over t = {horizon:g}"
