@@ -140,3 +140,19 @@ def test_methods_names_the_taylor_choice_and_why(capsys):
     out = capsys.readouterr().out
     assert "* taylor" in out
     assert "* automatic choice: taylor: measured on this system over t = 200" in out
+
+
+def test_run_takes_the_chosen_tolerance_and_an_asked_taylor_machine_epsilon(capsys):
+    """Through the command line: the automatic choice's looser tolerance reaches its run;
+    ``--method taylor`` is the family's default, machine epsilon."""
+    import json
+
+    from explorer.cli import main
+
+    assert main(["run", "figure_eight", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["method"] == "taylor" and report["setting"] == {"tol": 1e-10}
+    assert report["status"] == "ok" and report["max_rel_energy_error"] <= ENERGY_TARGET
+    assert main(["run", "figure_eight", "--method", "taylor", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["setting"] == {"tol": np.finfo(float).eps}
