@@ -46,7 +46,7 @@ REPEATS = 5
 def main() -> bool:
     from explorer.cli import main as cli
     from explorer.commands.run_cmd import DEFAULT_SAMPLES, prepare
-    from systems.simulation import Run, Sampler
+    from systems.simulation import Run, Sampler, precompile
 
     print("run --json against its integration")
     warm_drivers()
@@ -67,6 +67,9 @@ def main() -> bool:
         ``Sampler``); ``chosen``: the default step chosen here (a fresh system, as the
         command's, so its probe runs again), else given."""
         compiled = prepare(SCENE, method)[4]
+        # as the command's preparation does: the method's loop and the system functions
+        # it calls (taylor's coefficient function) loaded before the clock starts
+        precompile(compiled, method, compiled.initial_state())
         start = time.perf_counter()
         given = {} if chosen else setting
         run = Run(
