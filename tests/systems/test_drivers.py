@@ -127,3 +127,43 @@ def test_ensembles_take_the_scenes_functions_too(method):
             compiled, method=method, y0=y0, t_end=2.0, dt=1e-3, energy_tolerance=None
         )
         np.testing.assert_allclose(row[-1], last.y[-1], rtol=0, atol=1e-12)
+
+
+def test_entry_points_are_keyed_by_what_numba_types():
+    """``entry_point`` remembers its answer by a fingerprint of the arguments: arguments
+    numba types alike share one, a layout, dtype, writeability or tuple shape numba types
+    apart gets its own (the one ``typeof`` gives)."""
+    from numba import typeof
+    from numba.core.typing.typeof import Purpose
+
+    from systems.codegen import _fingerprint, entry_point
+
+    drivers = driver_module()
+    v = np.zeros(4)
+    frozen = np.zeros(4)
+    frozen.flags.writeable = False
+    kinds = [
+        (v, 1.0),
+        (np.ones(4), 2.0),
+        (np.zeros(8)[::2], 1.0),
+        (np.zeros(4, dtype=np.float32), 1.0),
+        (frozen, 1.0),
+        (v, 1),
+        ((v, v), 1.0),
+        ((v, (v, 1.0)), 1.0),
+    ]
+    for a in kinds:
+        for b in kinds:
+            same_type = tuple(typeof(x, Purpose.argument) for x in a) == tuple(
+                typeof(x, Purpose.argument) for x in b
+            )
+            assert (_fingerprint(a) == _fingerprint(b)) == same_type, (a, b)
+    compiled = compile_system(derive(parse_scene(_scene(2, 1.5))), ("rhs",))
+    fn = compiled.functions(("rhs",))[0]
+    P = compiled.parameters
+    first = entry_point(drivers.call4, (fn, 0.0, v, P, np.zeros(4)))
+    again = entry_point(drivers.call4, (fn, 0.5, np.ones(4), P, v))
+    assert first is again
+    out = np.zeros(4)
+    again(fn, 0.0, np.array([0.3, 0.0, 0.0, 0.0]), P, out)
+    assert np.allclose(out, compiled.rhs(0.0, np.array([0.3, 0.0, 0.0, 0.0])))
