@@ -111,8 +111,8 @@ def template_source() -> str:
     named codes of ``systems.integrators.codes`` and followed by
     ``systems.matrix_solve.solve_augmented``, with the driver templates (functions
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
-    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work`` and ``SAMPLE``
-    ``X_sample``.
+    ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work``, ``SAMPLE``
+    ``X_sample`` and ``SAMPLE_WORK`` ``X_sample_work``.
     """
     from systems import constraints, matrix_solve
     from systems.integrators import kernels
@@ -134,6 +134,7 @@ def template_source() -> str:
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
         instance = re.sub(r"\bSAMPLE\(", f"{family}_sample(", instance)
+        instance = re.sub(r"\bSAMPLE_WORK\(", f"{family}_sample_work(", instance)
         parts.append(re.sub(r"\bWORK\(", f"{family}_work(", instance))
     return "\n\n".join(part.strip() + "\n" for part in parts)
 

@@ -954,9 +954,10 @@ def ensemble(
     *,
     method: str,
     t_end: float,
-    dt: float,
+    dt: float | None = None,
     t0: float = 0.0,
     samples: int = 100,
+    tol: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate many initial states at once in one parallel compiled loop.
 
@@ -964,9 +965,12 @@ def ensemble(
     ----------
     Y0 : ndarray, shape (N, 2n)
     method : str
-        A composition or Gauss-Legendre stepper.
+        A composition or Gauss-Legendre stepper (fixed steps ``dt``), or ``taylor``
+        (adaptive: each row its own steps at the tolerance ``tol``, default the
+        family's; the samples from its series).
     samples : int
-        States kept per trajectory (evenly spaced).
+        States kept per trajectory (evenly spaced; for an adaptive method at
+        ``t0 + (t_end - t0) j / samples``, j = 1..samples, the last at ``t_end``).
 
     Returns
     -------
@@ -977,29 +981,69 @@ def ensemble(
         ``Status`` codes: 0 (``RUNNING``) fine, else what stopped the row.
     """
     stepper = get_stepper(method)
-    kernel = stepper.family.ensemble_kernel
+    family = stepper.family
+    kernel = family.ensemble_kernel
     if kernel is None:
-        raise ValueError(f"ensembles run fixed-step methods, not {method!r}")
+        raise ValueError(f"ensembles run fixed-step methods or taylor, not {method!r}")
     Y = np.array(Y0, dtype=float, copy=True)
     N, m = Y.shape
-    nsteps = max(1, int(round((t_end - t0) / dt)))
-    stride = max(1, nsteps // samples)
-    count = nsteps // stride
-    out = np.full((N, count, m), np.nan)
-    status = np.zeros(N, dtype=np.int64)
-    coef = stepper.family.coefficients(stepper, compiled, t0, Y[0], False)
-    clock = np.zeros(CLOCK_SIZE)
-    clock[Clock.T] = clock[Clock.T0] = t0
-    clock[Clock.H] = dt
-    clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
-    limits = (nsteps, stride)
-    fns = compiled.functions(stepper.family.functions)
+    fns = compiled.functions(family.functions)
     loop = getattr(driver_module(), kernel)
-    loop(fns, Y, clock, compiled.parameters, coef, limits, out, status)
-    t = t0 + dt * stride * np.arange(1, count + 1)
+    if family.adaptive_ensemble:
+        t, out, status = _adaptive_ensemble(
+            compiled, stepper, loop, fns, Y, t0, t_end, samples, tol
+        )
+    else:
+        if dt is None:
+            raise ValueError(f"an ensemble of {method!r} needs its step dt")
+        nsteps = max(1, int(round((t_end - t0) / dt)))
+        stride = max(1, nsteps // samples)
+        count = nsteps // stride
+        out = np.full((N, count, m), np.nan)
+        status = np.zeros(N, dtype=np.int64)
+        coef = family.coefficients(stepper, compiled, t0, Y[0], False)
+        clock = np.zeros(CLOCK_SIZE)
+        clock[Clock.T] = clock[Clock.T0] = t0
+        clock[Clock.H] = dt
+        clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
+        limits = (nsteps, stride)
+        loop(fns, Y, clock, compiled.parameters, coef, limits, out, status)
+        t = t0 + dt * stride * np.arange(1, count + 1)
     # rows that failed keep their last good sample instead of NaN
     for r in np.flatnonzero(status):
         good = np.flatnonzero(np.all(np.isfinite(out[r]), axis=1))
         if len(good):
             out[r, good[-1] + 1 :] = out[r, good[-1]]
+    return t, out, status
+
+
+ENSEMBLE_MAX_STEPS = 10**9
+"""The most steps of one row of an adaptive ensemble."""
+
+
+def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol):
+    """``ensemble`` of an adaptive family (``X_ensemble_adaptive_parallel``): the coef
+    and clock of a runner from the first row (the same for every row: the tolerance
+    and the family's constants), each row to ``t_end``. Returns (t, out, status) with
+    ``status`` 0 for a row that reached the end."""
+    if not math.isfinite(t_end) or t_end <= t0:
+        raise ValueError(f"an adaptive ensemble needs a finite end after t0, not {t_end!r}")
+    N, m = Y.shape
+    value = (
+        tol
+        if tol is not None
+        else stepper.family.default_setting(compiled, stepper, t0, Y[0], t_end)
+    )
+    runner = stepper.family.runner(compiled, stepper, Y[0], t0, t_end, value, None)
+    clock = runner.clock.copy()
+    clock[Clock.T_PAUSE] = math.inf
+    count = max(1, int(samples))
+    t = t0 + (t_end - t0) * np.arange(1, count + 1) / count
+    t[-1] = t_end
+    out = np.full((N, count, m), np.nan)
+    status = np.zeros(N, dtype=np.int64)
+    steps = np.zeros(N, dtype=np.int64)
+    limits = (ENSEMBLE_MAX_STEPS, 1)
+    loop(fns, Y, clock, compiled.parameters, runner.coef, t, limits, out, status, steps)
+    status[status == int(Status.END)] = int(Status.RUNNING)
     return t, out, status

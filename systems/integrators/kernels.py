@@ -31,12 +31,14 @@ A family ``X`` provides two functions:
   ``scratch = (y, comp, clock)`` are its own scratch. ``first``: the first sample inside
   this step (what is shared between the samples of a step is computed then).
 
-The driver templates ``DRIVER_run``, ``DRIVER_ensemble_parallel`` and
-``DRIVER_fictitious`` (the samples of the families that step in a fictitious time) are
-instantiated per family by ``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` ->
-``X_step``, ``WORK`` -> ``X_work``, ``SAMPLE`` -> ``X_sample``), so numba compiles each
-as a plain function calling globals (which it can cache on disk); the ``fns`` argument is
-the same type for every scene, so the machine code is too. The driver owns what every
+The driver templates ``DRIVER_run``, ``DRIVER_ensemble_parallel``,
+``DRIVER_ensemble_adaptive_parallel`` and ``DRIVER_fictitious`` (the samples of the
+families that step in a fictitious time) are instantiated per family by
+``systems.codegen`` (``DRIVER_`` -> ``X_``, ``STEP`` -> ``X_step``, ``WORK`` ->
+``X_work``, ``SAMPLE`` -> ``X_sample``, ``SAMPLE_WORK`` -> ``X_sample_work``), so numba
+compiles each as a plain function calling globals (which it can cache on disk); the
+``fns`` argument is the same type for every scene, so the machine code is too. The
+driver owns what every
 method shares: rollback of a step that failed or went non-finite, the end time (never
 passed) and the pause time, section crossings, strided output, the states at requested
 times (``X_sample``) and the counters.
@@ -1943,3 +1945,80 @@ def DRIVER_ensemble_parallel(fns, Y, clock0, P, coef, limits, out, status):
                     for k in range(m):
                         out[r, j, k] = y[k]
                     j += 1
+
+
+def DRIVER_ensemble_adaptive_parallel(fns, Y, clock0, P, coef, times, limits, out, status, counts):
+    """Many initial states ``Y`` (N, m) at once, each with its own adaptive steps, rows
+    spread over cores: the adaptive families' ensemble (the taylor family's).
+
+    Each row starts from ``clock0`` (its ``CLOCK_T_END`` the end time, never passed) and
+    takes at most ``limits[0]`` steps; ``out`` (N, k, m) gets its states at ``times``
+    (k,), ascending, after the start and at most the end time, each from the family's
+    ``SAMPLE`` inside the step that contains it (a dense output: the trajectory is the
+    one a single run takes), a time at the end the end's state. ``status`` (N,) gets
+    ``STATUS_END`` or the problem that stopped a row (its later rows of ``out`` are left
+    as they were), ``counts`` (N,) the steps taken. The rows share nothing: a row's work
+    and scratch are its own.
+    """
+    nsteps = limits[0]
+    N = Y.shape[0]
+    m = Y.shape[1]
+    c = clock0.shape[0]
+    for r in prange(N):
+        y = Y[r]
+        comp = np.zeros(m)
+        clock = clock0.copy()
+        work = WORK(coef, m)
+        swork = SAMPLE_WORK(coef, m)
+        prev = (np.empty(m), np.empty(m), np.empty(c))
+        scratch = (np.empty(m), np.empty(m), np.empty(c))
+        yprev, cprev, kprev = prev
+        t_end = clock[CLOCK_T_END]
+        slack = 1e-12 * max(abs(t_end), abs(clock[CLOCK_H]))
+        code = STATUS_RUNNING
+        steps = 0
+        j = 0
+        while code == STATUS_RUNNING and steps < nsteps:
+            for k in range(m):
+                yprev[k] = y[k]
+                cprev[k] = comp[k]
+            for k in range(c):
+                kprev[k] = clock[k]
+            code, used = STEP(fns, y, comp, clock, P, coef, work)
+            if code == STATUS_REJECTED:
+                code = STATUS_RUNNING
+                continue
+            if code == STATUS_RUNNING and not _finite(y):
+                code = STATUS_NON_FINITE
+            if code == STATUS_RUNNING and clock[CLOCK_T] > t_end + slack:
+                code = STATUS_OVERSHOT
+            if code != STATUS_RUNNING:
+                for k in range(m):
+                    y[k] = yprev[k]
+                break
+            steps += 1
+            t = clock[CLOCK_T]
+            first = True
+            while j < times.shape[0] and times[j] < t:
+                if times[j] <= kprev[CLOCK_T]:
+                    for k in range(m):
+                        out[r, j, k] = yprev[k]
+                else:
+                    code, used = SAMPLE(
+                        fns, prev, (y, comp, clock), times[j], P, coef, work, swork, scratch,
+                        first,
+                    )  # fmt: skip
+                    first = False
+                    if code != STATUS_RUNNING:
+                        break
+                    for k in range(m):
+                        out[r, j, k] = scratch[0][k]
+                j += 1
+            if code == STATUS_RUNNING and t >= t_end - slack:
+                while j < times.shape[0]:
+                    for k in range(m):
+                        out[r, j, k] = y[k]
+                    j += 1
+                code = STATUS_END
+        status[r] = code
+        counts[r] = steps

@@ -75,6 +75,9 @@ class Family:
     time_transformed: bool = False
     adaptive: bool = False
     ensemble: bool = False
+    adaptive_ensemble: bool = False
+    """Ensembles of adaptive steps (``X_ensemble_adaptive_parallel``): each row its own
+    steps, its states at common times from the family's dense output."""
     teaching: bool = False
     constrained: bool = False
     """Projects onto the constraints after every step: only these families integrate a
@@ -86,7 +89,9 @@ class Family:
 
     @property
     def ensemble_kernel(self) -> str | None:
-        return f"{self.kernel}_ensemble_parallel" if self.ensemble else None
+        if self.ensemble:
+            return f"{self.kernel}_ensemble_parallel"
+        return f"{self.kernel}_ensemble_adaptive_parallel" if self.adaptive_ensemble else None
 
 
 @dataclass(frozen=True)
@@ -512,6 +517,7 @@ FAMILIES: dict[str, Family] = {
             applies=_taylor_applies,
             functions=("taylor_coefficients",),
             adaptive=True,
+            adaptive_ensemble=True,
         ),
         Family(
             name="constrained",

@@ -100,7 +100,7 @@ def warm_drivers(progress=None) -> float:
         setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
         run = Run(compiled, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
         run.advance(0.01, samples=np.array([5e-3]))
-        if family.ensemble:
+        if family.ensemble or family.adaptive_ensemble:
             Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
             ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
     if progress is not None:

@@ -190,3 +190,32 @@ def test_equations_with_a_kink_are_refused():
     text = '[system]\ncoordinates = ["x"]\nparameters = { a = -2.0 }\n'
     text += 'hamiltonian = "p_x**2/2 + abs(a)*x**2/2"\n[initial]\nx = 0.5\np_x = 0.0\n'
     assert STEPPERS["taylor"].applies_to(derive(parse_scene(text))) is None
+
+
+def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone():
+    """``simulation.ensemble`` with taylor: one parallel loop, each row its own steps;
+    its samples are the single run's dense output at the same times (the same steps,
+    the same series: bitwise), a Kepler orbit of e = 0.9 among oscillating ones is
+    followed with its own short steps, and a row whose state turns non-finite stops
+    alone with its status."""
+    from systems.integrators.codes import Status
+    from systems.simulation import ensemble
+
+    compiled = _compiled("kepler_cartesian")
+    Y0 = np.array([kepler_start(e) for e in (0.1, 0.5, 0.9)])
+    t, Y, status = ensemble(compiled, Y0, method="taylor", t_end=3.0, samples=7)
+    assert t.shape == (7,) and t[-1] == 3.0 and Y.shape == (3, 7, 4)
+    assert not status.any()
+    for row, y0 in enumerate(Y0):
+        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 3.0, None, None)
+        outcome = runner.advance(10**9, 2, samples=t)
+        assert outcome.sampled == 7
+        assert np.array_equal(outcome.y[:7], Y[row]), row
+    for row, y0 in enumerate(Y0):  # and the exact orbit, to round-off over 3 time units
+        exact = np.array([kepler_exact(y0, s)[0] for s in t])
+        assert np.abs(Y[row] - exact).max() <= 1e-13 * np.abs(exact).max(), row
+    # the origin: 1/r is infinite, the row's first step non-finite; the others go on
+    bad = np.vstack([Y0[:1], np.zeros((1, 4)), Y0[2:]])
+    _, Y, status = ensemble(compiled, bad, method="taylor", t_end=3.0, samples=2)
+    assert status[1] == int(Status.NON_FINITE) and status[0] == status[2] == 0
+    assert np.isnan(Y[1]).all() and np.isfinite(Y[[0, 2]]).all()
