@@ -87,6 +87,8 @@ SIGNATURES: dict[str, str] = {
     # the Taylor coefficients of the solution through (t, y) (``systems.taylor.compiled``):
     # out (N + 1, m + nodes), N read from its shape
     "taylor_coefficients": f"void({_F}, {_V}, {_V}, {_M})",
+    # B trajectories at once: T (B,), Y (m, B), out (N + 1, m + nodes, B)
+    "taylor_batch": f"void({_V}, {_M}, {_V}, float64[:, :, ::1])",
 }
 """The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
 with C-contiguous float arrays. A scene's module compiles each it defines for exactly

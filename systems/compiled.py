@@ -89,10 +89,13 @@ class CompiledSystem:
         return self._numeric[key]
 
     def _function(self, name: str):
+        from systems.taylor.compiled import BATCH_NAME
         from systems.taylor.compiled import NAME as TAYLOR
 
         if name == TAYLOR:
             return self.taylor().function
+        if name == BATCH_NAME:
+            return self.taylor().batch()[0]
         if isinstance(self.kernels, llvm_kernels.LLVMKernels):
             return self.kernels.functions[name]
         return system_function(getattr(self.kernels, name))

@@ -958,6 +958,7 @@ def ensemble(
     t0: float = 0.0,
     samples: int = 100,
     tol: float | None = None,
+    batched: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate many initial states at once in one parallel compiled loop.
 
@@ -968,6 +969,9 @@ def ensemble(
         A composition or Gauss-Legendre stepper (fixed steps ``dt``), or ``taylor``
         (adaptive: each row its own steps at the tolerance ``tol``, default the
         family's; the samples from its series).
+    batched : bool
+        For taylor: the rows in batches of SIMD lanes (``Family.batch``); False, one row
+        at a time (``X_ensemble_adaptive_parallel``). The states are the same.
     samples : int
         States kept per trajectory (evenly spaced; for an adaptive method at
         ``t0 + (t_end - t0) j / samples``, j = 1..samples, the last at ``t_end``).
@@ -991,7 +995,7 @@ def ensemble(
     loop = getattr(driver_module(), kernel)
     if family.adaptive_ensemble:
         t, out, status = _adaptive_ensemble(
-            compiled, stepper, loop, fns, Y, t0, t_end, samples, tol
+            compiled, stepper, loop, fns, Y, t0, t_end, samples, tol, batched
         )
     else:
         if dt is None:
@@ -1021,7 +1025,7 @@ ENSEMBLE_MAX_STEPS = 10**9
 """The most steps of one row of an adaptive ensemble."""
 
 
-def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol):
+def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol, batched):
     """``ensemble`` of an adaptive family (``X_ensemble_adaptive_parallel``): the coef
     and clock of a runner from the first row (the same for every row: the tolerance
     and the family's constants), each row to ``t_end``. Returns (t, out, status) with
@@ -1043,7 +1047,15 @@ def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol)
     out = np.full((N, count, m), np.nan)
     status = np.zeros(N, dtype=np.int64)
     steps = np.zeros(N, dtype=np.int64)
-    limits = (ENSEMBLE_MAX_STEPS, 1)
-    loop(fns, Y, clock, compiled.parameters, runner.coef, t, limits, out, status, steps)
+    batch = stepper.family.batch
+    if batch is not None and batched:
+        kernel, function = batch
+        fb = compiled.functions((function,))[0]
+        lanes = compiled.taylor().batch()[1]
+        loop = getattr(driver_module(), kernel)
+        loop(fb, Y, clock, compiled.parameters, runner.coef, t, lanes, out, status, steps)
+    else:
+        limits = (ENSEMBLE_MAX_STEPS, 1)
+        loop(fns, Y, clock, compiled.parameters, runner.coef, t, limits, out, status, steps)
     status[status == int(Status.END)] = int(Status.RUNNING)
     return t, out, status

@@ -865,13 +865,33 @@ def taylor_step(fns, y, comp, clock, P, coef, work):
     dense output (``taylor_sample``); ``clock[CLOCK_H]`` is the step taken."""
     kahan = coef[1]
     order = coef[2]
-    hmax = coef[3]
-    factor = coef[4]
     C, flags = work
-    m = y.shape[0]
     t = clock[CLOCK_T]
     fns[0](t, y, P, C)
     flags[0] = 1.0
+    t_end = clock[CLOCK_T_END]
+    h, last = _taylor_h(C, y, coef, t, t_end)
+    if not h > 4e-14 * max(abs(t), 1.0):
+        if h == h:
+            return STATUS_STEP_COLLAPSED, 1
+        h = 1.0  # nan coefficients: a non-finite state, undone by the driver
+    _taylor_advance(C, order, h, y, comp, kahan)
+    if last:
+        clock[CLOCK_T] = t_end
+        clock[CLOCK_TC] = 0.0
+    else:
+        _tick(clock, h)
+    clock[CLOCK_H] = h
+    return STATUS_RUNNING, 1
+
+
+def _taylor_h(C, y, coef, t, t_end):
+    """(h, last): the step from the coefficients ``C`` (order + 1, width) of the state
+    ``y`` (m,) at ``t`` (``taylor_step``'s rule), and whether it ends at ``t_end``."""
+    order = coef[2]
+    hmax = coef[3]
+    factor = coef[4]
+    m = y.shape[0]
     scale = 1.0
     below = 0.0
     top = 0.0
@@ -887,7 +907,6 @@ def taylor_step(fns, y, comp, clock, P, coef, work):
     if top > 0.0:
         exponent = max(exponent, math.log(top / scale) / order)
     rho = math.exp(-exponent)
-    t_end = clock[CLOCK_T_END]
     if rho == math.inf:  # a polynomial solution: every coefficient zero
         h = t_end - t if t_end < 1e300 else 1.0
     else:
@@ -896,18 +915,106 @@ def taylor_step(fns, y, comp, clock, P, coef, work):
     last = h >= t_end - t
     if last:
         h = t_end - t
-    if not h > 4e-14 * max(abs(t), 1.0):
-        if h == h:
-            return STATUS_STEP_COLLAPSED, 1
-        h = 1.0  # nan coefficients: a non-finite state, undone by the driver
-    _taylor_advance(C, order, h, y, comp, kahan)
-    if last:
-        clock[CLOCK_T] = t_end
-        clock[CLOCK_TC] = 0.0
-    else:
-        _tick(clock, h)
-    clock[CLOCK_H] = h
-    return STATUS_RUNNING, 1
+    return h, last
+
+
+def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, counts):
+    """Many initial states ``Y`` (N, m) in batches of ``lanes``: the coefficients of a
+    batch's trajectories from one call of the batch function ``fb`` (``taylor_batch``:
+    T (B,), y (m, B), out (order + 1, width, B), SIMD lanes), each trajectory its own
+    step (``_taylor_h``), sum (``_taylor_advance``) and clock from there, until every
+    trajectory of the batch has ended; the batches spread over cores. ``clock0`` gives
+    the start time and ``CLOCK_T_END``; ``out`` (N, k, m) gets the states at ``times``
+    (k,) from the series, ``status`` (N,) ``STATUS_END`` or the problem that stopped a
+    row (its later samples left as they were; a non-finite step is undone), ``counts``
+    the steps. The trajectories are those of ``taylor_step``: the same coefficients,
+    the same steps, the same sums."""
+    kahan = coef[1]
+    order = coef[2]
+    width = coef[0]
+    N = Y.shape[0]
+    m = Y.shape[1]
+    B = lanes
+    t0 = clock0[CLOCK_T]
+    t_end = clock0[CLOCK_T_END]
+    for batch in prange((N + B - 1) // B):
+        lo = batch * B
+        n = min(B, N - lo)
+        y = np.empty((m, B))
+        comp = np.zeros((m, B))
+        T = np.full(B, t0)
+        TC = np.zeros(B)
+        C = np.empty((order + 1, width, B))
+        yl = np.empty(m)
+        cl = np.empty(m)
+        live = np.zeros(B, dtype=np.int64)
+        j = np.zeros(B, dtype=np.int64)
+        for lane in range(B):
+            row = lo + lane if lane < n else lo  # spare lanes copy a row, unused
+            for i in range(m):
+                y[i, lane] = Y[row, i]
+            if lane < n:
+                live[lane] = 1
+                status[row] = STATUS_RUNNING
+                counts[row] = 0
+        running = n
+        while running > 0:
+            fb(T, y, P, C)
+            for lane in range(n):
+                if live[lane] == 0:
+                    continue
+                row = lo + lane
+                Cl = C[:, :, lane]  # a view: the lane's coefficients (order + 1, width)
+                for i in range(m):
+                    yl[i] = y[i, lane]
+                    cl[i] = comp[i, lane]
+                t = T[lane]
+                h, last = _taylor_h(Cl, yl, coef, t, t_end)
+                code = STATUS_RUNNING
+                if not h > 4e-14 * max(abs(t), 1.0):
+                    code = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
+                else:
+                    _taylor_advance(Cl, order, h, yl, cl, kahan)
+                    if not _finite(yl):
+                        code = STATUS_NON_FINITE
+                if code != STATUS_RUNNING:  # the state stays the step's start
+                    status[row] = code
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                counts[row] += 1
+                t_next = t_end if last else t + h
+                while j[lane] < times.shape[0] and times[j[lane]] < t_next:
+                    s = times[j[lane]]
+                    ds = (s - t) + TC[lane]
+                    for i in range(m):
+                        if s <= t:
+                            out[row, j[lane], i] = y[i, lane]
+                        else:
+                            d = _taylor_horner(Cl, order, i, ds)
+                            out[row, j[lane], i] = y[i, lane] + (d - comp[i, lane])
+                    j[lane] += 1
+                for i in range(m):
+                    y[i, lane] = yl[i]
+                    comp[i, lane] = cl[i]
+                if last:
+                    T[lane] = t_end
+                    TC[lane] = 0.0
+                    while j[lane] < times.shape[0]:
+                        for i in range(m):
+                            out[row, j[lane], i] = yl[i]
+                        j[lane] += 1
+                    status[row] = STATUS_END
+                    live[lane] = 0
+                    running -= 1
+                else:
+                    dd = h - TC[lane]
+                    s = T[lane] + dd
+                    TC[lane] = (s - T[lane]) - dd
+                    T[lane] = s
+        for lane in range(n):
+            for i in range(m):
+                Y[lo + lane, i] = y[i, lane]
 
 
 def taylor_sample_work(coef, m):

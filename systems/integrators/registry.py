@@ -78,6 +78,10 @@ class Family:
     adaptive_ensemble: bool = False
     """Ensembles of adaptive steps (``X_ensemble_adaptive_parallel``): each row its own
     steps, its states at common times from the family's dense output."""
+    batch: tuple[str, str] | None = None
+    """An ensemble loop over batches of rows (its kernel, and the batch function of
+    ``systems.codegen.SIGNATURES`` it takes), used for adaptive ensembles instead of
+    ``X_ensemble_adaptive_parallel``."""
     teaching: bool = False
     constrained: bool = False
     """Projects onto the constraints after every step: only these families integrate a
@@ -518,6 +522,7 @@ FAMILIES: dict[str, Family] = {
             functions=("taylor_coefficients",),
             adaptive=True,
             adaptive_ensemble=True,
+            batch=("taylor_batch_parallel", "taylor_batch"),
         ),
         Family(
             name="constrained",

@@ -98,8 +98,10 @@ def unrolled_terms(decomposition: Decomposition, order: int) -> int:
 class _Writer(llvm_kernels._Writer):
     """``taylor_coefficients`` of one decomposition."""
 
-    def __init__(self, module, decomposition: Decomposition, unrolled: int | None = None):
-        spec = llvm_kernels.FunctionSpec(NAME, ("t", "y", "P", "out"), (), ())
+    def __init__(
+        self, module, decomposition: Decomposition, unrolled: int | None = None, name=NAME
+    ):
+        spec = llvm_kernels.FunctionSpec(name, ("t", "y", "P", "out"), (), ())
         super().__init__(module, spec, {})
         self.unrolled = unrolled
         self.d = decomposition
@@ -132,6 +134,10 @@ class _Writer(llvm_kernels._Writer):
             return found
         return self.order0[arg.value]
 
+    def state_value(self, y, i: int):
+        """``y[i]`` at the start."""
+        return self.b.load(self.b.gep(y, [self.int(i)]), name=f"y{i}")
+
     def at(self, column: int, k):
         """Pointer to ``out[k, column]`` (k an i64 value)."""
         b = self.b
@@ -144,6 +150,10 @@ class _Writer(llvm_kernels._Writer):
             return self.b.load(self.at(arg.value, k))
         b = self.b
         return b.select(b.icmp_signed("==", k, self.int(0)), self.value0(arg), self.const(0.0))
+
+    def time(self):
+        """The time at the start."""
+        return self.scalars["t"]
 
     def real(self, k):
         return self.b.sitofp(k, self.double)
@@ -200,7 +210,7 @@ class _Writer(llvm_kernels._Writer):
         for j in range(len(d.parameters)):  # in the entry block: it dominates every use
             self.value0(Arg("par", j))
         for i in range(m):
-            value = b.load(b.gep(y, [self.int(i)]), name=f"y{i}")
+            value = self.state_value(y, i)
             self.order0[i] = value
             b.store(value, self.at(i, zero))
         for index, node in enumerate(d.nodes):
@@ -441,7 +451,7 @@ class _Writer(llvm_kernels._Writer):
         b = self.b
         op = node.op
         if op == "time":
-            return self.scalars["t"]
+            return self.time()
         a = [self.value0(arg) for arg in node.args]
         if op == "neg":
             return b.fneg(a[0])
@@ -553,6 +563,125 @@ class _Writer(llvm_kernels._Writer):
         raise llvm_kernels.Unsupported(f"no recurrence for the op {op}")
 
 
+BATCH_NAME = "taylor_batch"
+"""The batch function's name (a key of ``systems.codegen.SIGNATURES``)."""
+
+
+def lanes() -> int:
+    """The trajectories of one batch: a vector register's doubles on this CPU (8 with
+    AVX-512, 4 with AVX, else 2)."""
+    features = llvm_kernels._llvm().get_host_cpu_features()
+    if features.get("avx512f"):
+        return 8
+    return 4 if features.get("avx") else 2
+
+
+class _BatchWriter(_Writer):
+    """``taylor_batch(T, Y, P, out)``: the coefficients of ``B`` trajectories at once,
+    every value a vector of B lanes (LLVM's vector type: SIMD instructions), T (B,) their
+    times, Y (m, B) their states, out (N + 1, width, B); the same code as
+    ``taylor_coefficients`` lane by lane. Functions without a vector form (the libm
+    ones) are called lane by lane."""
+
+    def __init__(self, module, decomposition: Decomposition, unrolled: int | None, B: int):
+        super().__init__(module, decomposition, unrolled, name=BATCH_NAME)
+        ir = self.ir
+        self.B = B
+        self.scalar = ir.DoubleType()
+        self.double = ir.VectorType(self.scalar, B)
+        self.vector_pointer = self.double.as_pointer()
+        block = self.b.block
+        self.b = _AlignedBuilder(block)
+
+    def splat(self, scalar):
+        """The vector of B copies of ``scalar``."""
+        ir, b = self.ir, self.b
+        undefined = ir.Constant(self.double, ir.Undefined)
+        vector = b.insert_element(undefined, scalar, ir.Constant(ir.IntType(32), 0))
+        mask = ir.Constant(ir.VectorType(ir.IntType(32), self.B), [0] * self.B)
+        return b.shuffle_vector(vector, undefined, mask)
+
+    def vector_at(self, pointer, index):
+        """The vector of B doubles from element ``index`` (an i64 value) of ``pointer``."""
+        return self.b.bitcast(self.b.gep(pointer, [index]), self.vector_pointer)
+
+    def state_value(self, y, i: int):
+        return self.b.load(self.vector_at(y, self.int(i * self.B)), name=f"y{i}")
+
+    def time(self):
+        return self.b.load(self.vector_at(self.data["t"], self.int(0)), name="t")
+
+    def at(self, column: int, k):
+        b = self.b
+        index = b.add(b.mul(k, self.int(self.width)), self.int(column))
+        return self.vector_at(self.data["out"], b.mul(index, self.int(self.B)))
+
+    def value0(self, arg: Arg):
+        if arg.kind == "par":
+            found = self.parameters.get(arg.value)
+            if found is None:
+                pointer = self.b.gep(self.data["P"], [self.int(arg.value)])
+                scalar = self.b.load(pointer, name=f"P{arg.value}")
+                found = self.parameters[arg.value] = self.splat(scalar)
+            return found
+        return super().value0(arg)
+
+    def real(self, k):
+        return self.splat(self.b.sitofp(k, self.scalar))
+
+    def _call(self, name: str, args: list):
+        ir, b = self.ir, self.b
+        if name.startswith("llvm."):  # an intrinsic: its vector form
+            name = f"{name[: -len('f64')]}v{self.B}f64"
+            function = self.module.globals.get(name)
+            if function is None:
+                function_type = ir.FunctionType(self.double, [self.double] * len(args))
+                function = ir.Function(self.module, function_type, name=name)
+            return b.call(function, args)
+        function = self.module.globals.get(name)
+        if function is None:
+            function_type = ir.FunctionType(self.scalar, [self.scalar] * len(args))
+            function = ir.Function(self.module, function_type, name=name)
+        result = ir.Constant(self.double, ir.Undefined)
+        for lane in range(self.B):
+            index = ir.Constant(ir.IntType(32), lane)
+            value = b.call(function, [b.extract_element(a, index) for a in args])
+            result = b.insert_element(result, value, index)
+        return result
+
+
+def _aligned_builder():
+    from llvmlite import ir
+
+    class Builder(ir.IRBuilder):
+        """Loads and stores aligned to a double (a vector of out need not be aligned to
+        its own size)."""
+
+        def load(self, ptr, name="", align=8, typ=None):
+            return super().load(ptr, name, align)
+
+        def store(self, value, ptr, align=8):
+            return super().store(value, ptr, align)
+
+    return Builder
+
+
+def _AlignedBuilder(block):
+    return _aligned_builder()(block)
+
+
+def write_taylor_batch_ir(decomposition: Decomposition, B: int) -> str:
+    """The LLVM IR text of ``taylor_batch`` for ``decomposition`` and ``B`` lanes, with a
+    first comment line giving m, the width of ``out`` and B."""
+    from llvmlite import ir
+
+    module = ir.Module(name="pe_taylor_batch")
+    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
+    writer = _BatchWriter(module, decomposition, unrolled, B)
+    writer.write()
+    return f"; taylor m={writer.m} width={writer.width} lanes={B}\n{module}"
+
+
 def write_taylor_ir(decomposition: Decomposition) -> str:
     """The LLVM IR text of ``taylor_coefficients`` for ``decomposition``, with a first
     comment line giving m and the width of ``out`` (m + nodes).
@@ -627,13 +756,27 @@ class TaylorKernels:
         Writing (or reading) the IR and making (or loading) the machine code.
     """
 
-    def __init__(self, code: TaylorCode):
+    def __init__(self, code: TaylorCode, mechanics=None):
         start = time.perf_counter()
         self.code = code
+        self.mechanics = mechanics
+        self._batch = None
         self.m, self.width = code.m, code.width
         self.kernels = llvm_kernels.LLVMKernels(code.text, (NAME,), SPEED_LEVEL, host=True)
         self.function = self.kernels.functions[NAME]
         self.seconds = code.seconds + time.perf_counter() - start
+
+    def batch(self):
+        """The batch function ``taylor_batch`` (``lanes()`` trajectories at once), written
+        and compiled on first use (its machine code kept on disk like the scalar one's):
+        the value the batch ensemble loop takes. Returns (function, lanes)."""
+        if self._batch is None:
+            B = lanes()
+            d = taylor_decompose.decompose_mechanics(self.mechanics)
+            text = write_taylor_batch_ir(d, B)
+            kernels = llvm_kernels.LLVMKernels(text, (BATCH_NAME,), SPEED_LEVEL, host=True)
+            self._batch = (kernels, kernels.functions[BATCH_NAME], B)
+        return self._batch[1], self._batch[2]
 
     def coefficients(self, t: float, y: np.ndarray, P: np.ndarray, order: int) -> np.ndarray:
         """``out`` (order + 1, width) of ``taylor_coefficients`` at one state ``y`` (m,)."""
@@ -651,4 +794,4 @@ def load_taylor(mechanics) -> TaylorKernels:
     NotDecomposable
         With the reason, for a system the family refuses.
     """
-    return TaylorKernels(taylor_code(mechanics))
+    return TaylorKernels(taylor_code(mechanics), mechanics)

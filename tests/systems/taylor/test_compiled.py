@@ -116,3 +116,24 @@ def test_a_parameter_as_an_equation_and_a_polynomial_solution():
     blocks = list(stream(compiled, method="taylor", t_end=10.0, energy_tolerance=None))
     assert blocks[-1].status == "ok" and blocks[-1].steps == 1
     np.testing.assert_allclose(blocks[-1].y[-1], [1.0 - 20.0 + 25.0, -2.0 + 5.0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["henon_heiles", "driven_damped_pendulum", "every_function"])
+def test_the_batch_function_is_the_scalar_one_lane_by_lane(name):
+    """``taylor_batch`` (every value a vector of ``lanes()`` doubles; the libm functions
+    called lane by lane) gives each lane's coefficients bitwise as
+    ``taylor_coefficients`` at that lane's time and state, in both forms."""
+    mechanics = _mechanics(name)
+    kernels = load_taylor(mechanics)
+    function, B = kernels.batch()
+    compiled = compile_system(mechanics, ("rhs",))
+    P = compiled.parameters * 1.1
+    rng = np.random.default_rng(3)
+    Y = compiled.initial_state()[:, None] + rng.uniform(-0.1, 0.1, (kernels.m, B))
+    T = rng.uniform(0.0, 2.0, B)
+    for order in (UNROLLED, 7):
+        out = np.zeros((order + 1, kernels.width, B))
+        kernels._batch[0].taylor_batch(T, np.ascontiguousarray(Y), P, out)
+        for lane in range(B):
+            want = kernels.coefficients(T[lane], Y[:, lane].copy(), P, order)
+            assert np.array_equal(out[:, : kernels.m, lane], want[:, : kernels.m]), (order, lane)

@@ -193,19 +193,24 @@ def test_equations_with_a_kink_are_refused():
     assert STEPPERS["taylor"].applies_to(derive(parse_scene(text))) is None
 
 
-def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone():
-    """``simulation.ensemble`` with taylor: one parallel loop, each row its own steps;
-    its samples are the single run's dense output at the same times (the same steps,
-    the same series: bitwise), a Kepler orbit of e = 0.9 among oscillating ones is
-    followed with its own short steps, and a row whose state turns non-finite stops
-    alone with its status."""
+@pytest.mark.parametrize("batched", [True, False])
+def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone(batched):
+    """``simulation.ensemble`` with taylor: one parallel loop, each row its own steps
+    (``batched``: the coefficients of a batch of rows from one call of the SIMD batch
+    function, 11 rows: a full batch and a part one on any CPU); its samples are the
+    single run's dense output at the same times (the same steps, the same series:
+    bitwise), a Kepler orbit of e = 0.9 among near-circular ones is followed with its
+    own short steps, and a row whose state turns non-finite stops alone with its
+    status."""
     from systems.integrators.codes import Status
     from systems.simulation import ensemble
 
     compiled = _compiled("kepler_cartesian")
-    Y0 = np.array([kepler_start(e) for e in (0.1, 0.5, 0.9)])
-    t, Y, status = ensemble(compiled, Y0, method="taylor", t_end=3.0, samples=7)
-    assert t.shape == (7,) and t[-1] == 3.0 and Y.shape == (3, 7, 4)
+    Y0 = np.array([kepler_start(e) for e in (0.1, 0.5, 0.9, *np.linspace(0.0, 0.3, 8))])
+    t, Y, status = ensemble(
+        compiled, Y0, method="taylor", t_end=3.0, samples=7, batched=batched
+    )  # fmt: skip
+    assert t.shape == (7,) and t[-1] == 3.0 and Y.shape == (11, 7, 4)
     assert not status.any()
     for row, y0 in enumerate(Y0):
         runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 3.0, None, None)
@@ -217,6 +222,8 @@ def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone():
         assert np.abs(Y[row] - exact).max() <= 1e-13 * np.abs(exact).max(), row
     # the origin: 1/r is infinite, the row's first step non-finite; the others go on
     bad = np.vstack([Y0[:1], np.zeros((1, 4)), Y0[2:]])
-    _, Y, status = ensemble(compiled, bad, method="taylor", t_end=3.0, samples=2)
-    assert status[1] == int(Status.NON_FINITE) and status[0] == status[2] == 0
-    assert np.isnan(Y[1]).all() and np.isfinite(Y[[0, 2]]).all()
+    _, Y, status = ensemble(
+        compiled, bad, method="taylor", t_end=3.0, samples=2, batched=batched
+    )  # fmt: skip
+    assert status[1] == int(Status.NON_FINITE) and not status[[0, *range(2, 11)]].any()
+    assert np.isnan(Y[1]).all() and np.isfinite(Y[[0, *range(2, 11)]]).all()
