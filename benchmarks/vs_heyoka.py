@@ -18,9 +18,9 @@ rows:
 5. 1000 Hénon–Heiles starts at E = 0.16 on the section y = 0, t = 1000 (a section's
    ensemble): heyoka's batch mode (``taylor_adaptive_batch`` of its recommended SIMD
    width, ``ensemble_propagate_until_batch`` on 2 threads); ours:
-   ``systems.simulation.ensemble`` (one compiled loop over the rows on all cores, each
-   row its own steps, ``taylor_ensemble_adaptive_parallel``); the largest relative
-   energy error.
+   ``systems.simulation.ensemble`` (``taylor_batch_parallel``: batches of SIMD lanes
+   over all cores, one call of the vector coefficient function a step, each row its
+   own step); the largest relative energy error.
 
 Integration: medians of ``--repeats`` interleaved runs (ours, theirs, ours, ...), each
 from the same start, after one run that compiles or loads what it needs. Compile: ours
@@ -340,7 +340,7 @@ def main() -> int:
     times = _median_pair(ours_ensemble, theirs_ensemble, max(3, args.repeats // 2))
     ok &= _row(
         f"{STARTS} Hénon–Heiles starts, t = 1000 (largest relative energy error); ours: "
-        f"one loop over the rows on all cores, heyoka: batch of {batch} on 2 threads",
+        f"SIMD batches on all cores, heyoka: batch of {batch} on 2 threads",
         *times, ours_err, their_err, steps,
     )  # fmt: skip
     return 0 if ok else 1
