@@ -251,7 +251,7 @@ INLINED = ("_taylor_h",)
 shared with the batch loop (called, it cost the step 15-40 ns: Hénon–Heiles 0.069 ->
 0.084 us outside the coefficient function, Kepler 0.073 -> 0.111)."""
 
-FUSED = ("_taylor_horner", "_taylor_advance")
+FUSED = ("_taylor_horner", "_taylor_advance", "_taylor_lanes")
 """Generated functions compiled with ``fastmath={"contract"}``: each multiply and add a
 fused multiply-add where the CPU has one (a Taylor series' Horner sums: 21 against 35
 ns for four order-20 sums, and one rounding instead of two)."""
