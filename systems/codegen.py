@@ -251,10 +251,15 @@ INLINED = ("_taylor_h",)
 shared with the batch loop (called, it cost the step 15-40 ns: Hénon–Heiles 0.069 ->
 0.084 us outside the coefficient function, Kepler 0.073 -> 0.111)."""
 
-FUSED = ("_taylor_horner", "_taylor_advance", "_taylor_lanes")
+FUSED = ("_taylor_horner", "_taylor_horner4", "_taylor_lanes")
 """Generated functions compiled with ``fastmath={"contract"}``: each multiply and add a
 fused multiply-add where the CPU has one (a Taylor series' Horner sums: 21 against 35
-ns for four order-20 sums, and one rounding instead of two)."""
+ns for four order-20 sums, and one rounding instead of two). They call no other
+function: numba compiles a callee with the flags of the first caller that compiles it,
+so ``_add`` called from a fused ``_taylor_advance`` was fused or not by the order the
+loops were compiled in (the double pendulum's taylor run took 3914 or 3990 steps by
+whether an ensemble ran first; the deterministic form costs Kepler's step about 0.03
+us)."""
 
 ALLOCATION = re.compile(r"\bnp\.(empty|zeros|ones)\(")
 CALL = re.compile(r"\b(\w+)\(")
