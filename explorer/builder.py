@@ -178,15 +178,20 @@ class _BuildWorker(QObject):
         except Exception as exc:  # noqa: BLE001 - shown to the user, never lost
             self.build_failed.emit(failure_from(exc, request))
             return
-        self.first_frame.clear()
-        self.built.emit(result)
         layout = _Layout()
         layout.thread = threading.Thread(
             target=self._lay_out, args=(request, result, layout), name="scene-layout", daemon=True
         )
         with self._lock:
+            # checked with the list under the lock: a window closed while this build
+            # compiled (stop) must neither miss the layout nor have its first frame undone
+            # (the layout then waited FIRST_FRAME_WAIT for a frame that never came)
+            if request < self.latest or self.stopped:
+                return
+            self.first_frame.clear()
             self._layouts = [old for old in self._layouts if old.thread.is_alive()]
             self._layouts.append(layout)
+        self.built.emit(result)
         layout.thread.start()
 
     def _derive(self, source):
@@ -212,12 +217,14 @@ class _BuildWorker(QObject):
 
     def stop(self) -> list[threading.Thread]:
         """End the derivation and every layout in progress; returns the layout threads."""
-        self.stopped = True
         with self._lock:
+            self.stopped = True
             job = self._job
         if job is not None:
             job.cancel()
-        return self.stop_layouts()
+        threads = self.stop_layouts()
+        self.first_frame.set()  # a layout waiting for the first frame goes on, and ends
+        return threads
 
     def stop_layouts(self) -> list[threading.Thread]:
         """End the layouts of older builds (their processes); returns their threads."""
