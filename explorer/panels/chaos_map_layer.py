@@ -89,6 +89,19 @@ def map_image(result) -> np.ndarray:
     return np.ascontiguousarray(rgba.transpose(1, 0, 2))
 
 
+def key_entries() -> list[tuple[object, str]]:
+    """The map's colour key as legend swatches, in ``map_image``'s colours: MEGNO 2
+    (regular), 4 (the threshold) and the top of the scale (chaotic)."""
+    lo, hi = LEVELS
+    cmap = pg.colormap.get("viridis")
+    entries = []
+    for value, text in ((2.0, "MEGNO 2: regular"), (4.0, "MEGNO 4: the threshold"),
+                        (hi, f"MEGNO {hi:g} and more: chaotic")):  # fmt: skip
+        colour = cmap.map((value - lo) / (hi - lo), mode="qcolor")
+        entries.append((pg.BarGraphItem(x=[0], height=[0], width=0, brush=colour), text))
+    return entries
+
+
 class ChaosMapLayer(QObject):
     """The map's button, progress bar and image for one ``PhaseView``.
 
@@ -182,6 +195,7 @@ class ChaosMapLayer(QObject):
         if self.image is not None:
             self.view.plot.removeItem(self.image)
             self.image = None
+            self.view.set_layer_legend([])
         self.result = None
         self.update_enabled()
 
@@ -236,6 +250,7 @@ class ChaosMapLayer(QObject):
         image.setZValue(Z_VALUE)
         self.view.plot.addItem(image)
         self.image = image
+        self.view.set_layer_legend(key_entries())
         self.view.hint.setText(
             f"MEGNO to t = {result.t_end:g}: chaotic (<Y> > 4) in "
             f"{result.chaotic_fraction():.0%} of the section. Click a pixel to start that orbit."

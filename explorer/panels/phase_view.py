@@ -154,6 +154,7 @@ class PhaseView(QWidget):
         self._orbit_energies: dict[int, float] = {}
         self._static: list = []
         self._legend_static: list[tuple[object, str]] = []
+        self._legend_layer: list[tuple[object, str]] = []  # a layer's key (the chaos map)
         self._static_stale = False
         self._store = None
         self._generation = -1
@@ -580,7 +581,13 @@ class PhaseView(QWidget):
             name = "orbit" if key == 0 else f"orbit {key}"
             item = self._curves[key].tail if key in self._curves else self._section_scatter[key]
             entries.append((item, name))
-        self.legend.set_entries(entries + self._legend_static)
+        self.legend.set_entries(entries + self._legend_static + self._legend_layer)
+
+    def set_layer_legend(self, entries: list[tuple[object, str]]) -> None:
+        """The legend entries of a layer drawn under the points, (item, name) each: the
+        chaos map's colour key, shown in the window and in its exports; [] removes them."""
+        self._legend_layer = list(entries)
+        self._update_legend()
 
     def refresh(self, store) -> None:
         """Bring the plot up to date with ``store`` (called by the redraw timer)."""

@@ -5,6 +5,7 @@ mode or system (or Cancel) removes it; nothing keeps running."""
 from __future__ import annotations
 
 import numpy as np
+import pyqtgraph as pg
 import pytest
 
 from explorer.panels import chaos_map_layer
@@ -43,6 +44,14 @@ def test_a_map_under_the_section_and_a_click_on_a_pixel(qtbot, view):
     assert layer.image is not None and layer.image in view.plot.items
     assert layer.image.zValue() < 0  # under the section's points
     assert "chaotic" in view.hint.text()
+    # its colour key in the legend (so in exports too), in the image's colours
+    names = [label.text for _, label in view.legend.items]
+    keys = [name for name in names if name.startswith("MEGNO")]
+    assert keys == ["MEGNO 2: regular", "MEGNO 4: the threshold", "MEGNO 8 and more: chaotic"]
+    top = chaos_map_layer.map_image(type("R", (), {"megno": np.array([[8.0]])})())[0, 0]
+    swatch = next(s.item for s, label in view.legend.items if label.text == keys[-1])
+    colour = pg.mkBrush(swatch.opts["brush"]).color()
+    assert (colour.red(), colour.green(), colour.blue()) == tuple(top[:3])
     # a pixel of the map: the orbit it was computed from
     rows, cols = np.nonzero(result.status == 0)
     y, p_y = result.grid.xs[cols[0]], result.grid.ys[rows[0]]
@@ -54,6 +63,7 @@ def test_a_map_under_the_section_and_a_click_on_a_pixel(qtbot, view):
     # another mode: the map goes
     view.set_mode("phase")
     assert layer.image is None and layer.result is None and not layer.button.isEnabled()
+    assert not any(label.text.startswith("MEGNO") for _, label in view.legend.items)
 
 
 def test_cancel_stops_the_map_and_keeps_nothing(qtbot, view, monkeypatch):
