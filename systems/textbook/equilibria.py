@@ -1115,6 +1115,7 @@ class _Problem:
         if not np.all(np.isfinite(x)):
             return None
         x = np.where(self.is_periodic, fold_angle(x), x)
+        x[: self.mq] = self._zeroed(x[: self.mq])
         block = slice(None) if block is None else block
         with np.errstate(all="ignore"):
             residual = float(np.linalg.norm(self.gradient(*x)[block]))
@@ -1130,6 +1131,15 @@ class _Problem:
                 if periodic and not lo - margin <= value <= hi + margin:
                     return None
         return x
+
+    def _zeroed(self, q: np.ndarray) -> np.ndarray:
+        """``q`` (searched coordinates, shape (mq,)) with the coordinates that are zero to
+        round-off set to 0: Newton ends a few ulps of the largest coordinate or of the
+        searched range away from an exact 0 (fpu_chain printed q11 = -1.7e-15)."""
+        ranges = (self.region[name] for name in self.searched)
+        widths = [w for lo, hi in ranges if math.isfinite(w := hi - lo)]
+        scale = max(float(np.max(np.abs(q), initial=0.0)), *widths, 0.0)
+        return np.where(np.abs(q) <= 64 * np.finfo(float).eps * scale, 0.0, q)
 
     def evaluate_exact(self, solution: dict, *, keep_outside: bool) -> np.ndarray | None:
         values = parameter_values(self.mechanics, self.parameters)

@@ -187,3 +187,16 @@ x_dot = 0.1
     assert lines[0].endswith(
         "every configuration there is an equilibrium, neutral (a body at rest stays at rest)"
     )
+
+
+def test_coordinates_zero_to_round_off_are_reported_as_zero():
+    # a six-mass FPU chain's 23 equilibria: Newton ended five of their coordinates a few
+    # ulps from 0 (printed as q = -1.7e-15); each is 0 or far from it
+    from systems.families import fpu_chain
+    from systems.scene import parse_scene
+
+    result = search_equilibria(derive(parse_scene(fpu_chain(6))))
+    assert len(result.equilibria) == 23
+    values = np.array([v for e in result.equilibria for v in e.q.values()])
+    assert np.any(values == 0.0)
+    assert not np.any((values != 0.0) & (np.abs(values) < 1e-9))
