@@ -383,8 +383,7 @@ class BuildService(QObject):
         self._stopped = True
         self._counter += 1  # any result still on its way is now stale
         self._worker.latest = self._counter
-        self._worker.first_frame.set()  # a layout waiting for the first frame goes on
-        layouts = self._worker.stop()
+        layouts = self._worker.stop()  # sets first_frame: a waiting layout goes on, ends
         stopped = True
         if self._thread.isRunning():
             self._thread.quit()
