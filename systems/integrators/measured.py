@@ -112,10 +112,13 @@ def measured_choice(
     """
     c = compiled.mechanics.classification
     conserved = c.conservative and c.hamiltonian_conserved
-    if method not in CANDIDATES and not (method == ALTERNATIVE and conserved):
+    by_state = method == ALTERNATIVE and not conserved  # damped, driven, rheonomic
+    if by_state and not taylor:
+        return method, reason
+    if method not in CANDIDATES and not (method == ALTERNATIVE and conserved) and not by_state:
         return method, reason
     wanted = getattr(compiled, "wanted", frozenset())
-    if not {"rhs", "hamiltonian"} <= set(wanted):
+    if not ({"rhs"} if by_state else {"rhs", "hamiltonian"}) <= set(wanted):
         return method, reason
     horizon = t_end - t0
     if math.isinf(horizon) and method == ALTERNATIVE:
@@ -169,6 +172,9 @@ def _remembered(compiled, key, compute) -> tuple[str, str]:
 
 
 def _measure(compiled, method, reason, t0, y0, horizon, taylor=True) -> tuple[str, str]:
+    c = compiled.mechanics.classification
+    if method == ALTERNATIVE and not (c.conservative and c.hamiltonian_conserved):
+        return _by_state(compiled, method, reason, t0, y0, horizon)
     if method == ALTERNATIVE:  # the classification's own DOP853 (rule 3), priced for taylor
         chosen, why, cost = method, reason, _rate_of(compiled, method, t0, y0, horizon)
     else:
@@ -300,6 +306,156 @@ def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, st
         f"evaluations each ({cost * horizon:.3g} in all), where {chosen} needs "
         f"{theirs * horizon:.3g}"
     )
+
+
+STATE_CHECKPOINTS = 12
+"""Where H is not conserved the pilots' states are compared at t0 + horizon 2^-j, j =
+11..0: the run's length and shorter stretches down to 1/2048 of it, so that motion that
+amplifies small differences (chaos) still leaves stretches where a tight reference can
+be trusted (as the work-precision sweep shortens its horizon: ``systems.workprecision``)."""
+REFERENCE_SHARE = 0.1
+"""A checkpoint counts only where the two tight references agree to this fraction of the
+error allowed there (the target's share of the run up to it), and every one before it."""
+CHECK_STEP = 0.5
+"""The check reference is taylor at machine epsilon with steps of at most this fraction of
+the reference's mean step: another path through the same motion."""
+
+
+def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
+    """``taylor`` or the classification's ``dop853`` where H is not conserved (damping,
+    driving, time-dependent constraints): whichever is cheaper among those whose state
+    keeps the accuracy target.
+
+    Without an energy to measure accuracy by, the error is that of the state: pilots to
+    ``STATE_CHECKPOINTS`` times (``PILOT_STEPS`` steps at most, DOP853's budget setting
+    the stretch) are compared with a tight reference, taylor at machine epsilon, which is
+    checked against a second run of it with shorter steps (``CHECK_STEP``). The error at
+    each checkpoint where the references agree (``REFERENCE_SHARE``), relative to the
+    state's size (at least 1), over the time to it, is the error per unit time; its
+    largest, times the horizon, must stay within ``MARGIN`` x ``ENERGY_TARGET`` or
+    DOP853's own (taylor is never less accurate than the choice it replaces). Machine
+    epsilon's error is the references' gap. Priced as ``_with_taylor`` prices: the
+    tightest tolerance that keeps the target, or a looser one at most ``LOOSER_GAIN`` of
+    it, each step at ``taylor_equivalents`` evaluations, DOP853 at its counted ones.
+    """
+    from systems.taylor.decompose import decompose_mechanics
+
+    refusal = get_stepper(TAYLOR).applies_to(compiled.mechanics)
+    if refusal is not None:
+        return method, f"{reason}; taylor is not priced: {refusal}"
+    times = t0 + horizon * 2.0 ** -np.arange(STATE_CHECKPOINTS - 1, -1, -1, dtype=float)
+    theirs = _states_at(compiled, method, t0, y0, times, tol=DEFAULT_TOL)
+    if theirs is None:
+        return method, reason
+    eps = TAYLOR_TOLERANCES[0]
+    times = times[: len(theirs[0])]
+    reference = _states_at(compiled, TAYLOR, t0, y0, times, tol=eps)
+    if reference is None:
+        return method, reason
+    h = CHECK_STEP * reference[3] / max(reference[2], 1)
+    check = _states_at(compiled, TAYLOR, t0, y0, times, tol=eps, max_step=h)
+    if check is None or len(check[0]) < len(reference[0]):
+        return method, reason
+    times = times[: len(reference[0])]
+    ref = reference[0]
+    scale = np.maximum(1.0, np.max(np.abs(ref), axis=1))
+    elapsed = times - t0
+    target = MARGIN * ENERGY_TARGET
+
+    def errors(states: np.ndarray) -> np.ndarray:
+        return np.max(np.abs(states[: len(ref)] - ref), axis=1) / scale
+
+    gap = errors(check[0])
+    trusted = int(np.argmin(np.append(gap <= REFERENCE_SHARE * target * elapsed / horizon, False)))
+    if trusted == 0:
+        return method, reason + (
+            f"; taylor is not priced: two tight references part by {gap[0]:.1e} of the "
+            f"state by t = {times[0]:.3g}, so no error can be measured"
+        )
+
+    def over_run(error: np.ndarray) -> float:  # the error per unit time, over the horizon
+        return float(np.max(error[:trusted] / elapsed[:trusted]) * horizon)
+
+    their_error = over_run(errors(theirs[0]))
+    their_rate = theirs[1] / theirs[3]
+    accuracy = max(target, their_error)
+    decomposition = decompose_mechanics(compiled.mechanics)
+    priced = []  # (cost per unit time, tol, order, each, steps per unit time, error)
+    worst_error = 0.0
+    for tol in TAYLOR_TOLERANCES:
+        pilot = check if tol == eps else _states_at(compiled, TAYLOR, t0, y0, times, tol=tol)
+        if pilot is None or len(pilot[0]) < trusted:
+            continue
+        run = reference if tol == eps else pilot  # the eps pilot: the reference itself
+        error = over_run(gap if tol == eps else errors(pilot[0]))
+        if error > accuracy:
+            worst_error = max(worst_error, error)
+            continue
+        order = taylor_order(tol)
+        each = taylor_equivalents(decomposition, order)
+        steps_rate = run[2] / run[3]
+        priced.append((steps_rate * each, tol, order, each, steps_rate, error))
+    best = priced[0] if priced else None
+    looser = [p for p in priced[1:] if best and p[0] <= LOOSER_GAIN * best[0]]
+    if looser:
+        best = min(looser, key=lambda p: p[0])
+    measured = (
+        f"the state's error against a tight reference, relative to its size, per unit "
+        f"time up to t = {times[trusted - 1] - t0:.3g}, times {horizon:g}"
+    )
+    if best is None:
+        return method, reason + (
+            f"; taylor would let the state's error reach {worst_error:.1e} over t = "
+            f"{horizon:g} ({measured}), where {method} keeps it to {their_error:.1e}"
+        )
+    cost, tol, order, each, steps_rate, error = best
+    if cost >= their_rate:
+        return method, reason + (
+            f"; measured over t = {horizon:g}: taylor (order {order}) priced at "
+            f"{cost * horizon:.3g} evaluations against {their_rate * horizon:.3g}"
+        )
+    tolerance = f"tolerance {tol:.1e}" + (", machine epsilon" if tol == eps else "")
+    return TAYLOR if tol == eps else f"{TAYLOR} tol={tol!r}", (
+        f"measured on this system over t = {horizon:g}, by {measured} (no energy to "
+        f"measure accuracy by): Taylor series of order {order} ({tolerance}) keep it to "
+        f"{error:.1e} in {steps_rate * horizon:.3g} steps, priced at {each:.3g} "
+        f"right-hand-side evaluations each ({cost * horizon:.3g} in all), where {method} "
+        f"(tolerance {DEFAULT_TOL:g}) needs {their_rate * horizon:.3g} for {their_error:.1e}"
+    )
+
+
+def _states_at(
+    compiled, method: str, t0: float, y0: np.ndarray, times: np.ndarray, **setting
+) -> tuple[np.ndarray, int, int, float] | None:
+    """(states at the first k of ``times`` (k, 2n), right-hand-side evaluations, steps,
+    time covered) of a run of ``method`` from ``(t0, y0)`` (y0 of shape (2n,)) to
+    ``times[-1]`` (ascending, shape (K,)) at ``setting``, ``PILOT_STEPS`` steps at most
+    (the states after its budget are not reached); None where the run fails or reaches
+    none of them."""
+    from systems.simulation import Run, Sampler
+
+    try:
+        run = Run(
+            compiled, method=method, y0=y0, t0=t0, t_end=float(times[-1]), max_points=2,
+            energy_tolerance=None, max_steps=PILOT_STEPS, **setting,
+        )  # fmt: skip
+    except (ValueError, ArithmeticError):
+        return None
+    if run.runner is None:
+        return None
+    sampler = Sampler(run, np.asarray(times, dtype=float))
+    t, y = zip(*sampler.chunks(), strict=True)
+    t, y = np.concatenate(t[1:] or [np.empty(0)]), np.concatenate(y[1:] or [np.empty((0, len(y0)))])
+    last = sampler.last
+    if last is None or last.status not in ("ok", "budget"):
+        return None
+    k = 0
+    while k < len(times) and k < len(t) and t[k] == times[k]:
+        k += 1
+    covered = run.t - t0
+    if k == 0 or not covered > 0.0 or not np.all(np.isfinite(y[:k])):
+        return None
+    return y[:k], last.rhs_evaluations, last.steps, covered
 
 
 def taylor_order(tol: float) -> int:
