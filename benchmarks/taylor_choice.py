@@ -118,7 +118,7 @@ def _accuracy(compiled, methods: tuple[str, str], t_end: float, why: str) -> str
     """Each method's state error per unit time, times ``t_end``, against the taylor
     reference (trusted where DOP853 at ``CHECK_TOL`` agrees with it), and what the
     choice claimed (the numbers of ``why``)."""
-    from systems.integrators.measured import STATE_CHECKPOINTS
+    from systems.integrators.measured import RATE_CHECKPOINTS, STATE_CHECKPOINTS
 
     eps = float(np.finfo(float).eps)
     times = t_end * 2.0 ** -np.arange(STATE_CHECKPOINTS - 1, -1, -1, dtype=float)
@@ -133,7 +133,8 @@ def _accuracy(compiled, methods: tuple[str, str], t_end: float, why: str) -> str
     found = []
     for method in methods:
         error = np.max(np.abs(_states(compiled, method, times) - reference), axis=1) / scale
-        rate = float(np.max(error[:trusted] / times[:trusted]))
+        last = slice(max(0, trusted - RATE_CHECKPOINTS), trusted)  # as the choice measures
+        rate = float(np.max(error[last] / times[last]))
         found.append(f"{method} {rate * t_end:.1e} ({error[trusted - 1]:.1e} at the end)")
     claims = re.findall(r"(?:keep it to|for) (\S+?)(?:\s|$)", why)
     return (

@@ -313,6 +313,10 @@ STATE_CHECKPOINTS = 12
 11..0: the run's length and shorter stretches down to 1/2048 of it, so that motion that
 amplifies small differences (chaos) still leaves stretches where a tight reference can
 be trusted (as the work-precision sweep shortens its horizon: ``systems.workprecision``)."""
+RATE_CHECKPOINTS = 4
+"""The error per unit time is the largest over the last this many checkpoints where the
+references agree (the last 1/8 of the stretch and on): at the earlier ones a few units
+of round-off, over a short time, would be extrapolated up to 2048 times."""
 REFERENCE_SHARE = 0.1
 """A checkpoint counts only where the two tight references agree to this fraction of the
 error allowed there (the target's share of the run up to it), and every one before it."""
@@ -332,8 +336,9 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
     checked against a second run of it with shorter steps (``CHECK_STEP``). The error at
     each checkpoint where the references agree (``REFERENCE_SHARE``), relative to the
     state's size (at least 1), over the time to it, is the error per unit time; its
-    largest, times the horizon, must stay within ``MARGIN`` x ``ENERGY_TARGET`` or
-    DOP853's own (taylor is never less accurate than the choice it replaces). Machine
+    largest over the last ``RATE_CHECKPOINTS`` of them, times the horizon, must stay
+    within ``MARGIN`` x ``ENERGY_TARGET`` or DOP853's own (taylor is never less accurate
+    than the choice it replaces). Machine
     epsilon's error is the references' gap. Priced as ``_with_taylor`` prices: the
     tightest tolerance that keeps the target, or a looser one at most ``LOOSER_GAIN`` of
     it, each step at ``taylor_equivalents`` evaluations, DOP853 at its counted ones.
@@ -373,8 +378,10 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
             f"state by t = {times[0]:.3g}, so no error can be measured"
         )
 
+    last = slice(max(0, trusted - RATE_CHECKPOINTS), trusted)
+
     def over_run(error: np.ndarray) -> float:  # the error per unit time, over the horizon
-        return float(np.max(error[:trusted] / elapsed[:trusted]) * horizon)
+        return float(np.max(error[last] / elapsed[last]) * horizon)
 
     their_error = over_run(errors(theirs[0]))
     their_rate = theirs[1] / theirs[3]
