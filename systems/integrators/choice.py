@@ -22,9 +22,9 @@ relative energy error of ``stepsize.ENERGY_TARGET`` (1e-10) over a scene's run, 
 low orders reach only at many times the cost.
 
 Rules 3 to 5 are then measured on the compiled system against ``dop853``, and the
-winner against ``taylor`` (``systems.integrators.measured``), where a system is built for
-the window or ``run``: a finite run only (the window's endless one keeps the rule's
-method).
+winner against ``taylor``, and rule 2's ``dop853`` against ``taylor`` by the error of
+the state (``systems.integrators.measured``), where a system is built for the window or
+``run``: a finite run only (the window's endless one keeps the rule's method).
 """
 
 from __future__ import annotations

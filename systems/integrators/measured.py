@@ -25,6 +25,12 @@ extrapolated as DOP853's, each step priced at ``taylor_equivalents`` evaluations
 count from the decomposition's nodes and the order, its weights fitted once to timings
 by ``benchmarks/taylor_cost.py``). A tolerance other than the default that wins reaches
 the run through ``chosen_tolerance``.
+
+Where H is not conserved (damping, driving, time-dependent constraints: the
+classification's ``dop853``) there is no energy to measure accuracy by: ``_by_state``
+compares the pilots' states with a tight reference (taylor at machine epsilon, checked
+by a second run of it on shorter steps) at checkpoints where the two agree, and prices
+taylor against DOP853 at the same error per unit time.
 """
 
 from __future__ import annotations
@@ -89,13 +95,14 @@ def measured_choice(
     taylor: bool = True,
 ) -> tuple[str, str]:
     """``(method, reason)``: the classification's choice, or ``dop853`` or ``taylor``
-    where it is cheaper at the energy target.
+    where it is cheaper at the energy target (where H is not conserved: at the same
+    error of the state, ``_by_state``).
 
     Parameters
     ----------
     compiled
-        The compiled system; it must have ``rhs`` and ``hamiltonian`` (and what
-        ``method`` needs).
+        The compiled system; it must have ``rhs`` and ``hamiltonian`` (only ``rhs``
+        where H is not conserved), and what ``method`` needs.
     method, reason
         ``choice.choose_method``'s answer.
     t0, y0
@@ -105,7 +112,8 @@ def measured_choice(
         time a symplectic method's energy error stays bounded, DOP853's and taylor's do
         not.
     taylor
-        Whether ``taylor`` is priced too (False: the choice without it, for comparing).
+        Whether ``taylor`` is priced too (False: the choice without it, for comparing;
+        where H is not conserved that is the classification's ``dop853``, no pilot run).
 
     Remembered per compiled system and start, and on disk per scene (the derivation
     cache), so a scene opened again does not run the pilots again.

@@ -85,12 +85,21 @@ def test_a_chain_whose_fast_mode_sets_the_fixed_step_goes_adaptive():
 
 
 def test_choices_that_are_not_measured_pass_through():
-    compiled = _compiled("damped_pendulum")
-    method, reason = choose_method(compiled.mechanics)
-    assert measured_choice(compiled, method, reason, 0.0, compiled.initial_state(), 10.0) == (
-        method,
-        reason,
-    )
+    """A stiff damped system's radau, and a damped one's dop853 in the choice without
+    taylor (with it: ``test_state_choice``)."""
+    from tests.systems import scenes
+
+    text = scenes.DAMPED_OSCILLATOR.replace("c = 0.2", "c = 200.0")  # rates 0.005 and 200
+    stiff = compile_system(derive(scenes.scene(text)), ("rhs", "hamiltonian"))
+    damped = _compiled("damped_pendulum")
+    for compiled, taylor in ((stiff, True), (damped, False)):
+        method, reason = choose_method(compiled.mechanics)
+        assert method == ("radau" if compiled is stiff else "dop853")
+        y0 = compiled.initial_state()
+        assert measured_choice(compiled, method, reason, 0.0, y0, 10.0, taylor=taylor) == (
+            method,
+            reason,
+        )
 
 
 @pytest.mark.parametrize("name", ["spherical_pendulum", "coupled_oscillators"])
