@@ -216,7 +216,8 @@ def test_methods_lists_the_registry_with_refusals(capsys):
     assert main(["methods", "damped_pendulum", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     by_name = {row["method"]: row for row in data["methods"]}
-    assert data["automatic"] == "dop853" and by_name["dop853"]["takes"] == "tol"
+    assert data["automatic"] == "taylor"  # measured: cheaper than dop853 at the same accuracy
+    assert by_name["dop853"]["takes"] == "tol"
     assert not by_name["leapfrog"]["applies"] and "dissipation" in by_name["leapfrog"]["why_not"]
     assert by_name["gauss_legendre6"]["applies"] and by_name["rk4"]["family"] == "runge_kutta"
     assert main(["methods"]) == 0 and "yoshida8" in capsys.readouterr().out
