@@ -346,10 +346,10 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
     state's size (at least 1), over the time to it, is the error per unit time; its
     largest over the last ``RATE_CHECKPOINTS`` of them, times the horizon, must stay
     within ``MARGIN`` x ``ENERGY_TARGET`` or DOP853's own (taylor is never less accurate
-    than the choice it replaces). Machine
-    epsilon's error is the references' gap. Priced as ``_with_taylor`` prices: the
-    tightest tolerance that keeps the target, or a looser one at most ``LOOSER_GAIN`` of
-    it, each step at ``taylor_equivalents`` evaluations, DOP853 at its counted ones.
+    than the choice it replaces). Machine epsilon's error is the references' gap. Priced
+    as ``_with_taylor`` prices: the tightest tolerance that keeps the target, or a looser
+    one at most ``LOOSER_GAIN`` of it, each step at ``taylor_equivalents`` evaluations,
+    DOP853 at its counted ones.
     """
     from systems.taylor.decompose import decompose_mechanics
 
@@ -382,8 +382,9 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
     trusted = int(np.argmin(np.append(gap <= REFERENCE_SHARE * target * elapsed / horizon, False)))
     if trusted == 0:
         return method, reason + (
-            f"; taylor is not priced: two tight references part by {gap[0]:.1e} of the "
-            f"state by t = {times[0]:.3g}, so no error can be measured"
+            f"; taylor is not priced: two tight references differ by {gap[0]:.1e} of the "
+            f"state by t = {times[0] - t0:.3g}, more than a tenth of the error the target "
+            "allows there, so no error can be measured"
         )
 
     last = slice(max(0, trusted - RATE_CHECKPOINTS), trusted)
