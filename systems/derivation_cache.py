@@ -12,6 +12,8 @@ does not verify or load is deleted, reported in one line on stderr, and derived 
 ``remembered`` keeps smaller facts computed from a derivation the same way (the method
 choice, the printed kernel source), keyed also by the code that computes them: on a
 second opening they cost a file read instead of tens of milliseconds of sympy each.
+``remembered_value`` keeps any picklable value by a key of its own (a formula's type,
+``systems.typeset``: seconds of mathtext a scene).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import pickle
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
+from typing import TypeVar
 
 import sympy
 
@@ -45,6 +48,8 @@ from systems.cache_integrity import (
     write_checked,
 )
 
+T = TypeVar("T")
+
 
 @cache
 def _code_version() -> str:
@@ -65,9 +70,13 @@ def _code_version() -> str:
     return digest.hexdigest()
 
 
+def scene_key(scene) -> str:
+    """A hash of ``scene`` (as TOML) and of the code that derives it."""
+    return hashlib.sha256((_code_version() + scene.to_toml()).encode()).hexdigest()[:32]
+
+
 def _path(scene) -> Path:
-    key = hashlib.sha256((_code_version() + scene.to_toml()).encode()).hexdigest()[:32]
-    return usable_directory(cache_root() / "derivations") / f"{key}.pickle"
+    return usable_directory(cache_root() / "derivations") / f"{scene_key(scene)}.pickle"
 
 
 def enabled() -> bool:
@@ -150,3 +159,31 @@ def remembered(scene, tag: str, compute: Callable[[], str]) -> str:
     text = compute()
     write_checked(path, text.encode(), tag)
     return text
+
+
+def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
+    """``compute()``, or the value it returned for the same ``key`` and ``tag``, pickled.
+
+    ``key`` names what is computed (any text: it is hashed), ``tag`` the code that
+    computes it (include ``code_hash`` of its modules and the versions of the libraries
+    it uses). Without the cache (``PHASE_EXPLORER_DERIVATION_CACHE=0``) this is
+    ``compute()``. An entry that does not verify or load is deleted, reported in one
+    line, and computed again; a value that cannot be pickled is only returned.
+    """
+    if not enabled():
+        return compute()
+    name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
+    path = usable_directory(cache_root() / "values") / f"{name}.pickle"
+    data = read_checked(path, tag)
+    if data is not None:
+        try:
+            return pickle.loads(data)
+        except Exception as exc:  # noqa: BLE001 - whatever a damaged entry raises, compute anew
+            discard(path, f"failed to load: {type(exc).__name__}")
+    value = compute()
+    try:
+        data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        return value
+    write_checked(path, data, tag)
+    return value

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -149,8 +150,15 @@ def typeset_derivation(
 
 def typeset_as_text(mechanics: Mechanics) -> Typeset:
     """``typeset_derivation`` without outlines and equilibria: the window's first job of a
-    layout (a worker process runs it: a function by module and name)."""
-    return typeset_derivation(mechanics, outlines=False)
+    layout (a worker process runs it: a function by module and name). Remembered on disk
+    for the scene (a second of sympy for the double pendulum, every opening)."""
+    from systems import derivation_cache
+
+    key = f"typeset {derivation_cache.scene_key(mechanics.scene)}"
+    tag = f"typeset {derivation_cache.code_hash(report, sys.modules[__name__])}"
+    return derivation_cache.remembered_value(
+        key, tag, lambda: typeset_derivation(mechanics, outlines=False)
+    )
 
 
 def with_outlines(typeset: Typeset) -> Typeset:
@@ -298,8 +306,27 @@ def set_in_type(latex: str) -> dict:
     enough to be broken across lines and has places to break (``break_pieces``).
 
     Returns a dict of ``Formula``'s fields. Pieces whose type mathtext refuses are left
-    out (the equation is then shown whole, scaled to the width).
+    out (the equation is then shown whole, scaled to the width). Remembered on disk by
+    the formula (``derivation_cache.remembered_value``): mathtext takes seconds for a
+    scene's derivation (3.7 s for the double pendulum's, under load), every time a
+    window opened it, and the formulas of a scene edited are mostly those set before.
     """
+    from systems import derivation_cache
+
+    return derivation_cache.remembered_value(latex, _type_tag(), lambda: _set_in_type(latex))
+
+
+@functools.cache
+def _type_tag() -> str:
+    """What a formula's type depends on besides its LaTeX: this module and matplotlib."""
+    import matplotlib
+
+    from systems import derivation_cache
+
+    return f"type {derivation_cache.code_hash(sys.modules[__name__])} {matplotlib.__version__}"
+
+
+def _set_in_type(latex: str) -> dict:
     whole = outline(latex)
     found: dict = {"outline": whole, "pieces": (), "lead": 0}
     if whole is None or whole.width < BREAK_EMS or len(latex) > OUTLINE_CHARS:

@@ -45,3 +45,30 @@ def test_unreadable_file_is_ignored(tmp_path, monkeypatch):
     derivation_cache._path(s).write_bytes(b"not a pickle")
     assert derivation_cache.load(s) is None
     assert derive(s).cyclic == ("theta",)
+
+
+def test_a_remembered_value_is_computed_once_per_key_and_tag(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    calls = []
+
+    def compute(value):
+        calls.append(value)
+        return {"value": value}
+
+    assert derivation_cache.remembered_value("a", "v1", lambda: compute(1)) == {"value": 1}
+    assert derivation_cache.remembered_value("a", "v1", lambda: compute(2)) == {"value": 1}
+    assert derivation_cache.remembered_value("b", "v1", lambda: compute(3)) == {"value": 3}
+    assert derivation_cache.remembered_value("a", "v2", lambda: compute(4)) == {"value": 4}
+    assert calls == [1, 3, 4]
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
+    assert derivation_cache.remembered_value("a", "v1", lambda: compute(5)) == {"value": 5}
+
+
+def test_a_damaged_remembered_value_is_computed_again(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    derivation_cache.remembered_value("a", "v1", lambda: [1.5])
+    [entry] = (tmp_path / "values").iterdir()
+    entry.write_bytes(entry.read_bytes()[:-3])
+    assert derivation_cache.remembered_value("a", "v1", lambda: [2.5]) == [2.5]
+    assert "damaged" in capsys.readouterr().err
+    assert derivation_cache.remembered_value("a", "v1", lambda: [3.5]) == [2.5]

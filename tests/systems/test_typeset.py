@@ -116,3 +116,25 @@ def test_large_systems_are_typeset_in_part_and_the_rest_is_text():
     assert len(formulas) > 50
     assert all(f.text for f in formulas)
     assert any(outline(f.latex) is not None for f in formulas[:10] if f.latex)
+
+
+def test_a_typeset_from_the_cache_is_the_one_set(tmp_path, monkeypatch):
+    # the window's layout (typeset_as_text, then with_outlines) is remembered on disk:
+    # a second opening reads it instead of seconds of sympy and mathtext
+    import numpy as np
+
+    from systems import typeset as module
+
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    mechanics = derive(load_scene("double_pendulum"))
+    first = module.with_outlines(module.typeset_as_text(mechanics))
+    module.outline.cache_clear()
+    monkeypatch.setattr(module, "typeset_derivation", None)  # a second computation fails
+    monkeypatch.setattr(module, "_outline", None)
+    again = module.with_outlines(module.typeset_as_text(mechanics))
+    assert again.text == first.text and len(again.parts) == len(first.parts)
+    for a, b in zip(again.formulas, first.formulas, strict=True):
+        assert (a.text, a.latex, a.lead, len(a.pieces)) == (b.text, b.latex, b.lead, len(b.pieces))
+        for x, y in zip((a.outline, *a.pieces), (b.outline, *b.pieces), strict=True):
+            assert np.array_equal(x.vertices, y.vertices) and np.array_equal(x.codes, y.codes)
+            assert (x.width, x.ascent, x.descent) == (y.width, y.ascent, y.descent)
