@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from systems.chaos.map_kernels import loop_module
 from systems.chaos.variational import NotApplicable, Tangent, extended
 
 CHAOTIC_MEGNO = 4.0
@@ -276,6 +275,8 @@ def map_kernel(
     y0 = extended(compiled.initial_state(t0), vector[:, None])
     coef = family.coefficients(stepper, tangent, t0, y0, False)
     fns = tangent.functions(family.functions)
+    from systems.chaos.map_kernels import loop_module  # numba: only once a map runs
+
     loop = getattr(loop_module(), f"{family.kernel}_megno_parallel")
     return MapKernel(
         tangent, method, float(dt), float(t0), float(t_end), nsteps, vector, loop, fns, coef
