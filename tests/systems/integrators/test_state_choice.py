@@ -137,7 +137,9 @@ def test_where_the_motion_is_chaotic_the_error_is_measured_only_while_references
     stretch = float(re.search(r"per unit time up to t = (\S+), times 300", why).group(1))
     assert stretch < 300.0
     ours, theirs = _claimed(why)
-    assert ours < theirs <= MARGIN * ENERGY_TARGET
+    # where the references part is round-off's chance (dop853's claim was 4e-11 or
+    # 2.4e-10 as the taylor loop's sums changed order): the choice keeps the target
+    assert ours <= MARGIN * ENERGY_TARGET and ours < theirs
 
 
 def test_the_same_scene_and_start_always_get_the_same_choice_and_numbers():
