@@ -107,13 +107,18 @@ class GrowthWatch:
         """Record the decades passed in a block; the first row where a coordinate is
         ``at_least`` times its scale, grown steadily, as (row, ``Growth``), else None."""
         found = None
-        if not len(t):
+        if not len(t) or not self.watched:
             return None
-        for i in self.watched:
+        watched = self.watched
+        # fmax passes NaN by (a row of NaN cannot hide a decade another row passed)
+        tops = np.fmax.reduce(np.abs(y[:, watched]), axis=0) / self.scale[watched]
+        for i, top in zip(watched, tops.tolist(), strict=True):
+            crossed = self.crossed[i]
+            if not top >= 10.0 ** (len(crossed) + 1):  # no new decade (or not finite)
+                continue
             size = np.abs(y[:, i]) / self.scale[i]
             size = np.where(np.isfinite(size), size, 0.0)
             top = float(size.max())
-            crossed = self.crossed[i]
             while len(crossed) < MAX_DECADES and top >= 10.0 ** (len(crossed) + 1):
                 level = 10.0 ** (len(crossed) + 1)
                 row = int(np.argmax(size >= level))

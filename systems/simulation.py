@@ -462,8 +462,12 @@ class Run:
         diag = _diagnostics(self.compiled, self.diagnostics, t, y)
         if self.watch_energy and status in ("running", "ok", "budget") and len(t):
             H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
-            scale = self.energy_scale(float(t[-1]), y[-1])
-            worst = float(np.max(np.abs(H - self.H0))) / scale
+            worst = scale = float(np.max(np.abs(H - self.H0)))
+            # the scale is at least H_scale: only an error past that needs the terms'
+            scale = self.H_scale
+            if not worst <= self.energy_tolerance * scale:
+                scale = self.energy_scale(float(t[-1]), y[-1])
+            worst /= scale
             if not math.isfinite(worst):
                 status = "energy_error"
                 message = f"the energy became non-finite by t = {t[-1]:.6g} (the numbers overflow)"
