@@ -139,7 +139,9 @@ def _value_type(numba_type):
 class _Writer:
     """Writes the IR of one function with llvmlite's IR builder."""
 
-    def __init__(self, module, spec: FunctionSpec, rename: dict):
+    def __init__(self, module, spec: FunctionSpec, rename: dict, symbol: str | None = None):
+        """``symbol``: the function's name in the module, if not ``spec.name`` (whose
+        signature it has)."""
         from llvmlite import ir
 
         self.ir = ir
@@ -151,7 +153,7 @@ class _Writer:
         argument_types = [_value_type(a) for a in sig.args]
         self.result_type = _value_type(sig.return_type)
         function_type = ir.FunctionType(self.result_type, argument_types)
-        self.function = ir.Function(module, function_type, name=spec.name)
+        self.function = ir.Function(module, function_type, name=symbol or spec.name)
         block = self.function.append_basic_block("entry")
         self.b = ir.IRBuilder(block)
         self.names: dict[str, object] = {}  # symbols and temporaries by name
@@ -494,8 +496,10 @@ class _ObjectFile:
 
 class LLVMKernels:
     """A scene's system functions compiled from LLVM IR (``write_ir``'s text; ``names``
-    the functions in it): optimised (LLVM's pipeline at ``speed_level``) and turned into
-    machine code by LLVM alone, for a generic x86-64 or (``host``) this CPU.
+    the functions in it): optimised (LLVM's pipeline at ``speed_level``: the module's,
+    or with ``optimise`` the function simplification pipeline on those functions alone,
+    the others left as written) and turned into machine code by LLVM alone, for a
+    generic x86-64 or (``host``) this CPU.
 
     ``functions[name]`` are the values the drivers take; attribute access gives a
     function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
@@ -503,14 +507,22 @@ class LLVMKernels:
     """
 
     def __init__(
-        self, ir_text: str, names: Sequence[str], speed_level: int = 3, host: bool = False
+        self,
+        ir_text: str,
+        names: Sequence[str],
+        speed_level: int = 3,
+        host: bool = False,
+        optimise: Sequence[str] | None = None,
     ):
         llvm = _llvm()
         if SOLVER_SYMBOL in ir_text:
             _bind_solver()
-        # the machine code is keyed by what made it: the text, and a level other than 3
-        # or the host's own instructions (the key has the CPU and its features already)
-        options = "" if (speed_level, host) == (3, False) else f"; {speed_level} {host}\n"
+        # the machine code is keyed by what made it: the text, and a level other than 3,
+        # the host's own instructions (the key has the CPU and its features already) or
+        # optimising some functions only
+        options = ""
+        if (speed_level, host, optimise) != (3, False, None):
+            options = f"; {speed_level} {host} {optimise}\n"
         stored = _ObjectFile(options + ir_text)
         with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
             parsed = llvm.parse_assembly(ir_text)
@@ -520,7 +532,12 @@ class LLVMKernels:
             if stored.code is None:  # optimised only where machine code is made of it
                 options = llvm.create_pipeline_tuning_options(speed_level=speed_level)
                 builder = llvm.create_pass_builder(machine, options)
-                builder.getModulePassManager().run(parsed, builder)
+                if optimise is None:
+                    builder.getModulePassManager().run(parsed, builder)
+                else:
+                    passes = builder.getFunctionPassManager()
+                    for name in optimise:
+                        passes.run(parsed.get_function(name), builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)
             self._engine.set_object_cache(stored.keep, stored.give)
             with _stop_signals_held():

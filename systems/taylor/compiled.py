@@ -59,6 +59,9 @@ _INTRINSIC = {
 }
 
 
+LOOPED = "_looped"
+"""The looped form's name: the function's with this suffix."""
+
 UNROLLED = 20
 """The order written out in full (the order at the default tolerance, machine epsilon)."""
 UNROLL_BUDGET = 3000
@@ -99,11 +102,20 @@ class _Writer(llvm_kernels._Writer):
     """``taylor_coefficients`` of one decomposition."""
 
     def __init__(
-        self, module, decomposition: Decomposition, unrolled: int | None = None, name=NAME
+        self,
+        module,
+        decomposition: Decomposition,
+        unrolled: int | None = None,
+        name=NAME,
+        looped=None,
     ):
+        """``looped`` None: the looped form, named ``name + LOOPED``; else the function
+        ``name``, calling ``looped`` (the looped form's function) for every order but
+        ``unrolled`` (None: for all), whose terms it has written out."""
         spec = llvm_kernels.FunctionSpec(name, ("t", "y", "P", "out"), (), ())
-        super().__init__(module, spec, {})
+        super().__init__(module, spec, {}, name if looped is not None else name + LOOPED)
         self.unrolled = unrolled
+        self.looped = looped
         self.d = decomposition
         self.m = decomposition.m
         self.width = decomposition.m + len(decomposition.nodes)
@@ -139,8 +151,10 @@ class _Writer(llvm_kernels._Writer):
         return self.b.load(self.b.gep(y, [self.int(i)]), name=f"y{i}")
 
     def at(self, column: int, k):
-        """Pointer to ``out[k, column]`` (k an i64 value)."""
+        """Pointer to ``out[k, column]`` (k an i64 value or a number)."""
         b = self.b
+        if isinstance(k, int):
+            return b.gep(self.data["out"], [self.int(k * self.width + column)])
         index = b.add(b.mul(k, self.int(self.width)), self.int(column))
         return b.gep(self.data["out"], [index])
 
@@ -205,27 +219,23 @@ class _Writer(llvm_kernels._Writer):
         out_argument = self.function.args[3]
         rows = b.extract_value(out_argument, [5, 0], name="rows")
         N = b.sub(rows, self.int(1), name="N")
-        y = self.data["y"]
-        zero = self.int(0)
-        for j in range(len(d.parameters)):  # in the entry block: it dominates every use
-            self.value0(Arg("par", j))
-        for i in range(m):
-            value = self.state_value(y, i)
-            self.order0[i] = value
-            b.store(value, self.at(i, zero))
-        for index, node in enumerate(d.nodes):
-            column = m + index
-            value = self.value_of(node)
-            self.order0[column] = value
-            b.store(value, self.at(column, zero))
-        if self.unrolled is not None:  # the default order: straight-line code
+        if self.looped is not None and self.unrolled is None:
+            b.call(self.looped, list(self.function.args))
+            b.ret(self.ir.Constant(self.result_type, None))
+            return
+        if self.looped is not None:  # the default order: straight-line code
             straight = self.function.append_basic_block("unrolled")
-            looped = self.function.append_basic_block("looped")
-            b.cbranch(b.icmp_signed("==", N, self.int(self.unrolled)), straight, looped)
+            other = self.function.append_basic_block("looped")
+            b.cbranch(b.icmp_signed("==", N, self.int(self.unrolled)), straight, other)
+            b.position_at_end(other)
+            b.call(self.looped, list(self.function.args))
+            b.ret(self.ir.Constant(self.result_type, None))
             b.position_at_end(straight)
+            self.prologue()
             self.write_unrolled(self.unrolled)
             b.ret(self.ir.Constant(self.result_type, None))
-            b.position_at_end(looped)
+            return
+        self.prologue()
         # orders 1 .. N - 1: the state's from the outputs' order k - 1, then the nodes'
         before = b.block
         header = self.function.append_basic_block("order")
@@ -253,6 +263,25 @@ class _Writer(llvm_kernels._Writer):
         b.position_at_end(done)
         b.ret(self.ir.Constant(self.result_type, None))
 
+    def prologue(self) -> None:
+        """Order 0: the parameters read, the state copied, every node's value (the
+        constant nodes' among them, once), all stored in ``out``'s row 0."""
+        b = self.b
+        d, m = self.d, self.m
+        zero = 0
+        y = self.data["y"]
+        for j in range(len(d.parameters)):  # first: the block dominates every use
+            self.value0(Arg("par", j))
+        for i in range(m):
+            value = self.state_value(y, i)
+            self.order0[i] = value
+            b.store(value, self.at(i, zero))
+        for index, node in enumerate(d.nodes):
+            column = m + index
+            value = self.value_of(node)
+            self.order0[column] = value
+            b.store(value, self.at(column, zero))
+
     # -- the unrolled form: every order's terms written out ---------------------------------
 
     def write_unrolled(self, N: int) -> None:
@@ -277,20 +306,23 @@ class _Writer(llvm_kernels._Writer):
         zero = self.const(0.0)
         for (column, k), value in self.V.items():  # the nodes' stay in registers
             if k > 0 and column < m:
-                b.store(zero if value is None else value, self.at(column, self.int(k)))
+                b.store(zero if value is None else value, self.at(column, k))
 
     def cv(self, arg: Arg, k: int):
         """``[arg]_k`` (k a number) as an IR value, or None where it is zero."""
         if self.varying(arg):
             return self.V[arg.value, k]
-        return self.value0(arg) if k == 0 else None
+        if k > 0 or (arg.kind == "num" and arg.value == 0.0):
+            return None
+        return self.value0(arg)
 
-    def inverse(self, arg: Arg):
-        """1 / (``arg``'s order-0 value), computed once."""
-        key = arg.value if arg.kind == "u" else (arg.kind, arg.value)
+    def inverse(self, arg: Arg, negative: bool = False):
+        """1 / (``arg``'s order-0 value), or its negative, computed once."""
+        key = (arg.kind, arg.value, negative)
         found = self.inverses.get(key)
         if found is None:
-            found = self.inverses[key] = self.b.fdiv(self.const(1.0), self.value0(arg))
+            one = self.const(-1.0 if negative else 1.0)
+            found = self.inverses[key] = self.b.fdiv(one, self.value0(arg))
         return found
 
     def scaled(self, value, factor):
@@ -381,8 +413,10 @@ class _Writer(llvm_kernels._Writer):
             return self.symmetric(a, k, 0, k)
         if op == "div":
             c = args[1]
-            top = self.combined(self.cv(a, k), self.products(c, me, k, 1, k), subtract=True)
-            return self.scaled(top, self.inverse(c))
+            x, correction = self.cv(a, k), self.products(c, me, k, 1, k)
+            if x is None:  # -correction / c_0, the sign in the reciprocal (exact)
+                return self.scaled(correction, self.inverse(c, negative=True))
+            return self.scaled(self.combined(x, correction, subtract=True), self.inverse(c))
         if op == "pow":
             e = args[1]
             terms = []
@@ -583,8 +617,10 @@ class _BatchWriter(_Writer):
     ``taylor_coefficients`` lane by lane. Functions without a vector form (the libm
     ones) are called lane by lane."""
 
-    def __init__(self, module, decomposition: Decomposition, unrolled: int | None, B: int):
-        super().__init__(module, decomposition, unrolled, name=BATCH_NAME)
+    def __init__(
+        self, module, decomposition: Decomposition, unrolled: int | None, name, looped=None, *, B
+    ):
+        super().__init__(module, decomposition, unrolled, name, looped)
         ir = self.ir
         self.B = B
         self.scalar = ir.DoubleType()
@@ -613,6 +649,8 @@ class _BatchWriter(_Writer):
 
     def at(self, column: int, k):
         b = self.b
+        if isinstance(k, int):
+            return self.vector_at(self.data["out"], self.int((k * self.width + column) * self.B))
         index = b.add(b.mul(k, self.int(self.width)), self.int(column))
         return self.vector_at(self.data["out"], b.mul(index, self.int(self.B)))
 
@@ -670,16 +708,25 @@ def _AlignedBuilder(block):
     return _aligned_builder()(block)
 
 
+def _write(writer, decomposition: Decomposition, name: str, **options):
+    """The module of the function ``name`` and of its looped form (``writer`` the
+    class writing them; ``options`` its own), as LLVM IR text."""
+    from llvmlite import ir
+
+    module = ir.Module(name=f"pe_{name}")
+    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
+    looped = writer(module, decomposition, None, name, **options)
+    looped.write()
+    writer(module, decomposition, unrolled, name, looped=looped.function, **options).write()
+    return str(module)
+
+
 def write_taylor_batch_ir(decomposition: Decomposition, B: int) -> str:
     """The LLVM IR text of ``taylor_batch`` for ``decomposition`` and ``B`` lanes, with a
     first comment line giving m, the width of ``out`` and B."""
-    from llvmlite import ir
-
-    module = ir.Module(name="pe_taylor_batch")
-    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
-    writer = _BatchWriter(module, decomposition, unrolled, B)
-    writer.write()
-    return f"; taylor m={writer.m} width={writer.width} lanes={B}\n{module}"
+    text = _write(_BatchWriter, decomposition, BATCH_NAME, B=B)
+    width = decomposition.m + len(decomposition.nodes)
+    return f"; taylor m={decomposition.m} width={width} lanes={B}\n{text}"
 
 
 def write_taylor_ir(decomposition: Decomposition) -> str:
@@ -691,13 +738,9 @@ def write_taylor_ir(decomposition: Decomposition) -> str:
     llvm_kernels.Unsupported
         An op without a writer here (none of ``decompose.OPS``).
     """
-    from llvmlite import ir
-
-    module = ir.Module(name="pe_taylor")
-    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
-    writer = _Writer(module, decomposition, unrolled)
-    writer.write()
-    return f"; taylor m={writer.m} width={writer.width}\n{module}"
+    text = _write(_Writer, decomposition, NAME)
+    width = decomposition.m + len(decomposition.nodes)
+    return f"; taylor m={decomposition.m} width={width}\n{text}"
 
 
 @dataclass(frozen=True)
@@ -743,6 +786,15 @@ def taylor_code(mechanics) -> TaylorCode:
     return TaylorCode(text, m, width, time.perf_counter() - start)
 
 
+def _kernels(text: str, name: str) -> llvm_kernels.LLVMKernels:
+    """The machine code of ``write_taylor_ir``'s (or the batch's) text: the looped form
+    optimised, the unrolled one (straight-line code already folded: LLVM's passes cost
+    Kepler 40 ms and changed nothing a call) as written."""
+    return llvm_kernels.LLVMKernels(
+        text, (name,), SPEED_LEVEL, host=True, optimise=(name + LOOPED,)
+    )
+
+
 class TaylorKernels:
     """The coefficient function of one scene as machine code.
 
@@ -762,7 +814,7 @@ class TaylorKernels:
         self.mechanics = mechanics
         self._batch = None
         self.m, self.width = code.m, code.width
-        self.kernels = llvm_kernels.LLVMKernels(code.text, (NAME,), SPEED_LEVEL, host=True)
+        self.kernels = _kernels(code.text, NAME)
         self.function = self.kernels.functions[NAME]
         self.seconds = code.seconds + time.perf_counter() - start
 
@@ -774,7 +826,7 @@ class TaylorKernels:
             B = lanes()
             d = taylor_decompose.decompose_mechanics(self.mechanics)
             text = write_taylor_batch_ir(d, B)
-            kernels = llvm_kernels.LLVMKernels(text, (BATCH_NAME,), SPEED_LEVEL, host=True)
+            kernels = _kernels(text, BATCH_NAME)
             self._batch = (kernels, kernels.functions[BATCH_NAME], B)
         return self._batch[1], self._batch[2]
 
