@@ -33,6 +33,7 @@ IR); ``TaylorKernels`` turns it into machine code (``TaylorCode.seconds``,
 from __future__ import annotations
 
 import re
+import struct
 import time
 from dataclasses import dataclass
 
@@ -231,8 +232,7 @@ class _Writer(llvm_kernels._Writer):
             b.call(self.looped, list(self.function.args))
             b.ret(self.ir.Constant(self.result_type, None))
             b.position_at_end(straight)
-            self.prologue()
-            self.write_unrolled(self.unrolled)
+            self.write_straight()
             b.ret(self.ir.Constant(self.result_type, None))
             return
         self.prologue()
@@ -262,6 +262,21 @@ class _Writer(llvm_kernels._Writer):
         b.branch(done)
         b.position_at_end(done)
         b.ret(self.ir.Constant(self.result_type, None))
+
+    def write_straight(self) -> None:
+        """The unrolled form's block (order 0, then ``write_unrolled``), written as text
+        by ``_Text`` (llvmlite's builder spent Kepler's 20 ms in Python, this a fifth):
+        ``self.straight`` holds its lines, for ``_write`` to put in place of the marker
+        comment left in the block."""
+        builder, self.b = self.b, _Text()
+        constant = self.const
+        self.const = self.b.const
+        try:
+            self.prologue()
+            self.write_unrolled(self.unrolled)
+        finally:
+            self.straight, self.b, self.const = self.b.lines, builder, constant
+        builder.comment(_MARKER)
 
     def prologue(self) -> None:
         """Order 0: the parameters read, the state copied, every node's value (the
@@ -629,6 +644,10 @@ class _BatchWriter(_Writer):
         block = self.b.block
         self.b = _AlignedBuilder(block)
 
+    def write_straight(self) -> None:
+        self.prologue()
+        self.write_unrolled(self.unrolled)
+
     def splat(self, scalar):
         """The vector of B copies of ``scalar``."""
         ir, b = self.ir, self.b
@@ -688,6 +707,76 @@ class _BatchWriter(_Writer):
         return result
 
 
+_MARKER = "taylor straight-line code"
+
+
+class _Text:
+    """The part of llvmlite's ``IRBuilder`` the unrolled form of ``taylor_coefficients``
+    uses, on doubles, writing LLVM IR text directly: an operand is a string (a value
+    of this builder, a constant) or an llvmlite value (its reference)."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+        self.constants: dict[float, str] = {}
+
+    def const(self, value: float) -> str:
+        found = self.constants.get(value)
+        if found is None:  # as llvmlite writes a double: its bits in hex
+            bits = struct.unpack("<Q", struct.pack("<d", value))[0]
+            found = self.constants[value] = f"0x{bits:016x}"
+        return found
+
+    def _value(self, text: str) -> str:
+        name = f"%v{len(self.lines)}"
+        self.lines.append(f"  {name} = {text}")
+        return name
+
+    @staticmethod
+    def _ref(value) -> str:
+        return value if isinstance(value, str) else value.get_reference()
+
+    def _binary(self, op: str, x, y) -> str:
+        return self._value(f"{op} double {self._ref(x)}, {self._ref(y)}")
+
+    def fadd(self, x, y):
+        return self._binary("fadd", x, y)
+
+    def fsub(self, x, y):
+        return self._binary("fsub", x, y)
+
+    def fmul(self, x, y):
+        return self._binary("fmul", x, y)
+
+    def fdiv(self, x, y):
+        return self._binary("fdiv", x, y)
+
+    def fneg(self, x):
+        return self._value(f"fneg double {self._ref(x)}")
+
+    def fcmp_ordered(self, op: str, x, y):
+        assert op == "=="
+        return self._value(f"fcmp oeq double {self._ref(x)}, {self._ref(y)}")
+
+    def select(self, condition, x, y):
+        return self._value(f"select i1 {condition}, double {self._ref(x)}, double {self._ref(y)}")
+
+    def gep(self, pointer, indices):
+        (index,) = indices
+        return self._value(
+            f"getelementptr double, double* {self._ref(pointer)}, i64 {self._ref(index)}"
+        )
+
+    def load(self, pointer, name=""):
+        return self._value(f"load double, double* {self._ref(pointer)}")
+
+    def store(self, value, pointer):
+        self.lines.append(f"  store double {self._ref(value)}, double* {self._ref(pointer)}")
+
+    def call(self, function, args):
+        operands = ", ".join(f"double {self._ref(a)}" for a in args)
+        return self._value(f"call double {function.get_reference()}({operands})")
+
+
 def _aligned_builder():
     from llvmlite import ir
 
@@ -717,8 +806,13 @@ def _write(writer, decomposition: Decomposition, name: str, **options):
     unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
     looped = writer(module, decomposition, None, name, **options)
     looped.write()
-    writer(module, decomposition, unrolled, name, looped=looped.function, **options).write()
-    return str(module)
+    main = writer(module, decomposition, unrolled, name, looped=looped.function, **options)
+    main.write()
+    text = str(module)
+    if unrolled is None or not hasattr(main, "straight"):
+        return text
+    before, after = text.split(f"  ; {_MARKER}\n")
+    return "".join((before, "\n".join(main.straight), "\n", after))
 
 
 def write_taylor_batch_ir(decomposition: Decomposition, B: int) -> str:
