@@ -63,18 +63,26 @@ _INTRINSIC = {
 LOOPED = "_looped"
 """The looped form's name: the function's with this suffix."""
 
+FMA_GROUP = 2
+"""Products of a sum of the unrolled form per fused multiply-add chain (``_Writer.dot``):
+x0 y0 + x1 y1 as fma(x1, y1, x0 y0), the pairs summed pairwise. Against a product each
+(then pairwise): the double pendulum compiled 11% faster and ran 11% faster (0.84
+against 0.95 us a call), Kepler and Hénon–Heiles alike; chains of 3, 4 or 6 made
+Kepler 5-20% slower a call."""
+
 UNROLLED = 20
 """The order written out in full (the order at the default tolerance, machine epsilon)."""
 UNROLL_BUDGET = 3000
 """The most products of the unrolled form (``unrolled_terms``) written out; a larger
 system has the looped form alone (the double pendulum's 2970 compile in about 0.4 s)."""
-SPEED_LEVEL = 2
-"""LLVM's pipeline for the coefficient function: at level 3 the unrolled form compiled
-1.5-2x slower and ran 1.3-1.5x slower (the double pendulum 1.75 against 1.21 us a call,
-Kepler 0.53 against 0.36); the looped form is the same at both. Compiled for this CPU
-(``LLVMKernels(host=True)``): Kepler 0.32 us a call against 0.36 for a generic x86-64;
-with FMA contraction allowed in the sequential sums it was 0.40. Pairwise sums
-(``_Writer.total``) then took Kepler to 0.26 us and Hénon–Heiles from 0.14 to 0.11."""
+SPEED_LEVEL = 1
+"""LLVM's pipeline for the looped form, the function simplification pipeline on it
+alone (``LLVMKernels(optimise=...)``): level 1 ran as fast as 2 at order 15 and
+compiled 2-14 ms sooner. The unrolled form has no pass (straight-line code already
+folded: LLVM's level 2 cost Kepler 40 ms and changed nothing a call; level 3 had made
+it 1.3-1.5x slower). Both compiled for this CPU (``LLVMKernels(host=True)``): Kepler
+0.32 us a call against 0.36 for a generic x86-64. Pairwise sums (``_Writer.total``)
+took Kepler from 0.32 to 0.26 us a call and Hénon–Heiles from 0.14 to 0.11."""
 
 
 def unrolled_terms(decomposition: Decomposition, order: int) -> int:
@@ -386,8 +394,20 @@ class _Writer(llvm_kernels._Writer):
                 x = self.weighted[key]
             elif weight is not None:
                 x = self.scaled(x, float(k - j))
-            terms.append(self.b.fmul(x, y))
-        return self.total(terms)
+            terms.append((x, y))
+        return self.dot(terms)
+
+    def dot(self, pairs):
+        """``sum x y`` over the (x, y) of ``pairs``: groups of ``FMA_GROUP`` consecutive
+        products, each a product and a chain of fused multiply-adds, summed pairwise."""
+        groups = []
+        for i in range(0, len(pairs), FMA_GROUP):
+            group = pairs[i : i + FMA_GROUP]
+            value = self.b.fmul(*group[0])
+            for x, y in group[1:]:
+                value = self._call("llvm.fma.f64", [x, y, value])
+            groups.append(value)
+        return self.total(groups)
 
     def symmetric(self, a: Arg, k: int, start: int, stop: int):
         """``sum_{j=start}^{stop} [a]_j [a]_{k-j}`` with stop = k - start, each pair of
@@ -398,8 +418,8 @@ class _Writer(llvm_kernels._Writer):
                 break
             x, y = self.cv(a, j), self.cv(a, k - j)
             if x is not None and y is not None:
-                half.append(self.b.fmul(x, y))
-        result = self.scaled(self.total(half), 2.0)
+                half.append((x, y))
+        result = self.scaled(self.dot(half), 2.0)
         if k % 2 == 0 and start <= k // 2 <= stop:
             x = self.cv(a, k // 2)
             if x is not None:
@@ -443,8 +463,8 @@ class _Writer(llvm_kernels._Writer):
                     factor = self.const(e.value * (k - j) - j)
                 else:
                     factor = b.fsub(b.fmul(self.value0(e), self.const(k - j)), self.const(j))
-                terms.append(b.fmul(b.fmul(factor, x), p))
-            return self.scaled(self.scaled(self.total(terms), 1.0 / k), self.inverse(a))
+                terms.append((b.fmul(factor, x), p))
+            return self.scaled(self.scaled(self.dot(terms), 1.0 / k), self.inverse(a))
         if op == "sqrt":
             top = self.combined(self.cv(a, k), self.symmetric(me, k, 1, k - 1), subtract=True)
             return self.scaled(self.scaled(top, 0.5), self.inverse(me))
