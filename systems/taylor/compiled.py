@@ -95,6 +95,7 @@ def unrolled_terms(decomposition: Decomposition, order: int) -> int:
             continue
         if node.op == "mul" and any(
             a.kind != "u"
+            or a.value in decomposition.conserved
             or (
                 a.value >= decomposition.m
                 and decomposition.nodes[a.value - decomposition.m].constant
@@ -141,7 +142,9 @@ class _Writer(llvm_kernels._Writer):
         """Whether ``arg`` has coefficients of order > 0 (a column written at each k)."""
         if arg.kind != "u":
             return False
-        return arg.value < self.m or not self.d.nodes[arg.value - self.m].constant
+        if arg.value < self.m:
+            return arg.value not in self.d.conserved
+        return not self.d.nodes[arg.value - self.m].constant
 
     def value0(self, arg: Arg):
         """``arg``'s value at order 0."""

@@ -116,12 +116,17 @@ class Decomposition:
         ``deps`` may be later nodes: they are read at lower orders only).
     outputs : tuple of Arg
         dy_i/dt for each state variable, (m,).
+    conserved : tuple of int
+        The state variables whose dy_i/dt is 0 (p_theta of a central force): constant
+        like a parameter, read from the state (a node of them and of constants is a
+        constant node).
     """
 
     variables: tuple[str, ...]
     parameters: tuple[str, ...]
     nodes: tuple[Node, ...]
     outputs: tuple[Arg, ...]
+    conserved: tuple[int, ...] = ()
 
     @property
     def m(self) -> int:
@@ -165,7 +170,8 @@ _PAIRS = {"sin": "cos", "cos": "sin", "sinh": "cosh", "cosh": "sinh"}
 
 
 class _Builder:
-    def __init__(self, variables, parameters, time):
+    def __init__(self, variables, parameters, time, conserved=()):
+        self.conserved = frozenset(conserved)
         self.index = {symbol: Arg("u", i) for i, symbol in enumerate(variables)}
         self.index.update({symbol: Arg("par", j) for j, symbol in enumerate(parameters)})
         self.time = time
@@ -179,7 +185,9 @@ class _Builder:
     def constant(self, arg: Arg) -> bool:
         if arg.kind != "u":
             return True
-        return arg.value >= self.m and self.nodes[arg.value - self.m].constant
+        if arg.value < self.m:
+            return arg.value in self.conserved
+        return self.nodes[arg.value - self.m].constant
 
     def node(self, op: str, *args: Arg, deps: tuple[int, ...] = ()) -> Arg:
         """The node ``op(*args)``, shared with an equal one already made."""
@@ -370,12 +378,34 @@ class _Builder:
         top = None  # the coefficient last, so that x*y is shared by 2*x*y and x*y
         for a in numerator:
             top = a if top is None else self.mul(top, a)
+        if top is None or self.constant(top):
+            varying = [a for a in denominator if not self.constant(a)]
+            if varying:  # a constant over a varying product: see _reciprocal
+                return self._reciprocal(top, coefficient, denominator, varying)
         bottom = None
         for a in denominator:
             bottom = a if bottom is None else self.mul(bottom, a)
         if bottom is not None:
             top = self.div(Arg("num", 1.0) if top is None else top, bottom)
         return Arg("num", coefficient) if top is None else self.mul(top, Arg("num", coefficient))
+
+    def _reciprocal(self, top, coefficient: float, denominator, varying) -> Arg:
+        """``coefficient top / prod(denominator)`` with ``top`` constant (None: 1) and
+        ``varying`` the denominator's varying factors: the constant ``coefficient top /
+        (the constant factors)`` times the node ``1 / prod(varying)``. The quotient
+        costs what ``div(top, bottom)`` did (k products an order), and every constant
+        over the same varying product (k / r**2 and p_theta / (m r**2) in polar Kepler,
+        p_theta conserved) shares the one reciprocal: a scaling each."""
+        constant = Arg("num", coefficient)
+        if top is not None:
+            constant = self.mul(top, constant)
+        for a in denominator:
+            if self.constant(a):
+                constant = self.div(constant, a)
+        bottom = None
+        for a in varying:
+            bottom = a if bottom is None else self.mul(bottom, a)
+        return self.mul(self.div(Arg("num", 1.0), bottom), constant)
 
     def _power(self, base, exponent) -> Arg:
         if base == sympy.E:
@@ -406,6 +436,8 @@ def decompose(
     variables: Sequence[sympy.Symbol],
     parameters: Sequence[sympy.Symbol] = (),
     time: sympy.Symbol | None = None,
+    *,
+    conserve: bool = False,
 ) -> Decomposition:
     """The Taylor decomposition of ``dy_i/dt = exprs[i]``.
 
@@ -418,6 +450,9 @@ def decompose(
     parameters : sequence of sympy Symbols, (k,)
         Read at run time from P (k,).
     time : sympy Symbol, optional
+    conserve : bool
+        Treat a variable whose right-hand side is 0 as a constant (``conserved``): for
+        the ODE alone, not for series of the variables given otherwise.
 
     Returns
     -------
@@ -433,13 +468,16 @@ def decompose(
 
     if len(exprs) != len(variables):
         raise ValueError(f"{len(exprs)} right-hand sides for {len(variables)} variables")
-    builder = _Builder(tuple(variables), tuple(parameters), time)
-    outputs = tuple(builder.arg(as_expr(e)) for e in exprs)
+    exprs = [as_expr(e) for e in exprs]
+    conserved = tuple(i for i, e in enumerate(exprs) if conserve and e == 0)
+    builder = _Builder(tuple(variables), tuple(parameters), time, conserved)
+    outputs = tuple(builder.arg(e) for e in exprs)
     return Decomposition(
         tuple(str(v) for v in variables),
         tuple(str(p) for p in parameters),
         tuple(builder.nodes),
         outputs,
+        conserved,
     )
 
 
@@ -480,4 +518,5 @@ def decompose_mechanics(mechanics) -> Decomposition:
         (*mechanics.q, *mechanics.p),
         parameters,
         mechanics.t,
+        conserve=True,
     )
