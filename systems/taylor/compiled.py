@@ -313,7 +313,8 @@ class _Writer(llvm_kernels._Writer):
     def write_unrolled(self, N: int) -> None:
         """Orders 1..N with k a number: no loop, no index arithmetic, a constant's terms
         dropped, divisions by a node's order-0 value a product with its reciprocal
-        (computed once), every value kept in a register and stored once."""
+        (computed once), the nodes' values kept in registers, the state's stored as
+        soon as made."""
         b = self.b
         d, m = self.d, self.m
         self.V: dict[tuple[int, int], object] = {}
@@ -321,18 +322,19 @@ class _Writer(llvm_kernels._Writer):
         self.weighted: dict[tuple, object] = {}
         for column, value in self.order0.items():
             self.V[column, 0] = value
+        zero = self.const(0.0)
         for k in range(1, N + 1):
             for i, output in enumerate(d.outputs):
-                self.V[i, k] = self.scaled(self.cv(output, k - 1), 1.0 / k)
+                # stored at once: a value no later order reads is then dead (against
+                # stores at the end: Kepler and Hénon–Heiles compiled 8% faster and ran
+                # 10% faster a call)
+                value = self.V[i, k] = self.scaled(self.cv(output, k - 1), 1.0 / k)
+                b.store(zero if value is None else value, self.at(i, k))
             if k == N:
                 break
             for index, node in enumerate(d.nodes):
                 if not node.constant:
                     self.V[m + index, k] = self.unrolled_recurrence(node, m + index, k)
-        zero = self.const(0.0)
-        for (column, k), value in self.V.items():  # the nodes' stay in registers
-            if k > 0 and column < m:
-                b.store(zero if value is None else value, self.at(column, k))
 
     def cv(self, arg: Arg, k: int):
         """``[arg]_k`` (k a number) as an IR value, or None where it is zero."""
