@@ -498,8 +498,9 @@ class LLVMKernels:
     """A scene's system functions compiled from LLVM IR (``write_ir``'s text; ``names``
     the functions in it): optimised (LLVM's pipeline at ``speed_level``: the module's,
     or with ``optimise`` the function simplification pipeline on those functions alone,
-    the others left as written) and turned into machine code by LLVM alone, for a
-    generic x86-64 or (``host``) this CPU.
+    or the function ``passes`` named so (llvmlite's ``add_<name>_pass``), the others
+    left as written) and turned into machine code by LLVM alone, for a generic x86-64
+    or (``host``) this CPU.
 
     ``functions[name]`` are the values the drivers take; attribute access gives a
     function callable from Python with the arguments of ``systems.codegen.SIGNATURES``
@@ -513,6 +514,7 @@ class LLVMKernels:
         speed_level: int = 3,
         host: bool = False,
         optimise: Sequence[str] | None = None,
+        passes: Sequence[str] | None = None,
     ):
         llvm = _llvm()
         if SOLVER_SYMBOL in ir_text:
@@ -521,8 +523,8 @@ class LLVMKernels:
         # the host's own instructions (the key has the CPU and its features already) or
         # optimising some functions only
         options = ""
-        if (speed_level, host, optimise) != (3, False, None):
-            options = f"; {speed_level} {host} {optimise}\n"
+        if (speed_level, host, optimise, passes) != (3, False, None, None):
+            options = f"; {speed_level} {host} {optimise} {passes}\n"
         stored = _ObjectFile(options + ir_text)
         with _compile_lock:  # LLVM's optimiser and MCJIT are not thread-safe here
             parsed = llvm.parse_assembly(ir_text)
@@ -535,9 +537,14 @@ class LLVMKernels:
                 if optimise is None:
                     builder.getModulePassManager().run(parsed, builder)
                 else:
-                    passes = builder.getFunctionPassManager()
+                    if passes is None:
+                        manager = builder.getFunctionPassManager()
+                    else:
+                        manager = llvm.create_new_function_pass_manager()
+                        for name in passes:
+                            getattr(manager, f"add_{name}_pass")()
                     for name in optimise:
-                        passes.run(parsed.get_function(name), builder)
+                        manager.run(parsed.get_function(name), builder)
             self._engine = llvm.create_mcjit_compiler(parsed, machine)
             self._engine.set_object_cache(stored.keep, stored.give)
             with _stop_signals_held():

@@ -10,20 +10,26 @@ It writes ``out[k, i] = [u_i]_k``: the state variables' coefficients (columns 0.
 for k = 0..N, every node's (columns m..) at k = 0 and, in the looped form, for
 k = 1..N-1 (order N of a node is not needed for the state's). N is read from ``out``'s
 shape at run time, so one function serves every tolerance. A constant node (free of
-the state and of time) is written at order 0 only: its higher coefficients are zero and
-no recurrence reads them (a product with it is a scaling, a sum with it touches order 0
-only; elsewhere a read of a constant's order k > 0 is the number 0).
+the state and of time, or of a conserved variable: ``Decomposition.conserved``) is
+written at order 0 only: its higher coefficients are zero and no recurrence reads them
+(a product with it is a scaling, a sum with it touches order 0 only; elsewhere a read
+of a constant's order k > 0 is the number 0).
 
-The code is a prologue (order 0: the parameters read, the state copied, every node's
-value, the constant nodes among them, once), then one of two forms, chosen by N:
+Each form is a prologue (order 0: the parameters read, the state copied, every node's
+value, the constant nodes among them, once), then the orders:
 
-- *unrolled*, for N = ``UNROLLED`` (the order at the default tolerance) where the
-  scene's products (``unrolled_terms``) are at most ``UNROLL_BUDGET``: every order's
-  terms written out, a constant's terms dropped, the nodes' coefficients kept in
-  registers (only the state's are stored: node columns of orders >= 1 are left as they
-  were), divisions by an order-0 value products with its reciprocal;
-- *looped*, for any other N (or every N of a larger system): a loop over k, each node's
-  sum an inner loop over j: small IR, compiled in milliseconds whatever the order.
+- *unrolled*, ``taylor_coefficients`` itself for N = ``UNROLLED`` (the order at the
+  default tolerance) where the scene's products (``unrolled_terms``) are at most
+  ``UNROLL_BUDGET``: every order's terms written out as IR text (``_Text``), a
+  constant's terms dropped, the sums of products pairs of a product and a fused
+  multiply-add summed pairwise (``FMA_GROUP``), the nodes' coefficients kept in
+  registers (only the state's are stored, as soon as made: node columns of orders >= 1
+  are left as they were), divisions by an order-0 value products with its reciprocal;
+  no LLVM pass runs on it (straight-line code, already folded);
+- *looped*, ``taylor_coefficients_looped`` (``LOOPED``), which ``taylor_coefficients``
+  calls for any other N (for every N where the budget is exceeded): a loop over k, each
+  node's sum an inner loop over j: small IR, compiled (``LOOPED_PASSES``) in
+  milliseconds whatever the order.
 
 ``taylor_code`` writes it (remembered on disk per scene, like the tangent functions'
 IR); ``TaylorKernels`` turns it into machine code (``TaylorCode.seconds``,
@@ -75,14 +81,16 @@ UNROLLED = 20
 UNROLL_BUDGET = 3000
 """The most products of the unrolled form (``unrolled_terms``) written out; a larger
 system has the looped form alone (the double pendulum's 2970 compile in about 0.4 s)."""
-SPEED_LEVEL = 1
-"""LLVM's pipeline for the looped form, the function simplification pipeline on it
-alone (``LLVMKernels(optimise=...)``): level 1 ran as fast as 2 at order 15 and
-compiled 2-14 ms sooner. The unrolled form has no pass (straight-line code already
-folded: LLVM's level 2 cost Kepler 40 ms and changed nothing a call; level 3 had made
-it 1.3-1.5x slower). Both compiled for this CPU (``LLVMKernels(host=True)``): Kepler
-0.32 us a call against 0.36 for a generic x86-64. Pairwise sums (``_Writer.total``)
-took Kepler from 0.32 to 0.26 us a call and Hénon–Heiles from 0.14 to 0.11."""
+LOOPED_PASSES = ("instruction_combine", "new_gvn")
+"""LLVM's passes on the looped form (``LLVMKernels(optimise=..., passes=...)``): at order
+15 the level-1 pipeline made calls 1-2% faster (the double pendulum 0.917 against 0.936
+us, Hénon–Heiles 0.213 against 0.216, Kepler alike) and cost 2.5-6 ms more to compile;
+no pass at all, 2-7% slower calls for 4-15 ms less. The unrolled form has no pass
+(straight-line code already folded: LLVM's level 2 cost Kepler 40 ms and changed
+nothing a call; level 3 had made it 1.3-1.5x slower). Both compiled for this CPU
+(``LLVMKernels(host=True)``): Kepler 0.32 us a call against 0.36 for a generic x86-64.
+Pairwise sums (``_Writer.total``) took Kepler from 0.32 to 0.26 us a call and
+Hénon–Heiles from 0.14 to 0.11."""
 
 
 def unrolled_terms(decomposition: Decomposition, order: int) -> int:
@@ -907,10 +915,9 @@ def taylor_code(mechanics) -> TaylorCode:
 
 def _kernels(text: str, name: str) -> llvm_kernels.LLVMKernels:
     """The machine code of ``write_taylor_ir``'s (or the batch's) text: the looped form
-    optimised, the unrolled one (straight-line code already folded: LLVM's passes cost
-    Kepler 40 ms and changed nothing a call) as written."""
+    optimised (``LOOPED_PASSES``), the unrolled one as written."""
     return llvm_kernels.LLVMKernels(
-        text, (name,), SPEED_LEVEL, host=True, optimise=(name + LOOPED,)
+        text, (name,), host=True, optimise=(name + LOOPED,), passes=LOOPED_PASSES
     )
 
 
