@@ -137,3 +137,29 @@ def test_the_batch_function_is_the_scalar_one_lane_by_lane(name):
         for lane in range(B):
             want = kernels.coefficients(T[lane], Y[:, lane].copy(), P, order)
             assert np.array_equal(out[:, : kernels.m, lane], want[:, : kernels.m]), (order, lane)
+
+
+def test_a_conserved_variable_is_a_constant_and_quotients_share_a_reciprocal():
+    """Polar Kepler: ``decompose_mechanics`` makes p_theta (its equation 0) a constant,
+    so ``p_theta / (m r^2)`` and ``k / r^2`` are scalings of one node ``1 / r^2``; the
+    series are those of the decomposition without ``conserve`` to round-off, and the
+    compiled function's too."""
+    from systems.taylor.decompose import decompose
+
+    mechanics = _mechanics("planetary_motion")
+    d = decompose_mechanics(mechanics)
+    parameters = [mechanics.params[name] for name, _ in mechanics.scene.parameters]
+    variables = (*mechanics.q, *mechanics.p)
+    plain = decompose(mechanics.hamilton_equations, variables, parameters, mechanics.t)
+    assert plain.conserved == () and d.conserved == (3,)
+    quotients = [n for n in d.nodes if n.op == "div" and not n.constant]
+    assert len(quotients) == 1 and quotients[0].args[0].kind == "num"
+    assert len([n for n in plain.nodes if n.op == "div" and not n.constant]) == 2
+    y0, P = np.array([1.9, 0.3, 0.01, 0.43]), np.array([1.2, 0.8])
+    want = taylor_coefficients(plain, 0.0, y0, P, UNROLLED)
+    scale = np.abs(want).max(axis=0)
+    for got in (
+        taylor_coefficients(d, 0.0, y0, P, UNROLLED),
+        load_taylor(mechanics).coefficients(0.0, y0, P, UNROLLED)[:, : d.m],
+    ):
+        assert np.all(np.abs(got - want) <= 2e-15 * scale), np.abs(got - want).max(axis=0) / scale
