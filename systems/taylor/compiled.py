@@ -80,7 +80,7 @@ UNROLLED = 20
 """The order written out in full (the order at the default tolerance, machine epsilon)."""
 UNROLL_BUDGET = 3000
 """The most products of the unrolled form (``unrolled_terms``) written out; a larger
-system has the looped form alone (the double pendulum's 2970 compile in about 0.4 s)."""
+system has the looped form alone (the double pendulum's 2970 compile in about 0.3 s)."""
 LOOPED_PASSES = ("instruction_combine", "new_gvn")
 """LLVM's passes on the looped form (``LLVMKernels(optimise=..., passes=...)``): at order
 15 the level-1 pipeline made calls 1-2% faster (the double pendulum 0.917 against 0.936
