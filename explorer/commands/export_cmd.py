@@ -8,6 +8,13 @@ simplified to its resolution. A CSV holds the states at ``--every DT`` of simula
 (as ``run --every``) or at ``--points N`` evenly spaced times (``run``'s default spacing
 otherwise).
 
+``--poincare --orbits N`` draws a section portrait instead of the scene's one orbit: N
+starts on the section at the start's energy (or ``--energy``), spread over the allowed
+interval of the line p = 0, each orbit's crossings in its own colour
+(``systems.section_orbits``: taylor in SIMD batches over all cores; a scene taylor
+refuses runs one orbit at a time with its own method). The energy error is printed, and
+a warning names the orbits that cannot be trusted (exit status 1, the figure written).
+
 Ctrl+C (or SIGTERM) stops an export at any stage: nothing is written (an existing
 ``--out`` is left as it was) and the status is 130 (143).
 """
@@ -25,6 +32,11 @@ from explorer.commands.errors import UserError, user_errors
 
 PANELS = ("configuration", "phase", "conserved", "workprecision")
 SUFFIXES = (".png", ".svg", ".csv")
+PORTRAIT_CROSSINGS = 2000
+PORTRAIT_T_END = 2000.0
+"""A section portrait's orbits run this long by default (``[view] t_end`` is one orbit's
+drawing, far too short for a section): a few hundred crossings each."""
+MAX_ORBITS = 10_000
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -47,6 +59,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="phase panel: the Poincaré section (two-degree autonomous systems), or the "
         "stroboscopic section of a periodically driven one (t = T, 2T, ...)",
+    )
+    parser.add_argument(
+        "--orbits",
+        type=int,
+        default=None,
+        help="with --poincare: a section portrait of this many orbits from starts spread "
+        "over the section (taylor, in SIMD batches on all cores)",
+    )
+    parser.add_argument(
+        "--energy",
+        type=float,
+        default=None,
+        help="with --orbits: the section's energy (default: the scene's start's)",
+    )
+    parser.add_argument(
+        "--crossings",
+        type=int,
+        default=None,
+        help=f"with --orbits: crossings kept per orbit at most (default {PORTRAIT_CROSSINGS})",
     )
     parser.add_argument("--width", type=int, default=None, help="figure width in pixels (PNG, SVG)")
     parser.add_argument(
@@ -114,6 +145,18 @@ def check_args(args: argparse.Namespace, out: Path) -> None:
         raise UserError(f"--every must be a positive time, not {args.every:g}")
     if args.points is not None and not 2 <= args.points <= 10**7:
         raise UserError(f"--points must be between 2 and 10000000, not {args.points}")
+    portrait_options = (args.energy, args.crossings)
+    if args.orbits is None and any(v is not None for v in portrait_options):
+        raise UserError("--energy and --crossings go with --orbits (a section portrait)")
+    if args.orbits is not None:
+        if not args.poincare or args.panel != "phase" or table:
+            raise UserError("--orbits draws a section portrait: give --poincare and a .png or .svg")
+        if not 1 <= args.orbits <= MAX_ORBITS:
+            raise UserError(f"--orbits must be between 1 and {MAX_ORBITS}, not {args.orbits}")
+        if args.crossings is not None and not 1 <= args.crossings <= 10**6:
+            raise UserError(f"--crossings must be between 1 and 1000000, not {args.crossings}")
+        if args.energy is not None and not math.isfinite(args.energy):
+            raise UserError(f"--energy must be a finite number, not {args.energy}")
     if args.t_end is not None:
         from explorer.commands.run_cmd import check_t_end
 
@@ -148,6 +191,8 @@ def _export(args: argparse.Namespace) -> int:
         scene = load_scene(args.scene)
         if args.panel == "workprecision":
             return _workprecision(scene, args, out, size)
+        if args.orbits is not None:
+            return _portrait(scene, args, out, size)
         try:
             if out.suffix.lower() == ".csv":
                 from explorer.headless import write_csv
@@ -194,3 +239,81 @@ def _workprecision(scene, args, out: Path, size: tuple[int, int] | None) -> int:
     written = render_workprecision(result, out, image_size=size)
     print(f"wrote {written}")
     return 0
+
+
+def _portrait(scene, args, out: Path, size: tuple[int, int] | None) -> int:
+    """``--poincare --orbits N``: the section portrait drawn in the phase panel."""
+    import numpy as np
+
+    from explorer.app import application
+    from explorer.builder import build
+    from explorer.export import export_widget, signals_held
+    from explorer.headless import FIGURE_SIZE, make_panel
+    from explorer.trajectories import TrajectoryStore
+    from systems.section_orbits import default_starts, section_portrait
+    from systems.simulation import Block
+
+    app = application()
+    built = build(scene)
+    compiled = built.compiled
+    view = make_panel("phase")
+    try:
+        view.resize(*FIGURE_SIZE)
+        y0 = compiled.initial_state()
+        view.set_system(compiled, y0)
+        view.set_mode("poincare")
+        if view.mode != "poincare" or view.section is None:
+            raise UserError(
+                "--orbits draws a Poincaré section: it needs an autonomous conservative "
+                "system of two degrees of freedom"
+            )
+        section = view.section
+        with np.errstate(all="ignore"):
+            start_energy = float(compiled.hamiltonian(0.0, y0[None, :])[0])
+        energy = start_energy if args.energy is None else float(args.energy)
+        t_end = PORTRAIT_T_END if args.t_end is None else float(args.t_end)
+        try:
+            starts = default_starts(compiled, section, energy, args.orbits)
+            portrait = section_portrait(
+                compiled, section, energy, starts, t_end=t_end,
+                crossings=args.crossings or PORTRAIT_CROSSINGS, fallback=True,
+            )  # fmt: skip
+        except ValueError as exc:
+            raise UserError(str(exc)) from exc
+        view.set_system(compiled, portrait.starts[0])  # the section's energy: its region
+        store = TrajectoryStore(n_points=len(compiled.point_names), capacity=64)
+        for r, start in enumerate(portrait.starts):
+            trajectory = store.add(start)
+            trajectory.colour = orbit_colour(r, len(portrait.starts))
+            block = Block(
+                t=np.array([0.0]), y=start[None, :], diagnostics={}, status="ok",
+                message=portrait.messages[r], steps=int(portrait.steps[r]), rhs_evaluations=0,
+                method=portrait.method, events_t=portrait.t[r], events_y=portrait.y[r],
+            )  # fmt: skip
+            store.append(trajectory.key, block)
+        with signals_held():
+            view.show()
+            app.processEvents()
+            view.refresh(store)
+            app.processEvents()
+        written = export_widget(view.export_target(), out, size)
+    finally:
+        with signals_held():
+            view.close()
+            view.deleteLater()
+            app.processEvents()
+    print(portrait.summary())
+    for message in [m for m in portrait.messages if m][:5]:
+        print(f"warning: {message}", file=sys.stderr)
+    print(f"wrote {written}")
+    return 0 if portrait.trusted.all() else 1
+
+
+def orbit_colour(index: int, count: int) -> str:
+    """A colour of its own for orbit ``index`` of ``count``: hues evenly around the
+    circle, alternately darker and lighter so that neighbours differ."""
+    import colorsys
+
+    hue = (index / max(count, 1)) % 1.0
+    r, g, b = colorsys.hls_to_rgb(hue, 0.38 if index % 2 else 0.5, 0.85)
+    return f"#{round(255 * r):02x}{round(255 * g):02x}{round(255 * b):02x}"

@@ -1161,6 +1161,191 @@ def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, cou
                 Y[lo + lane, i] = y[i, lane]
 
 
+# -- Poincaré sections of many orbits in SIMD batches (the taylor family) -----------------------
+
+
+def _taylor_lane_value(C, lane, order, i, x, y0, c0):
+    """Component ``i`` of lane ``lane``'s step polynomial at ``x`` from its start ``y0``
+    with compensation ``c0`` (``taylor_sample``'s sum)."""
+    d = C[order, i, lane]
+    for k in range(order - 1, 0, -1):
+        d = d * x + C[k, i, lane]
+    return y0 + (d * x - c0)
+
+
+def _taylor_lane_root(C, lane, order, i, level, h, y0, c0, g1):
+    """The fraction s of the step ``h`` where lane ``lane``'s polynomial of component
+    ``i`` reaches ``level``: ``events._root``'s regula falsi (Illinois) on [0, 1], from
+    g(0) = y0 - level and g(1) = ``g1`` (the state after the step less the level)."""
+    g0 = y0 - level
+    lo = 0.0
+    hi = 1.0
+    g_lo = g0
+    g_hi = g1
+    if g_lo == 0.0:
+        return 0.0
+    if g_hi == 0.0:
+        return 1.0
+    s = 0.5
+    for _ in range(100):
+        s = lo - g_lo * (hi - lo) / (g_hi - g_lo)
+        if not (lo < s and s < hi):
+            s = 0.5 * (lo + hi)
+        gs = _taylor_lane_value(C, lane, order, i, s * h, y0, c0) - level
+        if abs(gs) <= 1e-16 * (abs(g0) + abs(g1)) or hi - lo < 1e-15:
+            return s
+        if (gs < 0.0) == (g_lo < 0.0):
+            lo = s
+            g_lo = gs
+            g_hi *= 0.5
+        else:
+            hi = s
+            g_hi = gs
+            g_lo *= 0.5
+    return s
+
+
+def taylor_batch_section_parallel(
+    fb, Y, clock0, P, coef, section, lanes, ev_t, ev_y, events, status, counts, reached
+):
+    """``taylor_batch_parallel``'s orbits (the same steps: ``fb``, ``_taylor_h``,
+    ``_taylor_lanes``, ``_add``) recording where each crosses the surface ``y[index] =
+    value`` (``section = (index, value, direction, period)``, float64: direction +1
+    upward, -1 downward, 0 both; period > 0 crosses every ``value + period j``, an
+    angle's cut), each crossing located on the lane's own series of the step that
+    crosses (``_taylor_lane_root``: ``events.locate_crossings``' root on the step's
+    polynomial). ``ev_t`` (N, E) and ``ev_y`` (N, E, m) get the crossings, ``events``
+    (N,) their number; a row stops at ``clock0[CLOCK_T_END]`` (``STATUS_END``), when its
+    E crossings are found (``STATUS_RUNNING``) or on a problem (its status, the step
+    undone); ``counts`` (N,) the steps, ``reached`` (N,) the time it stopped at, ``Y``
+    (N, m) its state there."""
+    kahan = coef[1]
+    order = coef[2]
+    width = coef[0]
+    N = Y.shape[0]
+    m = Y.shape[1]
+    B = lanes
+    E = ev_t.shape[1]
+    index = int(section[0])
+    value = section[1]
+    direction = section[2]
+    period = section[3]
+    t0 = clock0[CLOCK_T]
+    t_end = clock0[CLOCK_T_END]
+    for batch in prange((N + B - 1) // B):
+        lo = batch * B
+        n = min(B, N - lo)
+        y = np.empty((m, B))
+        comp = np.zeros((m, B))
+        T = np.full(B, t0)
+        TC = np.zeros(B)
+        C = np.empty((order + 1, width, B))
+        H = np.zeros(B)
+        ends = np.zeros(B, dtype=np.int64)
+        inc = np.empty((m, B))
+        yl = np.empty(m)
+        cl = np.empty(m)
+        live = np.zeros(B, dtype=np.int64)
+        for lane in range(B):
+            row = lo + lane if lane < n else lo  # spare lanes copy a row, unused
+            for i in range(m):
+                y[i, lane] = Y[row, i]
+            if lane < n:
+                live[lane] = 1
+                status[row] = STATUS_RUNNING
+                counts[row] = 0
+                events[row] = 0
+        running = n
+        while running > 0:
+            fb(T, y, P, C)
+            for lane in range(B):  # each lane's step (H 0: none)
+                H[lane] = 0.0
+                if lane >= n or live[lane] == 0:
+                    continue
+                for i in range(m):
+                    yl[i] = y[i, lane]
+                t = T[lane]
+                h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
+                if not h > 4e-14 * max(abs(t), 1.0):
+                    status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                H[lane] = h
+                ends[lane] = 1 if last else 0
+            _taylor_lanes(C, order, H, inc)
+            for lane in range(n):
+                h = H[lane]
+                if h == 0.0:
+                    continue
+                row = lo + lane
+                for i in range(m):
+                    yl[i] = y[i, lane]
+                    cl[i] = comp[i, lane]
+                    _add(yl, cl, i, inc[i, lane], kahan)
+                if not _finite(yl):  # the state stays the step's start
+                    status[row] = STATUS_NON_FINITE
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                counts[row] += 1
+                last = ends[lane] == 1
+                before = y[index, lane] - value
+                after = yl[index] - value
+                first = 0
+                top = 0
+                step = 1
+                if period > 0.0:
+                    kb = math.floor(before / period)
+                    ka = math.floor(after / period)
+                    cb = math.ceil(before / period)
+                    ca = math.ceil(after / period)
+                    if direction >= 0 and ka > kb:
+                        first = int(kb) + 1
+                        top = int(ka) + 1
+                    elif direction <= 0 and ca < cb:
+                        first = int(cb) - 1
+                        top = int(ca) - 1
+                        step = -1
+                elif _crossed(before, after, direction):
+                    top = 1
+                j = first
+                while j != top and events[row] < E:
+                    level = value + period * j
+                    s = _taylor_lane_root(
+                        C, lane, order, index, level, h, y[index, lane], comp[index, lane],
+                        yl[index] - level,
+                    )  # fmt: skip
+                    x = s * h
+                    e = events[row]
+                    ev_t[row, e] = T[lane] + (x - TC[lane])
+                    for i in range(m):
+                        ev_y[row, e, i] = _taylor_lane_value(
+                            C, lane, order, i, x, y[i, lane], comp[i, lane]
+                        )
+                    events[row] = e + 1
+                    j += step
+                for i in range(m):
+                    y[i, lane] = yl[i]
+                    comp[i, lane] = cl[i]
+                if last:
+                    T[lane] = t_end
+                    TC[lane] = 0.0
+                else:
+                    dd = h - TC[lane]
+                    s = T[lane] + dd
+                    TC[lane] = (s - T[lane]) - dd
+                    T[lane] = s
+                if last or events[row] >= E:
+                    status[row] = STATUS_END if last else STATUS_RUNNING
+                    live[lane] = 0
+                    running -= 1
+        for lane in range(n):
+            reached[lo + lane] = T[lane] - TC[lane]
+            for i in range(m):
+                Y[lo + lane, i] = y[i, lane]
+
+
 def taylor_sample_work(coef, m):
     width = coef[0]
     order = coef[2]
