@@ -55,7 +55,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--method",
         default=None,
         help="a fixed-step method (default yoshida4 where it applies, rk4 for a damped or "
-        "forced scene, else gauss_legendre4)",
+        "forced scene, else gauss_legendre4), or taylor: adaptive Taylor series at machine "
+        "precision with the variational equations and MEGNO's integral in its series, the "
+        "orbits in SIMD batches",
     )
     parser.add_argument(
         "--dt", type=float, default=None, help="the step (default 40 per fastest period)"
@@ -188,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         where = f" on the Dask cluster {args.dask}" if args.dask else ""
         print(
-            f"{orbits} orbits to t = {kernel.t:g} ({kernel.method}, dt {kernel.dt:.3g})"
+            f"{orbits} orbits to t = {kernel.t:g} ({kernel.method}, {step_text(kernel)})"
             f"{where}; Ctrl+C stops",
             file=sys.stderr,
             flush=True,
@@ -223,7 +225,8 @@ def run(args: argparse.Namespace) -> int:
             },
             "orbits": orbits,
         },
-        "method": kernel.method, "dt": kernel.dt, "t_end": kernel.t,
+        "method": kernel.method, "dt": None if kernel.taylor else kernel.dt,
+        "tol": kernel.tol if kernel.taylor else None, "t_end": kernel.t,
         "stopped": stopped,
         "wall_s": time.perf_counter() - start,
         "map_s": result.wall_s,
@@ -246,6 +249,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"{stopped} orbits stopped early (shown grey, left out)")
         print(f"wrote {args.out}")
     return 1 if stopped else 0
+
+
+def step_text(kernel) -> str:
+    """'dt 0.143', or 'tol 2.2e-16' for taylor's adaptive steps."""
+    if kernel.taylor is not None:
+        return f"adaptive, tol {kernel.tol:.2g}"
+    return f"dt {kernel.dt:.3g}"
 
 
 def _write(result, indicator: str, scene, out: str, suffix: str, atomic_path) -> None:

@@ -168,6 +168,8 @@ class MapSpec:
     dt: float
     t0: float
     t_end: float
+    tol: float | None = None
+    """taylor's tolerance (its ``dt`` is NaN)."""
 
 
 @dataclass(frozen=True)
@@ -184,9 +186,11 @@ class StrobeSpec:
 
 
 def map_spec(kernel) -> MapSpec:
+    taylor = kernel.method == "taylor"
     return MapSpec(
-        SystemSpec.of(kernel.tangent.compiled), kernel.method, kernel.dt, kernel.t0, kernel.t_end
-    )
+        SystemSpec.of(kernel.tangent.compiled), kernel.method, kernel.dt, kernel.t0, kernel.t_end,
+        kernel.tol if taylor else None,
+    )  # fmt: skip
 
 
 def strobe_spec(kernel) -> StrobeSpec:
@@ -203,7 +207,10 @@ def _map_kernel(spec: MapSpec):
     from systems.chaos.variational import load_tangent
 
     tangent = load_tangent(spec.system.compile())
-    return map_kernel(tangent, t_end=spec.t_end, method=spec.method, dt=spec.dt, t0=spec.t0)
+    dt = None if spec.method == "taylor" else spec.dt
+    return map_kernel(
+        tangent, t_end=spec.t_end, method=spec.method, dt=dt, t0=spec.t0, tol=spec.tol
+    )
 
 
 @functools.lru_cache(maxsize=4)

@@ -189,18 +189,25 @@ class MapKernel:
     fns: tuple = field(repr=False)
     coef: tuple = field(repr=False)
     _entry: object = field(default=None, repr=False)
+    taylor: object = field(default=None, repr=False)
+    """``method == "taylor"``: the extended system's ``taylor_map.TaylorMegno`` (adaptive
+    steps at ``tol``; ``dt`` NaN and ``nsteps`` 0)."""
+    tol: float = math.nan
 
     @property
     def t(self) -> float:
-        """The time every orbit reaches (``t0 + nsteps dt``)."""
+        """The time every orbit reaches (``t0 + nsteps dt``; ``t_end`` with taylor)."""
+        if self.taylor is not None:
+            return self.t_end
         return self.t0 + self.nsteps * self.dt
 
 
 def map_methods() -> tuple[str, ...]:
-    """The methods a map runs: fixed-step ones with an ensemble loop."""
+    """The methods a map runs: fixed-step ones with an ensemble loop, and taylor
+    (adaptive, in SIMD batches: ``systems.chaos.taylor_map``)."""
     from systems.integrators.registry import STEPPERS
 
-    return tuple(name for name, s in STEPPERS.items() if s.family.ensemble)
+    return (*(name for name, s in STEPPERS.items() if s.family.ensemble), "taylor")
 
 
 def default_map_method(mechanics) -> str:
@@ -231,10 +238,13 @@ def map_kernel(
     method: str | None = None,
     dt: float | None = None,
     t0: float = 0.0,
+    tol: float | None = None,
 ) -> MapKernel:
     """The map loop of ``tangent``'s system: ``method`` (default ``default_map_method``)
     at step ``dt`` (default: ``STEPS_PER_PERIOD`` steps per fastest period at the
-    scene's start) from ``t0`` to ``t_end`` (default ``default_t_end(method)``).
+    scene's start) from ``t0`` to ``t_end`` (default ``default_t_end(method)``); with
+    ``method="taylor"`` adaptive steps at ``tol`` (default machine epsilon) instead of
+    ``dt``.
 
     Raises
     ------
@@ -254,12 +264,16 @@ def map_kernel(
             f"a chaos map runs fixed-step methods in one compiled loop, not {method}; "
             f"choose from {', '.join(map_methods())}"
         )
-    reason = method_refusal(mechanics, method)
-    if reason:
-        raise NotApplicable(reason)
     t_end = default_t_end(method) if t_end is None else t_end
     if not (math.isfinite(t_end) and t_end > t0):
         raise NotApplicable(f"the map's end time must be finite and after {t0:g}, not {t_end!r}")
+    if method == "taylor":
+        return _taylor_kernel(tangent, t_end, dt, t0, tol)
+    if tol is not None:
+        raise NotApplicable(f"{method} takes a step (dt), not a tolerance; taylor takes one")
+    reason = method_refusal(mechanics, method)
+    if reason:
+        raise NotApplicable(reason)
     compiled = tangent.compiled
     if dt is None:
         rate = fastest_rate(compiled, t0, compiled.initial_state(t0))
@@ -281,6 +295,28 @@ def map_kernel(
     return MapKernel(
         tangent, method, float(dt), float(t0), float(t_end), nsteps, vector, loop, fns, coef
     )
+
+
+def _taylor_kernel(tangent: Tangent, t_end: float, dt, t0: float, tol) -> MapKernel:
+    """``map_kernel``'s taylor map: the extended system's batch function
+    (``taylor_map.TaylorMegno``), adaptive steps at ``tol``."""
+    from systems.chaos import taylor_map
+
+    if dt is not None:
+        raise NotApplicable("taylor is adaptive: it takes a tolerance, not a step (dt)")
+    tol = float(np.finfo(float).eps) if tol is None else float(tol)
+    if not (1e-16 <= tol <= 1.0):
+        raise NotApplicable(f"the tolerance must be between 1e-16 and 1, not {tol!r}")
+    reason = taylor_map.refusal(tangent.mechanics)
+    if reason:
+        raise NotApplicable(reason)
+    megno = taylor_map.TaylorMegno(tangent.mechanics)
+    n = tangent.n
+    vector = np.ones(2 * n) / math.sqrt(2 * n)
+    return MapKernel(
+        tangent, "taylor", math.nan, float(t0), float(t_end), 0, vector, None, (), (),
+        taylor=megno, tol=tol,
+    )  # fmt: skip
 
 
 def extended_rows(starts: np.ndarray, vector: np.ndarray) -> np.ndarray:
@@ -323,6 +359,13 @@ def map_chunk(
     from systems.integrators.codes import CLOCK_SIZE, Clock
 
     starts = np.asarray(starts, dtype=float)
+    if kernel.taylor is not None:
+        from systems.chaos.taylor_map import taylor_megno_rows
+
+        return taylor_megno_rows(
+            kernel.taylor, kernel.tangent.parameters, starts, kernel.vector, kernel.t0,
+            kernel.t_end, kernel.tol, final=final,
+        )  # fmt: skip
     N = len(starts)
     Y = extended_rows(starts, kernel.vector)
     clock = np.zeros(CLOCK_SIZE)

@@ -1346,6 +1346,153 @@ def taylor_batch_section_parallel(
                 Y[lo + lane, i] = y[i, lane]
 
 
+# -- chaos maps in SIMD batches (the taylor family): MEGNO on the variational system -----------
+# Gauss-Legendre's 8 nodes and weights on [0, 1]: MEGNO's mean over a step from the series
+_GL8_X = (
+    0.019855071751231912, 0.10166676129318664, 0.2372337950418355, 0.4082826787521751,
+    0.5917173212478248, 0.7627662049581645, 0.8983332387068134, 0.9801449282487681,
+)  # fmt: skip
+_GL8_W = (
+    0.05061426814518853, 0.11119051722668721, 0.15685332293894344, 0.18134189168918083,
+    0.18134189168918083, 0.15685332293894344, 0.11119051722668721, 0.05061426814518853,
+)  # fmt: skip
+TANGENT_RESCALE = 1e3
+"""The tangent vector is brought back to unit length when it grows past this (or shrinks
+below its inverse): the step's rule measures every variable against max(1, |y|)."""
+
+
+def _tangent_length(y, lane, n):
+    """|delta| of lane ``lane``'s tangent vector, rows 2n..4n of ``y`` (m, B)."""
+    norm = 0.0
+    for i in range(2 * n, 4 * n):
+        norm += y[i, lane] * y[i, lane]
+    return math.sqrt(norm)
+
+
+def taylor_batch_megno_parallel(fb, Y, clock0, P, coef, lanes, out, status, counts):
+    """MEGNO and the maximal exponent of many orbits with adaptive Taylor steps, in
+    batches of ``lanes`` (``taylor_batch_parallel``'s loop on the extended system of
+    ``systems.chaos.taylor_map``): ``Y`` (N, 4n + 1) rows ``(q, p, dq, dp, W)`` with W'
+    = (t - t0) P[-2] (delta . delta') / |delta|^2, so that MEGNO's Y(t) = 2 W / (P[-2]
+    (t - t0)) (``P[-2]`` = 1 / (t_end - t0) keeps W of order one). Each step adds
+    ``int Y ds`` over the step by Gauss-Legendre on the lane's series of W (8 nodes: the
+    series is the solution over the whole step), so <Y> = that sum / (t - t0); the
+    tangent vector is rescaled to unit length past ``TANGENT_RESCALE`` (its logarithm
+    summed). ``out`` (N, 3): <Y>, ln(|delta(t)| / |delta(0)|) / (t - t0) and Y(t) at
+    ``clock0[CLOCK_T_END]`` (or where a problem stopped the row: ``status`` (N,)
+    ``STATUS_END`` or the problem), ``counts`` (N,) the steps; ``Y`` gets the end."""
+    kahan = coef[1]
+    order = coef[2]
+    width = coef[0]
+    N = Y.shape[0]
+    m = Y.shape[1]
+    n = (m - 1) // 4
+    iw = m - 1
+    B = lanes
+    scale = P[P.shape[0] - 2]
+    t0 = clock0[CLOCK_T]
+    t_end = clock0[CLOCK_T_END]
+    for batch in prange((N + B - 1) // B):
+        lo = batch * B
+        n_rows = min(B, N - lo)
+        y = np.empty((m, B))
+        comp = np.zeros((m, B))
+        T = np.full(B, t0)
+        TC = np.zeros(B)
+        C = np.empty((order + 1, width, B))
+        H = np.zeros(B)
+        ends = np.zeros(B, dtype=np.int64)
+        inc = np.empty((m, B))
+        yl = np.empty(m)
+        cl = np.empty(m)
+        live = np.zeros(B, dtype=np.int64)
+        logs = np.zeros(B)
+        mean = np.zeros(B)
+        for lane in range(B):
+            row = lo + lane if lane < n_rows else lo  # spare lanes copy a row, unused
+            for i in range(m):
+                y[i, lane] = Y[row, i]
+            logs[lane] = -math.log(_tangent_length(y, lane, n))
+            if lane < n_rows:
+                live[lane] = 1
+                status[row] = STATUS_RUNNING
+                counts[row] = 0
+        running = n_rows
+        while running > 0:
+            fb(T, y, P, C)
+            for lane in range(B):  # each lane's step (H 0: none)
+                H[lane] = 0.0
+                if lane >= n_rows or live[lane] == 0:
+                    continue
+                for i in range(m):
+                    yl[i] = y[i, lane]
+                t = T[lane]
+                h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
+                if not h > 4e-14 * max(abs(t), 1.0):
+                    status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                H[lane] = h
+                ends[lane] = 1 if last else 0
+            _taylor_lanes(C, order, H, inc)
+            for lane in range(n_rows):
+                h = H[lane]
+                if h == 0.0:
+                    continue
+                row = lo + lane
+                for i in range(m):
+                    yl[i] = y[i, lane]
+                    cl[i] = comp[i, lane]
+                    _add(yl, cl, i, inc[i, lane], kahan)
+                if not _finite(yl):  # the state stays the step's start
+                    status[row] = STATUS_NON_FINITE
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                counts[row] += 1
+                tau = (T[lane] - TC[lane]) - t0
+                acc = 0.0
+                for k in range(8):
+                    x = _GL8_X[k] * h
+                    w = _taylor_lane_value(C, lane, order, iw, x, y[iw, lane], comp[iw, lane])
+                    acc += _GL8_W[k] * w / (tau + x)
+                mean[lane] += 2.0 * h * acc / scale
+                for i in range(m):
+                    y[i, lane] = yl[i]
+                    comp[i, lane] = cl[i]
+                length = _tangent_length(y, lane, n)
+                if length > TANGENT_RESCALE or length < 1.0 / TANGENT_RESCALE:
+                    for i in range(2 * n, 4 * n):
+                        y[i, lane] /= length
+                        comp[i, lane] = 0.0
+                    logs[lane] += math.log(length)
+                if ends[lane] == 1:
+                    T[lane] = t_end
+                    TC[lane] = 0.0
+                    status[row] = STATUS_END
+                    live[lane] = 0
+                    running -= 1
+                else:
+                    dd = h - TC[lane]
+                    s = T[lane] + dd
+                    TC[lane] = (s - T[lane]) - dd
+                    T[lane] = s
+        for lane in range(n_rows):
+            row = lo + lane
+            for i in range(m):
+                Y[row, i] = y[i, lane]
+            s = (T[lane] - TC[lane]) - t0
+            if s > 0.0:
+                out[row, 0] = mean[lane] / s
+                out[row, 1] = (logs[lane] + math.log(_tangent_length(y, lane, n))) / s
+                out[row, 2] = 2.0 * y[iw, lane] / (scale * s)
+            else:
+                out[row, 0] = math.nan
+                out[row, 1] = math.nan
+                out[row, 2] = math.nan
+
+
 def taylor_sample_work(coef, m):
     width = coef[0]
     order = coef[2]
