@@ -25,12 +25,19 @@ within 1.5x of heyoka's time.
   the whole grid by ``ensemble_propagate_until`` (threads, one a core; in blocks of
   ``BLOCK`` orbits, as each orbit keeps a copy of the integrator, ~200 kB), and, as
   heyoka's fast path, by ``ensemble_propagate_until_batch`` (SIMD batches).
+- *taylor* (issue 28): the same grid with ``method="taylor"`` (adaptive Taylor series at
+  machine epsilon, the variational equations and MEGNO's integral in the series, SIMD
+  batches on all threads: ``systems.chaos.taylor_map``) against the default map, runs
+  interleaved, ``REPEAT`` each, the fastest kept; the orbits' energy error (median over
+  ``SAMPLE`` orbits), the verdicts that differ, and the map on one thread equal to the
+  map on all. ``--taylor`` runs this comparison alone.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 
 import numpy as np
@@ -53,7 +60,7 @@ def _build_on_worker(spec) -> None:
     distributed._map_kernel(spec)
 
 
-def main() -> bool:
+def main(only_taylor: bool = False) -> bool:
     import numba
 
     from systems.chaos import maps
@@ -67,11 +74,14 @@ def main() -> bool:
     section = Section(0, 0.0, 1)
     box = maps.section_box(compiled, section, ENERGY)
     grid = maps.section_grid(compiled, section, ENERGY, SIZE, SIZE, box)
-    maps.chaos_map(kernel, maps.section_grid(compiled, section, ENERGY, 4, 4, box))  # compile
+    small = maps.section_grid(compiled, section, ENERGY, 4, 4, box)
+    maps.chaos_map(kernel, small)  # compile
     orbits = int(grid.valid.sum())
     cores = os.cpu_count() or 1
     threads = numba.config.NUMBA_NUM_THREADS
     steps = orbits * kernel.nsteps
+    if only_taylor:
+        return _taylor(compiled, tangent, kernel, grid, small, threads)
 
     def timed(n_threads: int):
         numba.set_num_threads(n_threads)
@@ -111,7 +121,63 @@ def main() -> bool:
     ok &= report("speed-up, all threads vs one", speedup, f">= {target:.2g}", speedup >= target)
     ok &= _cluster(kernel, grid, many, steps)
     ok &= _heyoka(compiled, kernel, grid, many, (parallel, parallel_cpu, serial_cpu), cores)
+    ok &= _taylor(compiled, tangent, kernel, grid, small, threads)
     return ok
+
+
+def _taylor(compiled, tangent, kernel, grid, small, threads: int) -> bool:
+    """The taylor map against the default one (see the module)."""
+    import numba
+
+    from systems.chaos import maps
+
+    taylor = maps.map_kernel(tangent, t_end=kernel.t, method="taylor")
+    maps.chaos_map(taylor, small)  # compile
+    numba.set_num_threads(threads)
+    loads = [os.getloadavg()[0]]
+    runs: dict[str, list] = {"default": [], "taylor": []}
+    for _ in range(REPEAT):
+        for name, k in (("default", kernel), ("taylor", taylor)):
+            start, cpu = time.perf_counter(), time.process_time()
+            result = maps.chaos_map(k, grid)
+            runs[name].append((time.perf_counter() - start, time.process_time() - cpu, result))
+            loads.append(os.getloadavg()[0])
+    (wall_d, cpu_d, default), (wall_t, cpu_t, found) = (
+        min(runs[name], key=lambda run: run[0]) for name in ("default", "taylor")
+    )
+    starts = grid.starts[grid.valid]
+    rows = np.random.default_rng(1).choice(len(starts), size=min(SAMPLE, len(starts)))
+    sample = starts[rows]
+    h0 = compiled.hamiltonian(0.0, sample)
+    errors = {}
+    for name, k in (("default", kernel), ("taylor", taylor)):
+        final = np.empty_like(sample)
+        maps.map_chunk(k, sample, final=final)
+        errors[name] = float(np.median(np.abs(compiled.hamiltonian(0.0, final) - h0) / np.abs(h0)))
+    done = (default.status == 0) & (found.status == 0)
+    a, b = default.megno[done], found.megno[done]
+    differ = int(np.count_nonzero((a > 4) != (b > 4)))
+    numba.set_num_threads(1)
+    start = time.perf_counter()
+    one = maps.chaos_map(taylor, grid)
+    serial = time.perf_counter() - start
+    numba.set_num_threads(threads)
+    print(
+        f"  taylor map (adaptive, tol {taylor.tol:.2g}, SIMD batches) on {threads} threads: "
+        f"{wall_t:.1f} s, CPU {cpu_t:.1f} s; the default ({kernel.method} dt "
+        f"{kernel.dt:.3g}) {wall_d:.1f} s, CPU {cpu_d:.1f} s (fastest of {REPEAT}, "
+        f"interleaved; runs taylor {', '.join(f'{r[0]:.1f}' for r in runs['taylor'])}, "
+        f"default {', '.join(f'{r[0]:.1f}' for r in runs['default'])}); taylor on 1 "
+        f"thread {serial:.1f} s; median relative energy error at t = {kernel.t:g}: taylor "
+        f"{errors['taylor']:.2g}, default {errors['default']:.2g}; chaotic fraction taylor "
+        f"{found.chaotic_fraction():.3f}, default {default.chaotic_fraction():.3f}; "
+        f"verdicts (<Y> > 4) differing: {differ} of {int(done.sum())}; load average "
+        f"{min(loads):.1f} to {max(loads):.1f}"
+    )
+    same = _same(one, found)
+    ok = report("taylor map the same on 1 and on all threads", float(same), "1 (bitwise)", same)
+    ratio = wall_t / wall_d
+    return ok & report("taylor map / default map, wall", ratio, "(measured)", True)
 
 
 def _same(a, b) -> bool:
@@ -279,4 +345,4 @@ def _heyoka_batch(hy, system, tol, starts, vector, t_end, cores) -> tuple[float,
 
 
 if __name__ == "__main__":
-    raise SystemExit(0 if main() else 1)
+    raise SystemExit(0 if main(only_taylor="--taylor" in sys.argv[1:]) else 1)

@@ -27,7 +27,15 @@ def test_taylor_map_json_and_npz_against_the_default_map(tmp_path, capsys):
     assert differ <= 0.08, differ
 
 
-def test_taylor_map_refuses_a_step(tmp_path, capsys):
-    argv = ["chaosmap", "henon_heiles", "--grid", "4x4", "--method", "taylor", "--dt", "0.1"]
-    assert main([*argv, "--out", str(tmp_path / "x.npz")]) == 2
+def test_a_looser_tolerance_and_the_options_that_do_not_fit(tmp_path, capsys):
+    out = str(tmp_path / "x.npz")
+    argv = ["chaosmap", "henon_heiles", "--grid", "4x4", "--t-end", "50", "--out", out]
+    assert main([*argv, "--method", "taylor", "--tol", "1e-10", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["method"] == "taylor" and report["tol"] == 1e-10
+    assert main([*argv, "--method", "taylor", "--dt", "0.1"]) == 2
     assert "tolerance, not a step" in capsys.readouterr().err
+    assert main([*argv, "--method", "yoshida4", "--tol", "1e-10"]) == 2
+    assert "--tol goes with --method taylor" in capsys.readouterr().err
+    assert main([*argv, "--method", "taylor", "--tol", "1e-20"]) == 2
+    assert "between 1e-16 and 1" in capsys.readouterr().err
