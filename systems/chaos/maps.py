@@ -8,7 +8,9 @@ tangent vector (the same unit vector for all) and runs ``t_end`` in fixed steps 
 parallel compiled loop (``map_kernels.DRIVER_megno_parallel``, instantiated per
 fixed-step family beside the drivers' own templates: the family's step as the drivers
 use it, on the extended state of ``systems.chaos.variational``); MEGNO's running sums
-are kept inside the loop, so nothing per step leaves it.
+are kept inside the loop, so nothing per step leaves it. With ``method="taylor"`` the
+orbits take adaptive Taylor steps in SIMD batches instead, the variational equations and
+MEGNO's integral in the series (``systems.chaos.taylor_map``).
 
 ``map_chunk(kernel, starts)`` is the unit of work: a chunk of starts in, an array of
 indicators out, each row independent of the others and of how the grid is cut into
@@ -261,7 +263,7 @@ def map_kernel(
         raise NotApplicable(f"unknown method {method!r}; choose from {', '.join(map_methods())}")
     if method not in map_methods():
         raise NotApplicable(
-            f"a chaos map runs fixed-step methods in one compiled loop, not {method}; "
+            f"a chaos map runs fixed-step methods or taylor in one compiled loop, not {method}; "
             f"choose from {', '.join(map_methods())}"
         )
     t_end = default_t_end(method) if t_end is None else t_end
