@@ -263,7 +263,7 @@ def map_kernel(
         raise NotApplicable(f"unknown method {method!r}; choose from {', '.join(map_methods())}")
     if method not in map_methods():
         raise NotApplicable(
-            f"a chaos map runs fixed-step methods or taylor in one compiled loop, not {method}; "
+            f"a chaos map runs fixed-step methods in one compiled loop (or taylor), not {method}; "
             f"choose from {', '.join(map_methods())}"
         )
     t_end = default_t_end(method) if t_end is None else t_end
