@@ -88,24 +88,16 @@ the orbit alone."""
 
 def write_megno_batch_ir(decomposition, B: int) -> str:
     """``compiled.write_taylor_batch_ir`` with this module's ``UNROLL_BUDGET``."""
-    from llvmlite import ir
-
     from systems.taylor import compiled
 
-    module = ir.Module(name="pe_taylor_megno_batch")
-    terms = compiled.unrolled_terms(decomposition, compiled.UNROLLED)
-    unrolled = compiled.UNROLLED if terms <= UNROLL_BUDGET else None
-    writer = compiled._BatchWriter(module, decomposition, unrolled, B)
-    writer.write()
-    return f"; taylor m={writer.m} width={writer.width} lanes={B}\n{module}"
+    return compiled.write_taylor_batch_ir(decomposition, B, UNROLL_BUDGET)
 
 
 @functools.cache
 def _compiled_batch(text: str):
-    from systems import llvm_kernels
-    from systems.taylor.compiled import BATCH_NAME, SPEED_LEVEL
+    from systems.taylor.compiled import BATCH_NAME, _kernels
 
-    kernels = llvm_kernels.LLVMKernels(text, (BATCH_NAME,), SPEED_LEVEL, host=True)
+    kernels = _kernels(text, BATCH_NAME)
     return kernels, kernels.functions[BATCH_NAME]
 
 

@@ -830,13 +830,14 @@ def _AlignedBuilder(block):
     return _aligned_builder()(block)
 
 
-def _write(writer, decomposition: Decomposition, name: str, **options):
+def _write(writer, decomposition: Decomposition, name: str, budget: int = UNROLL_BUDGET, **options):
     """The module of the function ``name`` and of its looped form (``writer`` the
-    class writing them; ``options`` its own), as LLVM IR text."""
+    class writing them; ``options`` its own), as LLVM IR text; unrolled at order
+    ``UNROLLED`` up to ``budget`` products."""
     from llvmlite import ir
 
     module = ir.Module(name=f"pe_{name}")
-    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= UNROLL_BUDGET else None
+    unrolled = UNROLLED if unrolled_terms(decomposition, UNROLLED) <= budget else None
     looped = writer(module, decomposition, None, name, **options)
     looped.write()
     main = writer(module, decomposition, unrolled, name, looped=looped.function, **options)
@@ -848,10 +849,11 @@ def _write(writer, decomposition: Decomposition, name: str, **options):
     return "".join((before, "\n".join(main.straight), "\n", after))
 
 
-def write_taylor_batch_ir(decomposition: Decomposition, B: int) -> str:
-    """The LLVM IR text of ``taylor_batch`` for ``decomposition`` and ``B`` lanes, with a
-    first comment line giving m, the width of ``out`` and B."""
-    text = _write(_BatchWriter, decomposition, BATCH_NAME, B=B)
+def write_taylor_batch_ir(decomposition: Decomposition, B: int, budget: int = UNROLL_BUDGET) -> str:
+    """The LLVM IR text of ``taylor_batch`` for ``decomposition`` and ``B`` lanes (unrolled
+    up to ``budget`` products), with a first comment line giving m, the width of ``out``
+    and B."""
+    text = _write(_BatchWriter, decomposition, BATCH_NAME, budget, B=B)
     width = decomposition.m + len(decomposition.nodes)
     return f"; taylor m={decomposition.m} width={width} lanes={B}\n{text}"
 
