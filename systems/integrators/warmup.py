@@ -104,16 +104,18 @@ def warm_drivers(progress=None) -> float:
             Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
             ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
     if progress is not None:
-        progress("chaos maps")
+        progress("chaos maps and section portraits")
     warm_map_loops(systems["free"])
+    warm_section_portraits(systems["free"])
     _warm.set()
     return time.perf_counter() - start
 
 
-MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4")
+MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4", "taylor")
 """The methods whose chaos-map loops the warm-up compiles: those a map or an orbit
-diagram takes by default (``systems.chaos.maps.default_map_method``). Another method's
-loop compiles on its first use, about 6 s, then comes from numba's cache."""
+diagram takes by default (``systems.chaos.maps.default_map_method``), and taylor's
+(``chaosmap --method taylor``). Another method's loop compiles on its first use, about
+6 s, then comes from numba's cache."""
 
 
 def warm_map_loops(compiled) -> None:
@@ -125,7 +127,20 @@ def warm_map_loops(compiled) -> None:
     tangent = load_tangent(compiled)
     start = compiled.initial_state()[None]
     for method in MAP_METHODS:
-        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, dt=1e-3), start)
+        step = {} if method == "taylor" else {"dt": 1e-3}  # taylor's steps are its own
+        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, **step), start)
+
+
+def warm_section_portraits(compiled) -> None:
+    """Compile (or load) the loop of ``systems.section_orbits.section_portrait`` (the
+    taylor batch with crossings) with two orbits of ``compiled`` (two degrees of freedom,
+    conserved H) for a moment."""
+    from systems.section import Section
+    from systems.section_orbits import section_portrait
+
+    start = compiled.initial_state()
+    energy = float(compiled.hamiltonian(0.0, start[None])[0])
+    section_portrait(compiled, Section(1, 0.0, 0), energy, np.stack([start, start]), t_end=1e-3)
 
 
 def copy_drivers(source: Path, target: Path) -> bool:
