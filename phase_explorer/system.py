@@ -466,6 +466,13 @@ class System:
         t_end : float, optional
             How long each orbit runs (default 500; 100 where the method is implicit,
             gauss_legendre4 for a non-separable H).
+        method : str, optional
+            A fixed-step method with an ensemble loop (default: yoshida4 for a separable
+            H, rk4 for a damped or driven system, else gauss_legendre4), or ``"taylor"``:
+            Taylor series at machine epsilon, adaptive steps for each orbit, in SIMD
+            batches (slower than the default step, and far more accurate).
+        dt : float, optional
+            The fixed step (default: 40 per fastest period); not with taylor.
         progress : callable, optional
             ``progress(done, total)`` after each chunk of orbits (a progress bar's
             update).
