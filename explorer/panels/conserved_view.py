@@ -42,6 +42,7 @@ from explorer.panels.curves import (
     PacedLayoutWidget,
     RangeKeeper,
     add_outside_legend,
+    legend_orbit_names,
     set_title,
     style_plot,
 )
@@ -89,7 +90,6 @@ class FiniteSeries:
         return data[:, 0], data[:, 1]
 
 
-LEGEND_ORBITS = 6
 MOMENTUM_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#17becf", "#bcbd22", "#e377c2")
 
 
@@ -251,8 +251,8 @@ class ConservedView(QWidget):
 
     def _update_energy_legend(self) -> None:
         self.energy_legend.set_entries(
-            (self._energy_curves[key].tail, "main orbit" if key == 0 else f"orbit {key}")
-            for key in sorted(self._energy_curves)[:LEGEND_ORBITS]
+            (self._energy_curves[key].tail, name)
+            for key, name in legend_orbit_names(self._energy_curves, main="main orbit")
         )
 
     def refresh(self, store) -> None:

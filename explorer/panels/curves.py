@@ -395,6 +395,22 @@ class PacedLayoutWidget(pg.GraphicsLayoutWidget):
         self._later.stop()  # what it waited for is painted; later changes ask again
 
 
+LEGEND_ORBITS = 6
+"""Orbits named in a legend (their colours tell the others apart)."""
+
+
+def legend_orbit_names(keys, main: str = "orbit") -> list[tuple[int, str]]:
+    """(key, name) of the orbits a legend names: the first ``LEGEND_ORBITS`` of ``keys``
+    (ascending; 0 the main orbit, called ``main``), the last saying how many more there
+    are (a section of 30 orbits listed six and said nothing of the rest)."""
+    keys = sorted(keys)
+    named = [(key, main if key == 0 else f"orbit {key}") for key in keys[:LEGEND_ORBITS]]
+    if len(keys) > LEGEND_ORBITS:
+        key, name = named[-1]
+        named[-1] = (key, f"{name} and {len(keys) - LEGEND_ORBITS} more")
+    return named
+
+
 def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
     """House style: a light grid, no SI-prefix rescaling of the axes (it hides the units),
     axes cached as pixels."""

@@ -45,6 +45,7 @@ from explorer.panels.curves import (
     TrailCurve,
     WrappedSeries,
     add_outside_legend,
+    legend_orbit_names,
     nearest_distance,
     set_title,
     style_plot,
@@ -57,8 +58,6 @@ SEPARATRIX_PEN = pg.mkPen("#e6550d", width=2.5)
 FORBIDDEN_RGBA = (120, 120, 120, 90)
 SEARCHABLE_PAIRS = 8
 """With more coordinates than this the pair list is a searchable field."""
-LEGEND_ORBITS = 6
-"""Orbits named in the legend (their colours tell the others apart)."""
 PICK_PIXELS = 8.0
 """How close (in pixels) a right-click must be to an orbit to offer deleting it."""
 REPAINT_GAP_SECONDS = 0.04
@@ -576,9 +575,7 @@ class PhaseView(QWidget):
     def _update_legend(self) -> None:
         """Orbits first (the main one, then the first few launched), then the statics."""
         entries = []
-        keys = sorted({*self._curves, *self._section_scatter})
-        for key in keys[:LEGEND_ORBITS]:
-            name = "orbit" if key == 0 else f"orbit {key}"
+        for key, name in legend_orbit_names({*self._curves, *self._section_scatter}):
             item = self._curves[key].tail if key in self._curves else self._section_scatter[key]
             entries.append((item, name))
         self.legend.set_entries(entries + self._legend_static + self._legend_layer)

@@ -495,3 +495,16 @@ def test_the_rolling_disk_s_path_circle_is_round(qtbot):
     (x0, x1), (y0, y1) = box.viewRange()
     width, height = box.width(), box.height()
     assert (x1 - x0) / width == pytest.approx((y1 - y0) / height, rel=1e-6)
+
+
+def test_a_legend_of_many_orbits_says_how_many_it_leaves_out():
+    from explorer.panels.curves import LEGEND_ORBITS, legend_orbit_names
+
+    few = legend_orbit_names([2, 0, 1])
+    assert few == [(0, "orbit"), (1, "orbit 1"), (2, "orbit 2")]
+    many = legend_orbit_names(range(30), main="main orbit")
+    assert len(many) == LEGEND_ORBITS and many[0] == (0, "main orbit")
+    assert many[-1] == (
+        LEGEND_ORBITS - 1,
+        f"orbit {LEGEND_ORBITS - 1} and {30 - LEGEND_ORBITS} more",
+    )
