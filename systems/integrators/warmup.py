@@ -111,11 +111,12 @@ def warm_drivers(progress=None) -> float:
     return time.perf_counter() - start
 
 
-MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4", "taylor")
+MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4")
 """The methods whose chaos-map loops the warm-up compiles: those a map or an orbit
-diagram takes by default (``systems.chaos.maps.default_map_method``), and taylor's
-(``chaosmap --method taylor``). Another method's loop compiles on its first use, about
-6 s, then comes from numba's cache."""
+diagram takes by default (``systems.chaos.maps.default_map_method``); and taylor's
+(``chaosmap --method taylor``: a loop of the drivers, ``taylor_batch_megno_parallel``).
+Another method's loop compiles on its first use, about 6 s, then comes from numba's
+cache."""
 
 
 def warm_map_loops(compiled) -> None:
@@ -127,8 +128,8 @@ def warm_map_loops(compiled) -> None:
     tangent = load_tangent(compiled)
     start = compiled.initial_state()[None]
     for method in MAP_METHODS:
-        step = {} if method == "taylor" else {"dt": 1e-3}  # taylor's steps are its own
-        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, **step), start)
+        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, dt=1e-3), start)
+    map_chunk(map_kernel(tangent, method="taylor", t_end=1e-3), start)  # its own steps
 
 
 def warm_section_portraits(compiled) -> None:

@@ -74,7 +74,8 @@ def test_copy_drivers_takes_the_drivers_and_nothing_else(tmp_path):
 
 def test_the_default_chaos_map_loops_come_from_the_cache_in_a_new_process():
     """``warm_drivers`` (the session's, as ``python main.py warm``) compiled the map loops
-    of the methods maps take by default: a new process loads them, compiles none."""
+    of the methods maps take by default, taylor's map and the section portraits' batch:
+    a new process loads them, compiles none."""
     script = """
 import json
 from systems.chaos.map_kernels import loop_module
@@ -92,10 +93,22 @@ for name, method in (("henon_heiles", "yoshida4"), ("henon_heiles", "gauss_legen
     compiled = compile_system(derive(load_scene(name)), ("rhs", "hamiltonian", "separable"))
     tangent = load_tangent(compiled)
     map_chunk(map_kernel(tangent, method=method, t_end=0.1), compiled.initial_state()[None])
+# taylor's map and the section portraits' batch: loops of the drivers' module
+from systems.codegen import driver_module
+from systems.section import Section
+from systems.section_orbits import section_portrait
+
+compiled = compile_system(derive(load_scene("henon_heiles")), ("rhs", "hamiltonian"))
+start = compiled.initial_state()
+map_chunk(map_kernel(load_tangent(compiled), method="taylor", t_end=0.1), start[None])
+energy = float(compiled.hamiltonian(0.0, start[None])[0])
+section_portrait(compiled, Section(0, 0.0, 1), energy, start[None], t_end=0.1)
 loops = [getattr(loop_module(), f"{STEPPERS[m].family.kernel}_megno_parallel")
          for m in MAP_METHODS]
+loops += [driver_module().taylor_batch_megno_parallel,
+          driver_module().taylor_batch_section_parallel]
 print(json.dumps({"misses": sum(sum(loop.stats.cache_misses.values()) for loop in loops),
                   "hits": sum(sum(loop.stats.cache_hits.values()) for loop in loops)}))
 """
     report = _fresh(script)
-    assert report == {"misses": 0, "hits": 3}, report
+    assert report == {"misses": 0, "hits": 5}, report
