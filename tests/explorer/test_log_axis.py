@@ -28,6 +28,9 @@ def _labels(qtbot, axis_item, span, height):
 
     qtbot.waitUntil(laid_out, timeout=20000)
     qtbot.wait(20)
+    # a loaded machine once gave no labels yet here (the failing run's list was empty):
+    # the axis laid out before its ticks were; they come, or the wait fails
+    qtbot.waitUntil(lambda: bool(drawn_labels(axis)), timeout=20000)
     return drawn_labels(axis)
 
 
