@@ -462,7 +462,7 @@ class Run:
         diag = _diagnostics(self.compiled, self.diagnostics, t, y)
         if self.watch_energy and status in ("running", "ok", "budget") and len(t):
             H = diag["H"] if "H" in diag else self.compiled.hamiltonian(t[-1], y[-1:])
-            worst = scale = float(np.max(np.abs(H - self.H0)))
+            worst = float(np.max(np.abs(H - self.H0)))
             # the scale is at least H_scale: only an error past that needs the terms'
             scale = self.H_scale
             if not worst <= self.energy_tolerance * scale:
