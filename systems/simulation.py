@@ -727,8 +727,12 @@ class Sampler:
             """``pending`` and up to ``SAMPLE_CHUNK`` more times, each after all before it."""
             more = take(SAMPLE_CHUNK)
             floor = pending[-1] if len(pending) else t_last
-            above = np.maximum.accumulate(np.concatenate([[floor], more]))[:-1]
-            return np.concatenate([pending, more[more > above]]), len(more) < SAMPLE_CHUNK
+            if len(more) and more[0] > floor and np.all(more[1:] > more[:-1]):
+                kept = more  # ascending already (linspace's): no running maximum
+            else:
+                above = np.maximum.accumulate(np.concatenate([[floor], more]))[:-1]
+                kept = more[more > above]
+            return np.concatenate([pending, kept]), len(more) < SAMPLE_CHUNK
 
         while not run.finished:
             if not exhausted and len(pending) < SAMPLE_CHUNK:
@@ -741,7 +745,8 @@ class Sampler:
             pending = pending[answered:]
             if answered:
                 t_last = float(block.t[answered - 1])
-                yield block.t[:answered].copy(), block.y[:answered].copy()
+                # views: each block's rows are arrays of their own, which nothing writes
+                yield block.t[:answered], block.y[:answered]
         if block is None or not run.finished:
             return
         end = float(block.t[-1])

@@ -128,9 +128,10 @@ class KernelRunner:
         # only a constrained family's events jump: the others' calls allocate no more
         cap = nsteps // stride + 1 + (JUMP_ROWS if self.s.family.constrained else 0)
         if samples is not None:
-            cap = len(samples) + 1
+            cap = len(samples) + 2  # the last row free: ``advance`` puts the latest state there
         out = (np.empty(cap), np.empty((cap, m)), np.empty((MAX_EVENTS, 2)))
         out += (np.empty((MAX_EVENTS, 2, m)),)
+        self._rows = out[:2]
         info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.clock[Clock.T_PAUSE] = until
         state = (self.y, self.comp, self.clock)
@@ -183,11 +184,18 @@ class KernelRunner:
             evals += more_evals
             sampled += more
         self.sampled = sampled
-        t = np.concatenate(ts)
-        y = np.concatenate(ys) if ys else np.empty((0, self.m))
         if code == Status.END:
             self.clock[Clock.T] = self.t_end
-        if samples is not None:  # the samples, then the latest state, always
+        if samples is not None and len(ts) == 1:  # the samples, then the latest state, always
+            # into the row the call left free after its rows (no copy of thousands of rows)
+            n = len(t)
+            t, y = self._rows[0][: n + 1], self._rows[1][: n + 1]
+            t[n] = self.t
+            y[n] = self.y
+            return Outcome(t, y, code, _merge_events(evs, self.m), steps, evals, sampled)
+        t = np.concatenate(ts)
+        y = np.concatenate(ys) if ys else np.empty((0, self.m))
+        if samples is not None:
             t = np.append(t, self.t)
             y = np.vstack([y, self.y[None, :]])
         else:
