@@ -33,6 +33,10 @@ def is_guarded(widget: QObject) -> bool:
     return isinstance(widget, GUARDED) and not isinstance(widget, QScrollBar)
 
 
+_GUARDED_TYPES: dict[type, bool] = {}
+"""``is_guarded`` by the Python class of a widget (the same for every instance)."""
+
+
 class WheelGuard(QObject):
     """The application event filter behind ``install_wheel_guard``; one per root."""
 
@@ -55,12 +59,19 @@ class WheelGuard(QObject):
             widget.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
 
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt's name
+        # every event of the application passes here: the class test first, since asking
+        # an event its type builds a Python enum (a window's start sends some 70 000)
+        guarded = _GUARDED_TYPES.get(type(watched))
+        if guarded is None:
+            guarded = _GUARDED_TYPES[type(watched)] = is_guarded(watched)
+        if not guarded:
+            return False
         kind = event.type()
         if kind == QEvent.Type.Polish:
-            if is_guarded(watched) and self._under_root(watched):
+            if self._under_root(watched):
                 self._calm(watched)
             return False
-        if kind != QEvent.Type.Wheel or not is_guarded(watched):
+        if kind != QEvent.Type.Wheel:
             return False
         if watched.hasFocus() or not self._under_root(watched):
             return False
