@@ -13,6 +13,7 @@ is neither printed nor compiled.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -120,6 +121,15 @@ class CompiledSystem:
 
             found = self._numeric["taylor"] = load_taylor(self.mechanics)
         return found
+
+    def __job_key__(self) -> str:
+        """The scene and the parameter values (``derivation_cache.remembered_job``): what
+        a job's answer depends on."""
+        from systems import derivation_cache
+
+        values = np.ascontiguousarray(self.parameters, dtype=float).tobytes()
+        scene = derivation_cache.scene_key(self.mechanics.scene)
+        return f"{scene}:{hashlib.sha256(values).hexdigest()[:32]}"
 
     def require(self, want: str) -> None:
         if want not in self.wanted:

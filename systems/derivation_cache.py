@@ -19,6 +19,7 @@ second opening they cost a file read instead of tens of milliseconds of sympy ea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import io
 import os
@@ -28,6 +29,7 @@ from functools import cache
 from pathlib import Path
 from typing import TypeVar
 
+import numpy as np
 import sympy
 
 import systems.calculus
@@ -187,3 +189,116 @@ def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
         return value
     write_checked(path, data, tag)
     return value
+
+
+class _Missing:
+    def __repr__(self) -> str:
+        return "MISSING"
+
+
+MISSING = _Missing()
+"""What ``known_value`` and a remembered job's ``from_cache`` give for an answer not
+on disk."""
+
+
+def known_value(key: str, tag: str):
+    """The value ``remembered_value(key, tag, ...)`` would return without computing, or
+    ``MISSING`` (no entry, the cache off, or an entry that does not verify or load)."""
+    if not enabled():
+        return MISSING
+    name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
+    path = usable_directory(cache_root() / "values") / f"{name}.pickle"
+    data = read_checked(path, tag)
+    if data is None:
+        return MISSING
+    try:
+        return pickle.loads(data)
+    except Exception as exc:  # noqa: BLE001 - whatever a damaged entry raises, compute anew
+        discard(path, f"failed to load: {type(exc).__name__}")
+        return MISSING
+
+
+@cache
+def package_version() -> str:
+    """A hash of every module of ``systems`` and the versions of the libraries its numbers
+    come from: the tag of a remembered job, whose answer may depend on any of them."""
+    import importlib.metadata
+
+    root = Path(systems.mechanics.__file__).parent
+    digest = hashlib.sha256(MAGIC)
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    for library in ("numpy", "scipy", "sympy", "symengine", "numba", "llvmlite", "matplotlib"):
+        try:
+            digest.update(f"{library} {importlib.metadata.version(library)}\0".encode())
+        except importlib.metadata.PackageNotFoundError:
+            digest.update(f"{library} absent\0".encode())
+    return digest.hexdigest()[:32]
+
+
+class _Unkeyed(Exception):
+    """An argument a remembered job cannot name by its contents."""
+
+
+def _key_of(value) -> str:
+    """Text naming ``value`` by its contents: a derivation by its scene's key (and a
+    compiled system also by its parameter values), numbers and text by ``repr``, arrays
+    by their bytes, containers by their items, other plain data by its pickle; a
+    cancellation token by nothing (it changes no answer). A class names its instances
+    itself with a ``__job_key__()`` method (``CompiledSystem``, ``Cancel``)."""
+    if value is None or isinstance(value, (bool, int, float, complex, str)):
+        return f"{type(value).__name__}:{value!r}"
+    named = getattr(type(value), "__job_key__", None)
+    if named is not None:
+        return f"{type(value).__qualname__}:{named(value)}"
+    if isinstance(value, systems.mechanics.Mechanics):
+        return f"mechanics:{scene_key(value.scene)}"
+    if isinstance(value, systems.scene.Scene):
+        return f"scene:{scene_key(value)}"
+    if isinstance(value, np.ndarray):
+        data = np.ascontiguousarray(value)
+        return f"array:{data.dtype.str}:{data.shape}:{hashlib.sha256(data.tobytes()).hexdigest()}"
+    if isinstance(value, (tuple, list)):
+        return f"{type(value).__name__}(" + ",".join(map(_key_of, value)) + ")"
+    if isinstance(value, dict):
+        items = sorted((_key_of(k), _key_of(v)) for k, v in value.items())
+        return "dict(" + ",".join(f"{k}={v}" for k, v in items) + ")"
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = dataclasses.fields(value)
+        inner = ",".join(f"{f.name}={_key_of(getattr(value, f.name))}" for f in fields)
+        return f"{type(value).__qualname__}({inner})"
+    raise _Unkeyed(type(value).__qualname__)
+
+
+def remembered_job(function: Callable[..., T]) -> Callable[..., T]:
+    """``function`` (a pure job: its answer a function of its arguments' contents and of
+    ``systems``' code) remembered on disk by its arguments (``remembered_value``, tagged
+    with ``package_version``). The returned function has the same module and name (a
+    worker process finds it by them) and a ``from_cache(*args, **kwargs)`` that gives the
+    remembered answer or ``MISSING`` without computing: ``systems.processes.Job`` asks it
+    first and starts no process for an answer already on disk.
+
+    Arguments it cannot name by their contents (``_key_of``) make the call compute, as
+    without the cache."""
+
+    name = f"{function.__module__}.{function.__qualname__}"
+
+    def key(args, kwargs) -> str | None:
+        try:
+            return f"job {name} " + _key_of((tuple(args), dict(kwargs)))
+        except _Unkeyed:
+            return None
+
+    @functools.wraps(function)
+    def job(*args, **kwargs):
+        found = key(args, kwargs)
+        if found is None:
+            return function(*args, **kwargs)
+        return remembered_value(found, package_version(), lambda: function(*args, **kwargs))
+
+    def from_cache(*args, **kwargs):
+        found = key(args, kwargs)
+        return MISSING if found is None else known_value(found, package_version())
+
+    job.from_cache = from_cache
+    return job

@@ -58,6 +58,7 @@ from systems.angles import angle_flags
 from systems.calculus import to_symengine
 from systems.classification import does_no_work
 from systems.cpu_limit import TimeLimitExceeded, cpu_limit
+from systems.derivation_cache import remembered_job
 from systems.mechanics import Mechanics
 from systems.symmetries import ENERGY
 
@@ -397,6 +398,7 @@ def prepare(mechanics: Mechanics) -> _Prepared:
     return prepared
 
 
+@remembered_job
 def analyse(
     mechanics: Mechanics,
     parameters: Sequence[float] | Mapping[str, float] | None = None,

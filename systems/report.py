@@ -20,6 +20,7 @@ import sympy
 from systems import constraints
 from systems.calculus import Calculus, Unsupported, to_symengine
 from systems.classification import describe_cyclic
+from systems.derivation_cache import remembered_job
 from systems.display import (
     combine_trig,
     display_names,
@@ -584,6 +585,7 @@ def derivation_text(mechanics: Mechanics) -> str:
     return readable(mechanics, equilibria=False)
 
 
+@remembered_job
 def equilibria_lines(mechanics: Mechanics) -> list[str]:
     """One sentence per equilibrium (virtual work), or why there are none."""
     lines, note = equilibria_sentences(mechanics, digits=4)

@@ -27,6 +27,7 @@ import numpy as np
 import sympy
 
 from systems import report
+from systems.derivation_cache import remembered_job
 from systems.display import for_display, latex_names
 from systems.expressions import as_expr
 
@@ -148,28 +149,50 @@ def typeset_derivation(
     return Typeset(scene.title, tuple(typeset), text)
 
 
+@remembered_job
 def typeset_as_text(mechanics: Mechanics) -> Typeset:
     """``typeset_derivation`` without outlines and equilibria: the window's first job of a
     layout (a worker process runs it: a function by module and name). Remembered on disk
     for the scene (a second of sympy for the double pendulum, every opening)."""
-    from systems import derivation_cache
-
-    key = f"typeset {derivation_cache.scene_key(mechanics.scene)}"
-    tag = f"typeset {derivation_cache.code_hash(report, sys.modules[__name__])}"
-    return derivation_cache.remembered_value(
-        key, tag, lambda: typeset_derivation(mechanics, outlines=False)
-    )
+    return typeset_derivation(mechanics, outlines=False)
 
 
-def with_outlines(typeset: Typeset) -> Typeset:
-    """``typeset`` with every formula's outline (``outline``) and line pieces."""
+def with_outlines(typeset: Typeset, set_in=None) -> Typeset:
+    """``typeset`` with every formula's outline (``outline``) and line pieces (each
+    formula's remembered on disk: ``set_in_type``, or ``set_in``)."""
+    set_in = set_in_type if set_in is None else set_in
     parts = tuple(
-        dataclasses.replace(part, **set_in_type(part.latex))
+        dataclasses.replace(part, **set_in(part.latex))
         if isinstance(part, Formula) and part.latex is not None and part.outline is None
         else part
         for part in typeset.parts
     )
     return dataclasses.replace(typeset, parts=parts)
+
+
+class _NotKnown(Exception):
+    pass
+
+
+def _with_outlines_known(typeset: Typeset):
+    """``with_outlines(typeset)`` from the disk alone, or ``derivation_cache.MISSING``."""
+    from systems import derivation_cache
+
+    tag = _type_tag()
+
+    def known(latex: str) -> dict:
+        value = derivation_cache.known_value(latex, tag)
+        if value is derivation_cache.MISSING:
+            raise _NotKnown
+        return value
+
+    try:
+        return with_outlines(typeset, known)
+    except _NotKnown:
+        return derivation_cache.MISSING
+
+
+with_outlines.from_cache = _with_outlines_known
 
 
 def formula(row: report.Row, scene: Scene, outlines: bool = True) -> Formula:
@@ -287,8 +310,35 @@ def _outline(math: str) -> Outline:
 
 def outlines_of(latexes: tuple[str, ...]) -> dict[str, Outline | None]:
     """The outlines of several formulas at once (None for one mathtext refuses): the
-    window's inline formulas, set in a worker process (``explorer.inline_math``)."""
-    return {latex: outline(latex) for latex in latexes}
+    window's inline formulas, set in a worker process (``explorer.inline_math``). Each is
+    remembered on disk by the formula, like ``set_in_type``; ``outlines_of.from_cache``
+    gives them all without a process when every one is there."""
+    from systems import derivation_cache
+
+    tag = _type_tag()
+    return {
+        latex: derivation_cache.remembered_value(
+            f"outline {latex}", tag, lambda latex=latex: outline(latex)
+        )
+        for latex in latexes
+    }
+
+
+def _outlines_known(latexes: tuple[str, ...]):
+    """``outlines_of(latexes)`` from the disk alone, or ``derivation_cache.MISSING``."""
+    from systems import derivation_cache
+
+    tag = _type_tag()
+    found = {}
+    for latex in latexes:
+        value = derivation_cache.known_value(f"outline {latex}", tag)
+        if value is derivation_cache.MISSING:
+            return value
+        found[latex] = value
+    return found
+
+
+outlines_of.from_cache = _outlines_known
 
 
 # -- equations broken across lines -------------------------------------------------------
@@ -316,6 +366,7 @@ def set_in_type(latex: str) -> dict:
     return derivation_cache.remembered_value(latex, _type_tag(), lambda: _set_in_type(latex))
 
 
+@functools.cache
 @functools.cache
 def _type_tag() -> str:
     """What a formula's type depends on besides its LaTeX: this module and matplotlib."""

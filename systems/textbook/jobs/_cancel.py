@@ -32,6 +32,10 @@ class Cancel:
         """Whether ``set`` was called."""
         return self._event.is_set()
 
+    def __job_key__(self) -> str:
+        """A token changes no job's answer (``derivation_cache.remembered_job``)."""
+        return ""
+
     def check(self) -> None:
         """Raise ``Cancelled`` if ``set`` was called.
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from systems.derivation_cache import remembered_job
 from systems.textbook.equilibria import EquilibriumSearch, search_equilibria
 from systems.textbook.jobs._cancel import NEVER, Cancel
 from systems.textbook.jobs._run import names_of, parameters_of
@@ -21,6 +22,7 @@ class EquilibriaResult:
     names: tuple[str, ...]
 
 
+@remembered_job
 def equilibria(compiled: CompiledSystem, cancel: Cancel = NEVER) -> EquilibriaResult:
     """The equilibria of the compiled system at its parameter values (sliders included)."""
     cancel.check()
