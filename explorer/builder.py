@@ -301,7 +301,9 @@ class BuildService(QObject):
         self._counter = 0
         self._stopped = False
         self._warm_thread: threading.Thread | None = None
-        processes.start()  # the fork server's imports, while the window appears
+        # no fork server yet: a scene derived before is built from the disk in this
+        # process (``build_code.from_cache``), and the server's imports (0.9 s of CPU)
+        # are paid by the first job the disk cannot answer
         self._thread = QThread()
         self._thread.setObjectName("scene-builder")
         self._worker = _BuildWorker()

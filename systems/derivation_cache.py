@@ -18,6 +18,8 @@ second opening they cost a file read instead of tens of milliseconds of sympy ea
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import functools
 import hashlib
@@ -151,6 +153,7 @@ def remembered(scene, tag: str, compute: Callable[[], str]) -> str:
     tag) before it is returned; one that does not verify is computed again.
     """
     if not enabled():
+        must_compute()
         return compute()
     base = _path(scene)
     name = hashlib.sha256(tag.encode()).hexdigest()[:16]
@@ -158,6 +161,7 @@ def remembered(scene, tag: str, compute: Callable[[], str]) -> str:
     data = read_checked(path, tag)
     if data is not None:
         return data.decode()  # verified: the UTF-8 that was written
+    must_compute()
     text = compute()
     write_checked(path, text.encode(), tag)
     return text
@@ -173,6 +177,7 @@ def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
     line, and computed again; a value that cannot be pickled is only returned.
     """
     if not enabled():
+        must_compute()
         return compute()
     name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
     path = usable_directory(cache_root() / "values") / f"{name}.pickle"
@@ -182,6 +187,7 @@ def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
             return pickle.loads(data)
         except Exception as exc:  # noqa: BLE001 - whatever a damaged entry raises, compute anew
             discard(path, f"failed to load: {type(exc).__name__}")
+    must_compute()
     value = compute()
     try:
         data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
@@ -189,6 +195,31 @@ def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
         return value
     write_checked(path, data, tag)
     return value
+
+
+class NotKnown(Exception):  # noqa: N818 - what happened, not an error
+    """Raised inside ``only_known()`` where an answer would have to be computed."""
+
+
+_ONLY_KNOWN = contextvars.ContextVar("only_known", default=False)
+
+
+@contextlib.contextmanager
+def only_known():
+    """Within: ``remembered``, ``remembered_value`` and ``mechanics.derive`` raise
+    ``NotKnown`` instead of computing what is not on disk (this thread only)."""
+    token = _ONLY_KNOWN.set(True)
+    try:
+        yield
+    finally:
+        _ONLY_KNOWN.reset(token)
+
+
+def must_compute() -> None:
+    """Called before computing what the cache did not have: raises ``NotKnown`` within
+    ``only_known()``."""
+    if _ONLY_KNOWN.get():
+        raise NotKnown
 
 
 class _Missing:

@@ -185,6 +185,7 @@ def derive(scene: Scene) -> Mechanics:
     cached = derivation_cache.load(scene)
     if cached is not None:
         return cached
+    derivation_cache.must_compute()
     try:
         with cpu_limit(limit_seconds(), "deriving the equations of motion"):
             mechanics = _derive(scene)

@@ -47,3 +47,26 @@ def build_code(source: str | dict | Scene) -> tuple[Mechanics, SystemCode]:
     with cpu_limit(limit_seconds(), "writing the system's functions"):
         code = system_code(mechanics, wants_for(mechanics))
     return mechanics, code
+
+
+KNOWN_SOURCE_CHARS = 20_000
+"""The longest scene ``build_code.from_cache`` reads in the caller's process: reading is
+bounded only by the worker's CPU limit, so a longer text goes to a worker."""
+
+
+def _build_code_known(source: str | dict | Scene):
+    """``build_code(source)`` from the disk alone (the derivation and the code written
+    before), in the caller's process, or ``derivation_cache.MISSING``."""
+    from systems import derivation_cache
+
+    if not isinstance(source, Scene) and len(str(source)) > KNOWN_SOURCE_CHARS:
+        return derivation_cache.MISSING
+    try:
+        with derivation_cache.only_known():
+            mechanics = derive_source(source)
+            return mechanics, system_code(mechanics, wants_for(mechanics))
+    except derivation_cache.NotKnown:
+        return derivation_cache.MISSING
+
+
+build_code.from_cache = _build_code_known
