@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +20,17 @@ FIGURE_SIZE = (1000, 720)
 
 
 def ensure_qt_platform() -> None:
-    """Render offscreen unless a Qt platform was chosen (must run before Qt starts)."""
+    """Render offscreen unless a Qt platform was chosen (must run before Qt starts), and
+    load Qt's bindings with Ctrl+C, SIGTERM and SIGHUP held until they are loaded: a
+    signal landing in shiboken's start-up aborted the process ("Fatal Python error:
+    libshiboken/signature: could not initialize part 2") instead of stopping it."""
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    if "PySide6.QtCore" in sys.modules:
+        return
+    from explorer.export import signals_held
+
+    with signals_held():
+        import PySide6.QtCore  # noqa: F401
 
 
 EXPORT_SAMPLES = 20_000

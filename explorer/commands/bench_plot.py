@@ -9,7 +9,6 @@ SVG goes through ``QSvgGenerator`` (pyqtgraph's SVGExporter is broken on Qt 6.12
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
@@ -18,7 +17,9 @@ SYMBOLS = ("o", "s", "t", "d", "+", "x", "star", "h")
 
 def render(result, path: str | Path, size=(1100, 520)) -> Path:
     """Draw ``result`` (``systems.workprecision.WorkPrecision``) to ``path`` (.png/.svg)."""
-    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from explorer.headless import ensure_qt_platform
+
+    ensure_qt_platform()
     import pyqtgraph as pg
     from PySide6.QtCore import QRect, QSize
     from PySide6.QtGui import QPainter

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -81,7 +80,9 @@ def _label(plot, labels: tuple[str, str]) -> None:
 
 
 def _render(draw, title: str, path: str | Path, size: tuple[int, int]) -> Path:
-    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from explorer.headless import ensure_qt_platform
+
+    ensure_qt_platform()
     import pyqtgraph as pg
     from PySide6.QtWidgets import QApplication
 

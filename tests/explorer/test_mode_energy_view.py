@@ -98,11 +98,13 @@ def test_peak_buckets_keep_two_points_per_column_and_every_extreme():
     assert x[-1] <= 1000.0
 
 
-def test_the_modes_come_from_a_worker_that_a_new_system_or_closing_ends(qtbot):
+def test_the_modes_come_from_a_worker_that_a_new_system_or_closing_ends(qtbot, monkeypatch):
     view = ModeEnergyView()
     qtbot.addWidget(view)
     pendulum = compile_system(derive(load_scene("double_pendulum")), ())
     chain = compile_system(derive(parse_scene(fpu_chain(8))), ())
+    # nothing from the disk (an analysis remembered by another test): every one a worker's
+    monkeypatch.setenv("PHASE_EXPLORER_DERIVATION_CACHE", "0")
     view.set_system(pendulum)
     first = view._job.pid
     view.set_system(chain)  # the first analysis is no longer wanted: its worker ends
@@ -118,3 +120,22 @@ def test_the_modes_come_from_a_worker_that_a_new_system_or_closing_ends(qtbot):
     qtbot.waitUntil(lambda: pid not in {job.pid for job in processes.running()}, timeout=WAIT_MS)
     qtbot.wait(50)
     assert view.analysis is None  # nothing is delivered after closing
+
+
+def test_modes_analysed_before_come_from_the_disk_without_a_worker(qtbot, tmp_path, monkeypatch):
+    """The analysis is remembered (``derivation_cache.remembered_job``): a system analysed
+    before gets its modes at once, with no worker, and the same ones."""
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    pendulum = compile_system(derive(load_scene("double_pendulum")), ())
+    views = []
+    for _ in range(2):
+        view = ModeEnergyView()
+        qtbot.addWidget(view)
+        view.set_system(pendulum)
+        views.append((view, view._job.pid))
+        qtbot.waitUntil(lambda view=view: view.analysis is not None, timeout=WAIT_MS)
+    (first, first_pid), (second, second_pid) = views
+    assert first_pid is not None and second_pid is None
+    assert repr(second.analysis) == repr(first.analysis)
+    for view, _ in views:
+        view.shutdown()
