@@ -3,7 +3,13 @@ unusable cache directory is replaced by a temporary one (issue 11, deliverable 6
 
 Every case ends in the right answer, the harmonic oscillator's x(5) = cos 5, from the
 same ``run`` command users type, and (where a cache remains) in a rebuilt cache that the
-next run uses without complaint. Each test starts from a copy of one cache filled once.
+next run uses without complaint. Each test starts from a copy of one cache filled once,
+which holds the stepping loops the session compiled (``warmup.copy_drivers``), as an
+installation's cache does after ``python main.py warm``: a test pays for rebuilding what it
+damaged, not for compiling every loop again. numba's damaged entries are mostly those of
+``batch_scalar``, a small loop of the drivers' module that every run loads (H over the
+rows), guarded like every other; ``compose_run``, the run's stepping loop (about three
+times its compile time), is damaged once, by a truncated index.
 """
 
 import json
@@ -21,8 +27,11 @@ import pytest
 from explorer.cli import main
 from systems import cache_integrity, codegen, derivation_cache
 from systems.cache_integrity import HealingCache, read_checked, write_checked
+from systems.integrators.warmup import copy_drivers
 
 RUN = ["run", "harmonic_oscillator", "--t-end", "5", "--method", "yoshida8"]  # default step
+SESSION_CACHE = Path(os.environ["PHASE_EXPLORER_CACHE"])  # tests/conftest.py's, warmed
+SMALL = "batch_scalar"  # a drivers' loop every run loads, quick to compile again
 
 
 def _isolate(monkeypatch, root: Path) -> None:
@@ -39,6 +48,7 @@ def _isolate(monkeypatch, root: Path) -> None:
 def pristine(tmp_path_factory) -> Path:
     """A cache filled by one run (derivation, remembered facts, kernels, numba's files)."""
     root = tmp_path_factory.mktemp("pristine") / "cache"
+    copy_drivers(SESSION_CACHE, root)  # (False: the run below compiles them)
     with pytest.MonkeyPatch.context() as monkeypatch:
         _isolate(monkeypatch, root)
         assert main([*RUN, "--json"]) == 0
@@ -119,7 +129,7 @@ def stored_text(cache: Path, containing: bytes) -> Path:
     ("function", "suffix", "damage"),
     [
         ("compose_run", ".nbi", truncate),
-        ("compose_run", ".1.nbc", randomise),
+        (SMALL, ".1.nbc", randomise),
         ("rhs", ".1.nbc", flip_a_byte),
         ("hamiltonian", ".nbi", empty),
     ],
@@ -130,21 +140,28 @@ def test_damaged_numba_files_are_rebuilt(cache, capsys, function, suffix, damage
 
 
 def test_a_numba_entry_that_verifies_but_fails_to_load_is_rebuilt(cache, capsys):
-    index = numba_file(cache, "compose_run", ".nbi")
+    index = numba_file(cache, SMALL, ".nbi")
     truncate(index)
     guard = HealingCache(None, str(index))
     guard._sums.write_bytes(guard._checksum())  # damaged before its checksum was taken
     lines = run_once(capsys)
-    assert len(lines) == 1 and "compose_run" in lines[0] and "failed to load" in lines[0]
+    assert len(lines) == 1 and SMALL in lines[0] and "failed to load" in lines[0]
     assert run_once(capsys) == []
 
 
 def test_numba_entries_without_checksums_are_rebuilt_silently(cache, capsys):
-    for sums in (cache / "kernels" / "__pycache__").glob("*.nbsum"):
-        sums.unlink()  # as written before checksums, or interrupted before its checksum
-    randomise(numba_file(cache, "compose_run", ".nbi"))
+    # as written before checksums, or interrupted before its checksum: the scene's
+    # functions and a loop of the drivers (not every loop: each one the run loads is
+    # compiled again, compose_run alone for seconds, by the same path as this one)
+    folder = cache / "kernels" / "__pycache__"
+    unsummed = [*folder.glob("pe_kernels_*.nbsum"), numba_file(cache, SMALL, ".nbsum")]
+    assert len(unsummed) > 2
+    for sums in unsummed:
+        sums.unlink()
+    randomise(numba_file(cache, SMALL, ".nbi"))
     assert run_once(capsys) == []
-    assert numba_file(cache, "compose_run", ".nbsum").exists()
+    assert numba_file(cache, SMALL, ".nbsum").exists()
+    assert numba_file(cache, "rhs", ".nbsum").exists()
     assert run_once(capsys) == []
 
 
@@ -241,7 +258,7 @@ def _entries(cache: Path) -> dict[str, Path]:
         "derivation": next((cache / "derivations").glob("*.pickle")),
         "stored text": stored_text(cache, b"def grad_potential("),
         "kernel module": next((cache / "kernels").glob("pe_kernels_*.py")),
-        "numba index": numba_file(cache, "compose_run", ".nbi"),
+        "numba index": numba_file(cache, SMALL, ".nbi"),
         "numba data": numba_file(cache, "rhs", ".1.nbc"),
         "numba checksums": numba_file(cache, "hamiltonian", ".nbsum"),
     }
@@ -280,8 +297,24 @@ def _read_only(root: Path, monkeypatch, how: str) -> None:
         )
 
 
+def _fallback_with_drivers(monkeypatch, name: str) -> None:
+    """The temporary directory the program falls back to starts with the session's
+    stepping loops in its ``name`` folder, as an installation's cache holds them: the
+    program would compile them there as in any empty cache (what ``warm`` does), which is
+    not what these tests are about. The scene's functions are still written there."""
+    mkdtemp = tempfile.mkdtemp
+
+    def seeded(*args, **kwargs) -> str:
+        folder = mkdtemp(*args, **kwargs)
+        copy_drivers(SESSION_CACHE, Path(folder) / name)
+        return folder
+
+    monkeypatch.setattr(tempfile, "mkdtemp", seeded)
+
+
 @pytest.mark.parametrize("how", ["chmod", "read-only-mount"])
 def test_a_read_only_cache_directory_falls_back(cache, capsys, monkeypatch, how):
+    _fallback_with_drivers(monkeypatch, cache.name)
     before = sorted(p.name for p in cache.rglob("*"))
     try:
         _read_only(cache, monkeypatch, how)
@@ -302,6 +335,7 @@ def test_a_file_in_place_of_the_cache_directory_falls_back(tmp_path, capsys, mon
     root.write_text("not a directory")
     _isolate(monkeypatch, root)
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    _fallback_with_drivers(monkeypatch, root.name)
     lines = run_once(capsys)
     assert len(lines) == 1 and "warning" in lines[0] and "a file is in its place" in lines[0]
     assert root.read_text() == "not a directory"
