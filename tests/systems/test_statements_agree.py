@@ -18,12 +18,14 @@ from __future__ import annotations
 import random
 import re
 from pathlib import Path
+from unittest import mock
 
 import pytest
 import sympy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from systems import textbook
 from systems.display import display_names
 from systems.mechanics import derive
 from systems.report import readable
@@ -82,9 +84,30 @@ def _homogeneous_quadratic(mechanics) -> bool:
     return True
 
 
+def _text_and_search(mechanics):
+    """``readable(mechanics)``, and the result of the call ``search_equilibria(mechanics)``
+    its equilibria were written from, if it made that call (else None).
+
+    The text is held against that very search, not against a second one: the search is
+    the costliest part of the text (on fpu_chain 3 s of CPU), and a second call with the
+    same arguments only repeats it. A search made with any other arguments is not kept.
+    """
+    made = []
+
+    def recorded(m, *args, **kwargs):
+        result = search_equilibria(m, *args, **kwargs)
+        if m is mechanics and not args and not kwargs:
+            made.append(result)
+        return result
+
+    with mock.patch.object(textbook, "search_equilibria", recorded):
+        text = readable(mechanics)
+    return text, (made[-1] if made else None)
+
+
 def contradictions(mechanics) -> list[str]:
     """Every pair of statements of the derivation that do not agree, as sentences."""
-    text = readable(mechanics)
+    text, search = _text_and_search(mechanics)
     found = []
     items = [line[2:] for line in _block(text, "Classification") if line.startswith("- ")]
     said = {}
@@ -156,7 +179,8 @@ def contradictions(mechanics) -> list[str]:
         found.append(f"equilibria listed ({len(listed)}) and 'none' ({len(none)})")
     if any("rheonomic" in line for line in block) and said["scleronomic"]:
         found.append("an equilibrium note calls a scleronomic system rheonomic")
-    search = search_equilibria(mechanics)
+    if search is None:
+        search = search_equilibria(mechanics)
     if search.method == "not computed":
         return found
     if len(listed) != len(search.equilibria):
