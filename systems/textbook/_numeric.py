@@ -129,7 +129,9 @@ class Vectorized:
             values = self.raw(*arrays)
         out = np.empty((self.count, *shape))
         for i, value in enumerate(values):
-            out[i] = np.broadcast_to(_real(value), shape)
+            # assignment broadcasts and casts; only a complex value needs _real (a
+            # Hessian of 32 coordinates has 1024 entries, most of them constant, per call)
+            out[i] = _real(value) if np.iscomplexobj(value) else value
         return out
 
     def __reduce__(self):
