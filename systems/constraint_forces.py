@@ -58,7 +58,6 @@ import numpy as np
 import sympy
 
 from systems import constraints
-from systems.derivation_cache import remembered_job
 from systems.expressions import as_expr
 from systems.lambdified import lambdify
 from systems.particles import depends_on_time, gravity_vector
@@ -393,7 +392,6 @@ class ConstraintForces:
         return generalized, reactions, virtual_work, power, scale
 
 
-@remembered_job
 def analyse(mechanics) -> ConstraintForces:
     """The constraint forces of ``mechanics``' scene: what applies, what is computed and
     the functions that compute it (made once per ``Mechanics``)."""
