@@ -18,6 +18,7 @@ message says so.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -161,7 +162,9 @@ def section_portrait(
     tol: float | None = None,
     fallback: bool = False,
     energy_tolerance: float = ENERGY_TOLERANCE,
-) -> Portrait:
+    cancelled: Callable[[], bool] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Portrait | None:
     """Integrate orbits from the section and return every crossing of each.
 
     Parameters
@@ -184,10 +187,18 @@ def section_portrait(
         Where taylor does not apply, run one ``Run`` an orbit with the scene's automatic
         method instead of raising.
     energy_tolerance : float
+    cancelled : callable, optional
+        Asked between chunks of orbits (taylor: one batch of lanes a thread; the
+        fallback: one orbit); True stops the portrait and None is returned. With it or
+        ``progress`` the batch loop runs chunk by chunk (each orbit's crossings are the
+        same: every lane steps on its own), otherwise all orbits in one call.
+    progress : callable, optional
+        ``progress(done, total)`` after each chunk, in orbits.
 
     Returns
     -------
-    Portrait
+    Portrait or None
+        None only when ``cancelled`` stopped it.
 
     Raises
     ------
@@ -210,9 +221,15 @@ def section_portrait(
     if reason is not None and not fallback:
         raise ValueError(f"section portraits in batch run taylor: {reason}")
     if reason is not None:
-        t, y, reached, steps, status, method = _single_runs(compiled, section, Y0, t_end, crossings)
+        runs = _single_runs(compiled, section, Y0, t_end, crossings, cancelled, progress)
+        if runs is None:
+            return None
+        t, y, reached, steps, status, method = runs
     else:
-        t, y, reached, steps, status = _batch(compiled, section, Y0, t_end, crossings, tol)
+        batch = _batch(compiled, section, Y0, t_end, crossings, tol, cancelled, progress)
+        if batch is None:
+            return None
+        t, y, reached, steps, status = batch
         method = "taylor"
     H0 = compiled.hamiltonian(0.0, Y0)
     errors = np.zeros(len(Y0))
@@ -259,8 +276,14 @@ def _starts(compiled, section: Section, energy: float, starts) -> np.ndarray:
     return np.ascontiguousarray(Y0)
 
 
-def _batch(compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: int, tol):
-    """The orbits in SIMD batches: ``kernels.taylor_batch_section_parallel``."""
+def _batch(
+    compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: int, tol,
+    cancelled=None, progress=None,
+):  # fmt: skip
+    """The orbits in SIMD batches: ``kernels.taylor_batch_section_parallel``, in one call,
+    or (with ``cancelled`` or ``progress``) a chunk of one batch a thread at a time."""
+    import numba
+
     from systems.codegen import driver_module
     from systems.integrators.codes import Clock, Status
     from systems.integrators.registry import get_stepper
@@ -289,10 +312,18 @@ def _batch(compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: 
         [section.coordinate, section.value, 1.0, section_period(compiled, section)], dtype=float
     )
     loop = driver_module().taylor_batch_section_parallel
-    loop(
-        fb, Y, clock, compiled.parameters, runner.coef, cut, lanes, ev_t, ev_y, events,
-        status, steps, reached,
-    )  # fmt: skip
+    watched = cancelled is not None or progress is not None
+    chunk = lanes * max(1, numba.get_num_threads()) if watched else N
+    for lo in range(0, N, chunk):
+        if cancelled is not None and cancelled():
+            return None
+        part = slice(lo, min(N, lo + chunk))
+        loop(
+            fb, Y[part], clock, compiled.parameters, runner.coef, cut, lanes, ev_t[part],
+            ev_y[part], events[part], status[part], steps[part], reached[part],
+        )  # fmt: skip
+        if progress is not None:
+            progress(part.stop, N)
     words = []
     for code in status:
         if code == int(Status.END):
@@ -306,8 +337,12 @@ def _batch(compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: 
     return t, y, reached, steps, words
 
 
-def _single_runs(compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: int):
-    """One ``Run`` an orbit with the scene's automatic method (taylor refused)."""
+def _single_runs(
+    compiled, section: Section, Y0: np.ndarray, t_end: float, crossings: int,
+    cancelled=None, progress=None,
+):  # fmt: skip
+    """One ``Run`` an orbit with the scene's automatic method (taylor refused); None when
+    ``cancelled`` says so before an orbit."""
     from systems.simulation import Run
 
     N = len(Y0)
@@ -316,6 +351,8 @@ def _single_runs(compiled, section: Section, Y0: np.ndarray, t_end: float, cross
     steps = np.zeros(N, dtype=np.int64)
     method = ""
     for r in range(N):
+        if cancelled is not None and cancelled():
+            return None
         run = Run(
             compiled, y0=Y0[r], t_end=t_end, section=(section.coordinate, section.value, 1),
             max_points=4,
@@ -338,4 +375,6 @@ def _single_runs(compiled, section: Section, Y0: np.ndarray, t_end: float, cross
         reached[r] = run.t
         steps[r] = run.steps
         status.append(word)
+        if progress is not None:
+            progress(r + 1, N)
     return t, y, reached, steps, status, method
