@@ -391,6 +391,11 @@ class MainWindow(QMainWindow):
             "without bound",
         )
         self._show_energy_guard()
+        run_menu.addSeparator()
+        fill = self.phase_view.fill_layer  # the phase view's "Fill section…", and its stop
+        run_menu.addAction(fill.fill_action)
+        run_menu.addAction(fill.stop_action)
+        fill.message.connect(self.statusBar().showMessage)
         self.view_menu = menu.addMenu("&View")
         for dock in self.docks.values():
             self.view_menu.addAction(dock.toggleViewAction())
@@ -1290,6 +1295,7 @@ class MainWindow(QMainWindow):
         if self.workprecision_view is not None:
             self.workprecision_view.shutdown()
         self.phase_view.map_layer.shutdown()
+        self.phase_view.fill_layer.shutdown()
         processes.cancel_all(max(0.05, deadline - time.monotonic()))
         self.collector.stop()
         self.error_reporter.uninstall()

@@ -29,6 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from explorer.commands.errors import UserError, user_errors
+from explorer.orbit_colours import orbit_colour
 
 PANELS = ("configuration", "phase", "conserved", "workprecision")
 SUFFIXES = (".png", ".svg", ".csv")
@@ -307,13 +308,3 @@ def _portrait(scene, args, out: Path, size: tuple[int, int] | None) -> int:
         print(f"warning: {message}", file=sys.stderr)
     print(f"wrote {written}")
     return 0 if portrait.trusted.all() else 1
-
-
-def orbit_colour(index: int, count: int) -> str:
-    """A colour of its own for orbit ``index`` of ``count``: hues evenly around the
-    circle, alternately darker and lighter so that neighbours differ."""
-    import colorsys
-
-    hue = (index / max(count, 1)) % 1.0
-    r, g, b = colorsys.hls_to_rgb(hue, 0.38 if index % 2 else 0.5, 0.85)
-    return f"#{round(255 * r):02x}{round(255 * g):02x}{round(255 * b):02x}"

@@ -51,6 +51,7 @@ from explorer.panels.curves import (
     style_plot,
 )
 from explorer.panels.ranges import axis_range
+from explorer.panels.section_fill_layer import SectionFillLayer
 from systems.angles import angle_flags, wrap
 
 LEVEL_PEN = pg.mkPen("#9aa3ad", width=1)
@@ -153,7 +154,8 @@ class PhaseView(QWidget):
         self._orbit_energies: dict[int, float] = {}
         self._static: list = []
         self._legend_static: list[tuple[object, str]] = []
-        self._legend_layer: list[tuple[object, str]] = []  # a layer's key (the chaos map)
+        # the layers' keys (the chaos map's colours, the section fill's orbits) by layer
+        self._legend_layers: dict[str, list[tuple[object, str]]] = {}
         self._static_stale = False
         self._store = None
         self._generation = -1
@@ -199,6 +201,9 @@ class PhaseView(QWidget):
         header.addWidget(self.poincare_box)
         self.map_layer = ChaosMapLayer(self)  # a MEGNO map under the section
         for widget in self.map_layer.widgets():
+            header.addWidget(widget)
+        self.fill_layer = SectionFillLayer(self)  # many orbits' crossings at the energy
+        for widget in self.fill_layer.widgets():
             header.addWidget(widget)
         header.addStretch(1)
         header.addWidget(self.hint)
@@ -346,6 +351,7 @@ class PhaseView(QWidget):
         if self.compiled is None:
             self._update_legend()
             self.map_layer.clear()
+            self.fill_layer.clear()
             return
         if self.mode == "poincare":
             self._setup_section()
@@ -353,6 +359,7 @@ class PhaseView(QWidget):
             self._setup_phase()
         self._update_legend()
         self.map_layer.clear()  # drawn for another system, mode or energy
+        self.fill_layer.clear()
 
     def _axis(self, name: str, value: float, angle: bool) -> tuple[tuple[float, float], bool]:
         """(range, fixed) of one axis: declared, an angle's, or a guess that may grow."""
@@ -578,12 +585,17 @@ class PhaseView(QWidget):
         for key, name in legend_orbit_names({*self._curves, *self._section_scatter}):
             item = self._curves[key].tail if key in self._curves else self._section_scatter[key]
             entries.append((item, name))
-        self.legend.set_entries(entries + self._legend_static + self._legend_layer)
+        layers = [entry for entries in self._legend_layers.values() for entry in entries]
+        self.legend.set_entries(entries + self._legend_static + layers)
+        # placed now: an export right after (a session's next line) renders before the
+        # posted layout request, and a new entry's label sat at the legend's corner
+        self.legend.layout.activate()
 
-    def set_layer_legend(self, entries: list[tuple[object, str]]) -> None:
-        """The legend entries of a layer drawn under the points, (item, name) each: the
-        chaos map's colour key, shown in the window and in its exports; [] removes them."""
-        self._legend_layer = list(entries)
+    def set_layer_legend(self, entries: list[tuple[object, str]], key: str = "chaos-map") -> None:
+        """The legend entries of layer ``key`` drawn under the points, (item, name) each:
+        the chaos map's colour key, the section fill's orbits; shown in the window and in
+        its exports; [] removes them."""
+        self._legend_layers[key] = list(entries)
         self._update_legend()
 
     def refresh(self, store) -> None:

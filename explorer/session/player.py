@@ -248,10 +248,12 @@ class Player(QObject):
             )
 
     def _drawing(self) -> bool:
-        """Whether a chaos map or an orbit diagram is being computed: the next line waits
-        for it (a ``chaos-map``'s grid takes seconds to minutes: no settling deadline)."""
-        window = self.window
-        return window.phase_view.map_layer.running or window.orbit_diagram_view.running
+        """Whether a chaos map, a section fill or an orbit diagram is being computed: the
+        next line waits for it (a ``chaos-map``'s grid takes seconds to minutes: no
+        settling deadline)."""
+        phase = self.window.phase_view
+        layers = (phase.map_layer, phase.fill_layer, self.window.orbit_diagram_view)
+        return any(layer.running for layer in layers)
 
     def _idle(self) -> bool:
         window = self.window
@@ -592,6 +594,13 @@ class Player(QObject):
                 "a chaos map colours the Poincaré section: turn it on first (`section on`)"
             )
         layer.button.click()
+
+    def _do_section_fill(self, command: Command) -> None:
+        layer = self.window.phase_view.fill_layer
+        reason = layer.refusal()
+        if reason is not None:
+            raise self._error(f"cannot fill the section: {reason}")
+        layer.start(command.value)
 
     def _do_orbit_diagram(self, command: Command) -> None:
         parameter, low, high, count = command.value

@@ -83,6 +83,7 @@ class Recorder(QObject):
         phase.pair_combo.currentIndexChanged.connect(self._on_pair_index_changed)
         phase.launch_requested.connect(self._on_launch_requested)
         phase.map_layer.started.connect(self._on_chaos_map_started)
+        phase.fill_layer.started.connect(self._on_section_fill_started)
         window.orbit_diagram_view.started.connect(self._on_orbit_diagram_started)
         editor = window.editor
         editor.parameters_changed.connect(self._on_parameters_changed)
@@ -247,6 +248,9 @@ class Recorder(QObject):
 
     def _on_chaos_map_started(self) -> None:
         self.record("chaos-map")
+
+    def _on_section_fill_started(self, count: int) -> None:
+        self.record(line("section-fill", count))
 
     def _on_orbit_diagram_started(self, parameter: str, low: float, high: float, count: int):
         self.record(line("orbit-diagram", parameter, number(low), number(high), count))

@@ -53,6 +53,9 @@ MAX_WAIT = 3600.0
 MAX_DIAGRAM_VALUES = 5000
 """The most values an ``orbit-diagram`` line (and the Orbit diagram's values box) takes."""
 """The longest ``wait`` and ``run-until ... timeout=``, in seconds of wall time."""
+MAX_SECTION_ORBITS = 10_000
+"""The most orbits a ``section-fill`` line (and the window's Fill section…) starts, as
+``export --poincare --orbits``."""
 _ESCAPES = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "r": "\r"}
 
 
@@ -473,6 +476,19 @@ def _read_orbit_diagram(args):
     return args[0], low, high, count
 
 
+def _read_section_fill(args):
+    _count(args, "section-fill ORBITS", 1)
+    try:
+        count = int(args[0])
+    except ValueError:
+        count = 0
+    if not 1 <= count <= MAX_SECTION_ORBITS:
+        raise _Refused(
+            f"ORBITS is a whole number from 1 to {MAX_SECTION_ORBITS}, not {_shown(args[0])}"
+        )
+    return count
+
+
 def _read_export(args):
     _count(args, "export PANEL PATH (PANEL: phase, configuration, conserved, ... or csv)", 2)
     return args[0], _path(args[1], "export needs a file to write")
@@ -513,6 +529,7 @@ GRAMMAR: dict[str, Callable[[tuple[str, ...]], Any]] = {
     "wait": _read_wait,
     "tab": _read_tab,
     "chaos-map": _no_arguments("chaos-map"),
+    "section-fill": _read_section_fill,
     "orbit-diagram": _read_orbit_diagram,
     "export": _read_export,
     "save": _read_save,
