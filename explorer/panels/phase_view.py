@@ -22,8 +22,8 @@ import math
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QAction, QColor
+from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtGui import QAction, QColor, QPainter
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -189,7 +189,7 @@ class PhaseView(QWidget):
         self.poincare_box = QCheckBox("Poincaré section")
         self.poincare_box.setToolTip("Poincaré sections need a system to be loaded.")
         self.poincare_box.toggled.connect(self._on_poincare_toggled)
-        self.hint = QLabel("Click to launch a trajectory.")
+        self.hint = _ElidedLabel("Click to launch a trajectory.")
         self.hint.setStyleSheet("color: #555")
         self.hint.setToolTip(
             "Left click: start an orbit there. Right click on an orbit: delete it. "
@@ -839,6 +839,24 @@ class PhaseView(QWidget):
     def export_target(self) -> QWidget:
         """The widget that figure exports render (the plot with its legend)."""
         return self.plot_widget
+
+
+class _ElidedLabel(QLabel):
+    """The header's hint: as much of its text as the header leaves room for, cut with an
+    ellipsis. A plain label's text is its minimum width, so a long hint (a layer's report)
+    widened the phase view and put the window past a 1366-pixel screen."""
+
+    def minimumSizeHint(self) -> QSize:  # noqa: N802 - Qt override
+        return QSize(0, super().minimumSizeHint().height())
+
+    def paintEvent(self, _event) -> None:  # noqa: N802 - Qt override
+        rect = self.contentsRect()
+        text = self.fontMetrics().elidedText(self.text(), Qt.TextElideMode.ElideRight, rect.width())
+        painter = QPainter(self)
+        self.style().drawItemText(
+            painter, rect, int(self.alignment()), self.palette(), self.isEnabled(), text,
+            self.foregroundRole(),
+        )  # fmt: skip
 
 
 def _with_margin(lo: float, hi: float) -> tuple[float, float]:
