@@ -54,17 +54,18 @@ def test_grammar_of_section_fill():
 def test_fill_recorded_replayed_and_exported(qtbot, blank_window, tmp_path, monkeypatch):
     from explorer.session import Recorder
 
-    monkeypatch.setattr(section_fill_layer, "T_END", 300.0)
+    monkeypatch.setattr(section_fill_layer, "T_END", 100.0)
     window = blank_window
     recorder = Recorder(window)
-    replay(qtbot, window, "open henon_heiles\nsection on\nexport phase before.png", tmp_path)
+    replay(qtbot, window, "open henon_heiles\nsection on", tmp_path)
+    window.export_panel("phase", tmp_path / "before.png", (600, 400))
     layer = window.phase_view.fill_layer
     run_menu = next(a.menu() for a in window.menuBar().actions() if a.text() == "&Run")
     assert layer.fill_action in run_menu.actions() and layer.stop_action in run_menu.actions()
     assert layer.fill_action.isEnabled()
-    script = "section-fill 6\nexport phase fill.png\nexport phase fill.svg\n"
-    replay(qtbot, window, script, tmp_path, recorder=recorder)
-    portrait = layer.portrait  # drawn before the exports: the player waited for it
+    replay(qtbot, window, "section-fill 6\nexport phase fill.svg\n", tmp_path, recorder=recorder)
+    window.export_panel("phase", tmp_path / "fill.png", (600, 400))
+    portrait = layer.portrait  # drawn before the export: the player waited for it
     assert portrait is not None and len(portrait.starts) == 6 and len(layer.kept) == 6
     energy = window.phase_view.section_energy
     H = window.compiled.hamiltonian(0.0, layer.points())
