@@ -180,3 +180,21 @@ def test_refused_where_there_is_no_section_or_taylor_does_not_apply(qtbot):
     layer.start(5)  # as a session's line or the menu: says why; nothing runs
     assert not layer.running and "Fill button's tip says why" in view.hint.text()
     assert messages == [f"Cannot fill the section: {layer.refusal()}"]
+
+
+def test_the_button_and_the_menu_ask_for_the_number_of_orbits(qtbot, view, monkeypatch):
+    asked = []
+
+    def get_int(_parent, _title, _label, value, low, high):
+        asked.append((value, low, high))
+        return (5, True) if len(asked) == 1 else (7, False)
+
+    monkeypatch.setattr(section_fill_layer.QInputDialog, "getInt", get_int)
+    layer = view.fill_layer
+    view.set_mode("poincare")
+    layer.button.click()
+    assert asked == [(30, 1, 10_000)] and layer.running
+    _filled(qtbot, layer)
+    assert len(layer.portrait.starts) == 5
+    layer.fill_action.trigger()  # Run > Fill section…, cancelled in its dialog
+    assert len(asked) == 2 and not layer.running and len(layer.portrait.starts) == 5
