@@ -89,6 +89,9 @@ SIGNATURES: dict[str, str] = {
     "taylor_coefficients": f"void({_F}, {_V}, {_V}, {_M})",
     # B trajectories at once: T (B,), Y (m, B), out (N + 1, m + nodes, B)
     "taylor_batch": f"void({_V}, {_M}, {_V}, float64[:, :, ::1])",
+    # the state's orders 1 and 2 in double-double (``systems.taylor.double``): (t, y,
+    # comp, P, out) at the state y - comp, out (4, m)
+    "taylor_double": f"void({_F}, {_V}, {_V}, {_V}, {_M})",
 }
 """The system functions the drivers call, by name: numba signatures of (t, y, P, ...)
 with C-contiguous float arrays. A scene's module compiles each it defines for exactly

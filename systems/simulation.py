@@ -1002,11 +1002,10 @@ def ensemble(
         raise ValueError(f"ensembles run fixed-step methods or taylor, not {method!r}")
     Y = np.array(Y0, dtype=float, copy=True)
     N, m = Y.shape
-    fns = compiled.functions(family.functions)
     loop = getattr(driver_module(), kernel)
     if family.adaptive_ensemble:
         t, out, status = _adaptive_ensemble(
-            compiled, stepper, loop, fns, Y, t0, t_end, samples, tol, batched
+            compiled, stepper, loop, Y, t0, t_end, samples, tol, batched
         )
     else:
         if dt is None:
@@ -1022,6 +1021,7 @@ def ensemble(
         clock[Clock.H] = dt
         clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
         limits = (nsteps, stride)
+        fns = compiled.functions(family.functions)
         loop(fns, Y, clock, compiled.parameters, coef, limits, out, status)
         t = t0 + dt * stride * np.arange(1, count + 1)
     # rows that failed keep their last good sample instead of NaN
@@ -1036,11 +1036,11 @@ ENSEMBLE_MAX_STEPS = 10**9
 """The most steps of one row of an adaptive ensemble."""
 
 
-def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol, batched):
-    """``ensemble`` of an adaptive family (``X_ensemble_adaptive_parallel``): the coef
-    and clock of a runner from the first row (the same for every row: the tolerance
-    and the family's constants), each row to ``t_end``. Returns (t, out, status) with
-    ``status`` 0 for a row that reached the end."""
+def _adaptive_ensemble(compiled, stepper, loop, Y, t0, t_end, samples, tol, batched):
+    """``ensemble`` of an adaptive family (``X_ensemble_adaptive_parallel``): the coef,
+    functions and clock of a runner from the first row (the same for every row: the
+    tolerance and the family's constants), each row to ``t_end``. Returns (t, out,
+    status) with ``status`` 0 for a row that reached the end."""
     if not math.isfinite(t_end) or t_end <= t0:
         raise ValueError(f"an adaptive ensemble needs a finite end after t0, not {t_end!r}")
     N, m = Y.shape
@@ -1064,9 +1064,10 @@ def _adaptive_ensemble(compiled, stepper, loop, fns, Y, t0, t_end, samples, tol,
         fb = compiled.functions((function,))[0]
         lanes = compiled.taylor().batch()[1]
         loop = getattr(driver_module(), kernel)
-        loop(fb, Y, clock, compiled.parameters, runner.coef, t, lanes, out, status, steps)
+        fd = runner.fns[1]  # taylor's double-double orders (asked by runner.coef) or none
+        loop(fb, fd, Y, clock, compiled.parameters, runner.coef, t, lanes, out, status, steps)
     else:
         limits = (ENSEMBLE_MAX_STEPS, 1)
-        loop(fns, Y, clock, compiled.parameters, runner.coef, t, limits, out, status, steps)
+        loop(runner.fns, Y, clock, compiled.parameters, runner.coef, t, limits, out, status, steps)
     status[status == int(Status.END)] = int(Status.RUNNING)
     return t, out, status

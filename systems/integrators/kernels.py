@@ -804,18 +804,21 @@ def dop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
 
 
 # -- Taylor series of adaptive order (Jorba & Zou), the coefficients from the derivation --------
-# fns = (taylor_coefficients,): the scene's coefficient function (systems.taylor.compiled),
-# coef = (width, kahan, order, hmax, factor): the columns of its out (m + nodes),
-# compensated sums, the order p (from the tolerance: Jorba and Zou's ceil(-ln(tol)/2 + 1)),
-# the longest step, and exp(-0.7 / (p - 1)) / e^2 (heyoka's safety factor).
+# fns = (taylor_coefficients, taylor_double): the scene's coefficient function
+# (systems.taylor.compiled) and its orders 1 and 2 in double-double (systems.taylor.double:
+# built only when asked, else a function that is never called), coef = (width, kahan,
+# order, hmax, factor, double): the columns of its out (m + nodes), compensated sums, the
+# order p (from the tolerance: Jorba and Zou's ceil(-ln(tol)/2 + 1)), the longest step,
+# exp(-0.7 / (p - 1)) / e^2 (heyoka's safety factor), and whether the state and orders 1
+# and 2 are double-double (runners.TaylorRunner: a tolerance below machine epsilon).
 
 
 def taylor_work(coef, m):
     width = coef[0]
     order = coef[2]
-    # the coefficients of the last step (order + 1, width): its dense output; flags
-    # [coefficients valid]
-    return (np.empty((order + 1, width)), np.zeros(1))
+    # the coefficients of the last step (order + 1, width): its dense output; orders 1
+    # and 2 in double-double (4, m: taylor_double's out); flags [coefficients valid]
+    return (np.empty((order + 1, width)), np.zeros((4, m)), np.zeros(1))
 
 
 def _taylor_horner(C, order, i, h):
@@ -894,20 +897,98 @@ def _taylor_advance(C, order, h, y, comp, kahan):
         i += 1
 
 
+def _split(a):
+    """Dekker's split of ``a`` into two halves of 26 bits (``hi + lo == a``)."""
+    c = 134217729.0 * a
+    high = c - (c - a)
+    return high, a - high
+
+
+def _dd_times(xh, xl, h, hh, hl):
+    """(xh + xl) h in double-double, ``(hh, hl)`` the split of h (TwoProd by Dekker's
+    split: numba has no fused multiply-add to ask for, and these functions are compiled
+    without contraction)."""
+    p = xh * h
+    ah, al = _split(xh)
+    e = ((ah * hh - p) + ah * hl + al * hh) + al * hl
+    e += xl * h
+    s = p + e
+    return s, e - (s - p)
+
+
+def _dd_plus(xh, xl, yh, yl):
+    """(xh + xl) + (yh + yl) in double-double."""
+    s = xh + yh
+    back = s - xh
+    e = (xh - (s - back)) + (yh - back)
+    e += xl + yl
+    t = s + e
+    return t, e - (t - s)
+
+
+def _taylor_first(D, i, u, h, hh, hl, y, comp):
+    """y[i] - comp[i] += ((u + c_2) h + c_1) h in double-double: the state's orders 1 and
+    2 ``c_k`` double-double in ``D`` (``taylor_double``'s out: rows c_1, its low part,
+    c_2, its low part), ``u = sum_{k>=3} C[k, i] h^(k-2)`` in double, ``(hh, hl)`` the
+    split of h. The state stays the double-double ``(y, -comp)``."""
+    xh, xl = _dd_plus(u, 0.0, D[2, i], D[3, i])
+    xh, xl = _dd_times(xh, xl, h, hh, hl)
+    xh, xl = _dd_plus(xh, xl, D[0, i], D[1, i])
+    xh, xl = _dd_times(xh, xl, h, hh, hl)
+    sh, sl = _dd_plus(y[i], -comp[i], xh, xl)
+    y[i] = sh
+    comp[i] = -sl
+
+
+def _taylor_tail(C, order, i, h):
+    """sum_{k=3}^{order} C[k, i] h^(k-2) (``_taylor_horner``'s sums from order 3)."""
+    if order >= 4:
+        return _taylor_horner(C[2:], order - 2, i, h)
+    return C[3, i] * h if order == 3 else 0.0
+
+
+def _taylor_advance_double(C, D, order, h, y, comp):
+    """``_taylor_advance`` with the state the double-double ``y - comp`` and orders 1 and
+    2 double-double in ``D``: the sum from order 3 in double (``_taylor_horner4``'s
+    chains on ``C[2:]``), the first two orders and the addition to the state in
+    double-double (``_taylor_first``)."""
+    m = y.shape[0]
+    i = 0
+    hh, hl = _split(h)
+    if order >= 4:
+        tail = C[2:]
+        while i + 4 <= m:
+            d0, d1, d2, d3 = _taylor_horner4(tail, order - 2, i, h)
+            _taylor_first(D, i, d0, h, hh, hl, y, comp)
+            _taylor_first(D, i + 1, d1, h, hh, hl, y, comp)
+            _taylor_first(D, i + 2, d2, h, hh, hl, y, comp)
+            _taylor_first(D, i + 3, d3, h, hh, hl, y, comp)
+            i += 4
+    while i < m:
+        _taylor_first(D, i, _taylor_tail(C, order, i, h), h, hh, hl, y, comp)
+        i += 1
+
+
 def taylor_step(fns, y, comp, clock, P, coef, work):
     """One Taylor step: the coefficients of the solution through ``(t, y)`` to order p
     (``fns[0]``), the step from the last two (Jorba and Zou with heyoka's safety factor:
     ``rho = min(|[y]_{p-1}|^(-1/(p-1)), |[y]_p|^(-1/p))``, the norms the largest entry
     relative to ``max(1, |y|)``; ``h = rho / e^2 exp(-0.7 / (p - 1))``, at most ``hmax``,
     never past the end time), and the series summed by Horner's rule, the increment
-    added with Kahan's compensation. Never rejected: non-finite coefficients give a
+    added with Kahan's compensation; with ``coef[5]`` (a tolerance below machine
+    epsilon) orders 1 and 2 again in double-double (``fns[1]``, ``taylor_double``) and
+    the state carried as the double-double ``y - comp`` (``_taylor_advance_double``).
+    Never rejected: non-finite coefficients give a
     non-finite state, which the driver undoes. The coefficients stay in ``work`` for the
     dense output (``taylor_sample``); ``clock[CLOCK_H]`` is the step taken."""
     kahan = coef[1]
     order = coef[2]
-    C, flags = work
+    double = coef[5]
+    C, D, flags = work
     t = clock[CLOCK_T]
     fns[0](t, y, P, C)
+    if double:
+        fns[1](t, y, comp, P, D)
     flags[0] = 1.0
     t_end = clock[CLOCK_T_END]
     h, last = _taylor_h(C, y, coef, t, t_end)
@@ -915,7 +996,10 @@ def taylor_step(fns, y, comp, clock, P, coef, work):
         if h == h:
             return STATUS_STEP_COLLAPSED, 1
         h = 1.0  # nan coefficients: a non-finite state, undone by the driver
-    _taylor_advance(C, order, h, y, comp, kahan)
+    if double:
+        _taylor_advance_double(C, D, order, h, y, comp)
+    else:
+        _taylor_advance(C, order, h, y, comp, kahan)
     if last:
         clock[CLOCK_T] = t_end
         clock[CLOCK_TC] = 0.0
@@ -1049,11 +1133,13 @@ def _taylor_lanes(C, order, H, inc):
             inc[i, lane] = (o * h + e) * h
 
 
-def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, counts):
+def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status, counts):
     """Many initial states ``Y`` (N, m) in batches of ``lanes``: the coefficients of a
     batch's trajectories from one call of the batch function ``fb`` (``taylor_batch``:
     T (B,), y (m, B), out (order + 1, width, B), SIMD lanes), each trajectory its own
-    step (``_taylor_h``), sum (``_taylor_advance``) and clock from there, until every
+    step (``_taylor_h``), sum (``_taylor_advance``, or with ``coef[5]`` the double-double
+    orders of ``fd``, ``taylor_double``, called lane by lane, and
+    ``_taylor_advance_double``'s sums) and clock from there, until every
     trajectory of the batch has ended; the batches spread over cores. ``clock0`` gives
     the start time and ``CLOCK_T_END``; ``out`` (N, k, m) gets the states at ``times``
     (k,) from the series, ``status`` (N,) ``STATUS_END`` or the problem that stopped a
@@ -1063,6 +1149,7 @@ def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, cou
     kahan = coef[1]
     order = coef[2]
     width = coef[0]
+    double = coef[5]
     N = Y.shape[0]
     m = Y.shape[1]
     B = lanes
@@ -1081,6 +1168,7 @@ def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, cou
         inc = np.empty((m, B))
         yl = np.empty(m)
         cl = np.empty(m)
+        D = np.zeros((4, m))
         live = np.zeros(B, dtype=np.int64)
         j = np.zeros(B, dtype=np.int64)
         for lane in range(B):
@@ -1109,16 +1197,31 @@ def taylor_batch_parallel(fb, Y, clock0, P, coef, times, lanes, out, status, cou
                     continue
                 H[lane] = h
                 ends[lane] = 1 if last else 0
-            _taylor_lanes(C, order, H, inc)  # every lane's sums at once
+            # every lane's sums at once (from order 3 where the first two orders and the
+            # state are double-double, as _taylor_advance_double's)
+            if not double:
+                _taylor_lanes(C, order, H, inc)
+            elif order >= 4:
+                _taylor_lanes(C[2:], order - 2, H, inc)
             for lane in range(n):
                 h = H[lane]
                 if h == 0.0:
                     continue
                 row = lo + lane
-                for i in range(m):
-                    yl[i] = y[i, lane]
-                    cl[i] = comp[i, lane]
-                    _add(yl, cl, i, inc[i, lane], kahan)
+                if not double:
+                    for i in range(m):
+                        yl[i] = y[i, lane]
+                        cl[i] = comp[i, lane]
+                        _add(yl, cl, i, inc[i, lane], kahan)
+                else:
+                    for i in range(m):
+                        yl[i] = y[i, lane]
+                        cl[i] = comp[i, lane]
+                    fd(T[lane], yl, cl, P, D)  # the lane's own, as its single run's
+                    hh, hl = _split(h)
+                    for i in range(m):
+                        u = inc[i, lane] if order >= 4 else _taylor_tail(C[:, :, lane], order, i, h)
+                        _taylor_first(D, i, u, h, hh, hl, yl, cl)
                 if not _finite(yl):  # the state stays the step's start
                     status[row] = STATUS_NON_FINITE
                     live[lane] = 0

@@ -174,10 +174,18 @@ class Stepper:
             if value is not None and not (math.isfinite(value) and value > 0):
                 return f"--{name} must be a positive finite number, not {value!r}"
         if tol is not None and not MIN_TOL <= tol <= 1.0:
-            return (
+            reason = (
                 f"--tol {tol:g} is outside what an adaptive method can honour in double "
                 f"precision: give a tolerance between {MIN_TOL:g} and 1"
             )
+            if self.family.runner is runners.TaylorRunner:  # its tightest setting
+                eps = runners.DOUBLE_DOUBLE_BELOW
+                reason += (
+                    f"; with {self.name} one below machine epsilon ({eps:.2g}), such as "
+                    f"{MIN_TOL:g}, carries the state and the series' first two orders in "
+                    "double-double"
+                )
+            return reason
         if dt is not None and self.setting == "dt" and span is not None:
             t0, t_end = span
             length, scale = t_end - t0, max(abs(t0), abs(t_end))

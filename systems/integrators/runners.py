@@ -324,23 +324,45 @@ class AdaptiveRunner(KernelRunner):
         self.clock[Clock.H] = min(h, self.max_step)
 
 
+DOUBLE_DOUBLE_BELOW = float(np.finfo(float).eps)
+"""Taylor tolerances below this (machine epsilon, the default) carry the state and the
+series' orders 1 and 2 in double-double (``systems.taylor.double``, built then and only
+then): Kepler's 100 periods to about 1e-13 instead of 1e-12..1e-11 (docs/internals.md,
+the Taylor section, for what it costs)."""
+
+
 class TaylorRunner(KernelRunner):
     """The Taylor family: ``value`` is the tolerance, which sets the order (Jorba and
     Zou's ``ceil(-ln(tol)/2 + 1)``, at least 2: 20 at machine epsilon); each step's length
-    comes from the last two coefficients, at most ``max_step``."""
+    comes from the last two coefficients, at most ``max_step``. Below
+    ``DOUBLE_DOUBLE_BELOW`` (and compensated) the state and orders 1 and 2 are
+    double-double: ``fns`` gets the scene's ``taylor_double`` as its second function,
+    else a function never called (``systems.taylor.double.no_double``)."""
 
     def __init__(
         self, compiled, stepper, y0, t0, t_end, value, section, *args, max_step=math.inf, **kw
     ):
+        from systems.taylor import double
+
         self.max_step = float(max_step)
         super().__init__(compiled, stepper, y0, t0, t_end, value, section, *args, **kw)
+        if self.double:
+            self.fns = (*self.fns, compiled.taylor().double().function)
+        else:
+            self.fns = (*self.fns, double.no_double())
 
     def _coefficients(self, t0: float) -> tuple:
         from systems.taylor.coefficients import jorba_zou
 
         order = max(2, jorba_zou(self.value))
         factor = math.exp(-0.7 / (order - 1)) / math.e**2  # heyoka's safety factor
-        return (*super()._coefficients(t0), order, self.max_step, factor)
+        double = bool(self.compensated and self.value < DOUBLE_DOUBLE_BELOW)
+        return (*super()._coefficients(t0), order, self.max_step, factor, double)
+
+    @property
+    def double(self) -> bool:
+        """Whether the state and orders 1 and 2 are double-double."""
+        return bool(self.coef[5])
 
     @property
     def order(self) -> int:

@@ -941,6 +941,7 @@ class TaylorKernels:
         self.code = code
         self.mechanics = mechanics
         self._batch = None
+        self._double = None
         self.m, self.width = code.m, code.width
         self.kernels = _kernels(code.text, NAME)
         self.function = self.kernels.functions[NAME]
@@ -957,6 +958,16 @@ class TaylorKernels:
             kernels = _kernels(text, BATCH_NAME)
             self._batch = (kernels, kernels.functions[BATCH_NAME], B)
         return self._batch[1], self._batch[2]
+
+    def double(self):
+        """The double-double orders 1 and 2 (``systems.taylor.double.DoubleKernels``),
+        written and compiled the first time a run asks for them (a tolerance below
+        machine epsilon; the machine code kept on disk like the others'), never before."""
+        if self._double is None:
+            from systems.taylor.double import DoubleKernels
+
+            self._double = DoubleKernels(self.mechanics)
+        return self._double
 
     def coefficients(self, t: float, y: np.ndarray, P: np.ndarray, order: int) -> np.ndarray:
         """``out`` (order + 1, width) of ``taylor_coefficients`` at one state ``y`` (m,)."""

@@ -69,12 +69,21 @@ def test_the_steps_are_the_reference_integrators(name):
         assert np.abs(outcome.y[i] - y).max() <= 1e-13 * max(1.0, np.abs(y).max()), i
 
 
-def _kepler_error_after_100_periods(compiled, e: float) -> float:
+DOUBLE = EPS / 2
+"""A tolerance below machine epsilon: the same order (20) and steps, with the state and
+the series' orders 1 and 2 in double-double (``runners.DOUBLE_DOUBLE_BELOW``)."""
+
+
+def _kepler_error_after_100_periods(compiled, e: float, tol: float | None = None) -> float:
     y0 = kepler_start(e)
     _, period = kepler_exact(y0, 0.0)
+    setting = {} if tol is None else {"tol": tol}
     blocks = list(
-        stream(compiled, method="taylor", y0=y0, t_end=100 * period, energy_tolerance=None)
-    )
+        stream(
+            compiled, method="taylor", y0=y0, t_end=100 * period, energy_tolerance=None,
+            **setting,
+        )
+    )  # fmt: skip
     last = blocks[-1]
     assert last.status == "ok" and last.t[-1] == 100 * period
     exact, _ = kepler_exact(y0, 100 * period)
@@ -84,7 +93,7 @@ def _kepler_error_after_100_periods(compiled, e: float) -> float:
 @pytest.mark.parametrize(("e", "bound"), [(0.5, 1e-11), (0.9, 1e-9)])
 def test_kepler_after_100_periods_is_the_exact_orbit(e, bound):
     error = _kepler_error_after_100_periods(_compiled("kepler_cartesian"), e)
-    # measured: 2.2e-12 at e = 0.5 (3775 steps), 3.6e-10 at e = 0.9 (7319 steps); heyoka
+    # measured: 3.7e-12 at e = 0.5 (3775 steps), 1.1e-10 at e = 0.9 (7319 steps); heyoka
     # 7.13 at its default tolerance, the same steps: 8.7e-13 and 1.2e-9. Round-off, not
     # truncation: orders 21 and 23 take the same steps and move the error at random, and
     # so does any change in the order of operations (1.2e-12 and 1.8e-10 with one Horner
@@ -92,6 +101,51 @@ def test_kepler_after_100_periods_is_the_exact_orbit(e, bound):
     # (Kahan; a compensated clock); what is left is the coefficient function's own
     # rounding in orders 1 and 2 (docs/internals.md), so 1e-12 is no safe bound here
     assert error <= bound, error
+
+
+@pytest.mark.parametrize(("e", "bound"), [(0.5, 1e-12), (0.9, 2e-12)])
+def test_kepler_after_100_periods_in_double_double_is_the_exact_orbit_to_1e_12(e, bound):
+    error = _kepler_error_after_100_periods(_compiled("kepler_cartesian"), e, DOUBLE)
+    # measured: 5.5e-14 at e = 0.5 (3775 steps), 1.9e-13 at e = 0.9 (7319 steps), the
+    # state a double-double from step to step and the series' orders 1 and 2 computed
+    # (systems.taylor.double) and summed in double-double: the coefficient function's
+    # own rounding in those orders was what was left at machine epsilon (above)
+    assert error <= bound, error
+
+
+def test_kepler_over_eccentricities_in_double_double():
+    # as below, in double-double: measured 6.3e-13 at most, median 2.3e-13 (16 values:
+    # 4.4e-13 and 1.5e-13; 32 values: 5.7e-13 and 1.6e-13)
+    compiled = _compiled("kepler_cartesian")
+    errors = [
+        _kepler_error_after_100_periods(compiled, e, DOUBLE) for e in np.linspace(0.45, 0.6, 8)
+    ]
+    assert max(errors) <= 1.5e-12, errors
+    assert float(np.median(errors)) <= 6e-13, errors
+
+
+def test_the_double_double_function_is_built_only_when_asked():
+    """At the default tolerance (and at eps, or without the compensated state) a run
+    neither writes nor compiles ``taylor_double``: the drivers get ``no_double`` (one
+    function for every scene, never called); below eps the scene's is built once and
+    kept with the coefficient function."""
+    from systems.taylor import double
+
+    compiled = _compiled("kepler_cartesian")  # a system of its own: nothing built yet
+    kernels = compiled.taylor()
+    y0 = kepler_start(0.5)
+    for tol, compensated in ((None, True), (EPS, True), (DOUBLE, False)):
+        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 1.0, tol, None, compensated)
+        assert not runner.double and runner.fns[1] is double.no_double()
+        assert runner.advance(10**6, 10).code.name == "END"
+        assert kernels._double is None, (tol, compensated)
+    runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 1.0, DOUBLE, None)
+    assert runner.double and kernels._double is not None
+    assert runner.fns[1] is kernels._double.function
+    assert runner.advance(10**6, 10).code.name == "END"
+    built = kernels._double
+    make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 1.0, 1e-16, None)
+    assert kernels._double is built  # once per scene
 
 
 def test_kepler_over_eccentricities_keeps_its_round_off_below_heyokas():
@@ -113,13 +167,13 @@ def test_the_energy_round_off_grows_like_sqrt_t():
     compiled = _compiled("kepler_cartesian")
     ks = np.array([30, 100, 300, 1000])
 
-    def rms(compensated: bool) -> np.ndarray:
+    def rms(compensated: bool, tol: float | None = None) -> np.ndarray:
         total = np.zeros(len(ks))
         for r in range(16):
             y0 = kepler_start(0.5) * [1, 1, 1, 1 + 0.002 * r]
             _, period = kepler_exact(y0, 0.0)
             runner = make_runner(
-                compiled, STEPPERS["taylor"], y0, 0.0, ks[-1] * period, None, None, compensated
+                compiled, STEPPERS["taylor"], y0, 0.0, ks[-1] * period, tol, None, compensated
             )  # fmt: skip
             outcome = runner.advance(10**6, 10**6)
             assert outcome.code.name == "END"
@@ -131,6 +185,12 @@ def test_the_energy_round_off_grows_like_sqrt_t():
         return np.sqrt(total / 16)
 
     compensated = rms(True)
+    # the state and orders 1 and 2 in double-double: the walk stays below the rounding
+    # of H evaluated at the double y up to 1000 periods (measured: 3.3e-16 at 30, 4.4e-16
+    # at 1000 periods, 8 orbits; a drift of slope 1 shows beyond: 1.2e-15 at 3000, 4.3e-15
+    # at 10 000, the truncation's)
+    double = rms(True, DOUBLE)
+    assert double[-1] <= 1e-15 and 2 * double[-1] < compensated[-1], (double, compensated)
     slope = np.polyfit(np.log(ks), np.log(compensated), 1)[0]
     # measured: slope 0.47 (0.41-0.60 over the order of operations and the number of
     # orbits), the uncompensated state's energy error 4.4 times larger at 1000 periods;
@@ -243,8 +303,9 @@ def test_equations_with_a_kink_are_refused():
     assert STEPPERS["taylor"].applies_to(derive(parse_scene(text))) is None
 
 
+@pytest.mark.parametrize("tol", [None, DOUBLE])
 @pytest.mark.parametrize("batched", [True, False])
-def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone(batched):
+def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone(batched, tol):
     """``simulation.ensemble`` with taylor: one parallel loop, each row its own steps
     (``batched``: the coefficients of a batch of rows from one call of the SIMD batch
     function, 11 rows: a full batch and a part one on any CPU); its samples are the
@@ -258,12 +319,13 @@ def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone(batched):
     compiled = _compiled("kepler_cartesian")
     Y0 = np.array([kepler_start(e) for e in (0.1, 0.5, 0.9, *np.linspace(0.0, 0.3, 8))])
     t, Y, status = ensemble(
-        compiled, Y0, method="taylor", t_end=3.0, samples=7, batched=batched
+        compiled, Y0, method="taylor", t_end=3.0, samples=7, batched=batched, tol=tol
     )  # fmt: skip
     assert t.shape == (7,) and t[-1] == 3.0 and Y.shape == (11, 7, 4)
     assert not status.any()
     for row, y0 in enumerate(Y0):
-        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 3.0, None, None)
+        runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, 3.0, tol, None)
+        assert runner.double == (tol is not None)
         outcome = runner.advance(10**9, 2, samples=t)
         assert outcome.sampled == 7
         assert np.array_equal(outcome.y[:7], Y[row]), row
@@ -273,7 +335,7 @@ def test_an_ensemble_is_the_single_runs_rows_and_stops_a_row_alone(batched):
     # the origin: 1/r is infinite, the row's first step non-finite; the others go on
     bad = np.vstack([Y0[:1], np.zeros((1, 4)), Y0[2:]])
     _, Y, status = ensemble(
-        compiled, bad, method="taylor", t_end=3.0, samples=2, batched=batched
+        compiled, bad, method="taylor", t_end=3.0, samples=2, batched=batched, tol=tol
     )  # fmt: skip
     assert status[1] == int(Status.NON_FINITE) and not status[[0, *range(2, 11)]].any()
     assert np.isnan(Y[1]).all() and np.isfinite(Y[[0, *range(2, 11)]]).all()
