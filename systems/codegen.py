@@ -134,7 +134,9 @@ def template_source() -> str:
         f"CONTACT_GAP = {constraints.CONTACT_GAP!r}\n"
         f"CONTACT_SPEED = {constraints.CONTACT_SPEED!r}\n"
     )
-    parts = [constants_source(), limits, shared, matrix_solve.kernel_source()]
+    # the fused multiply-add of the Taylor family's double-double sums
+    fma = "from systems.integrators.fma import fma\n"
+    parts = [constants_source(), limits, fma, shared, matrix_solve.kernel_source()]
     for family in STEP_DEF.findall(shared):
         instance = drivers.replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)

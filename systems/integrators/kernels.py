@@ -897,20 +897,11 @@ def _taylor_advance(C, order, h, y, comp, kahan):
         i += 1
 
 
-def _split(a):
-    """Dekker's split of ``a`` into two halves of 26 bits (``hi + lo == a``)."""
-    c = 134217729.0 * a
-    high = c - (c - a)
-    return high, a - high
-
-
-def _dd_times(xh, xl, h, hh, hl):
-    """(xh + xl) h in double-double, ``(hh, hl)`` the split of h (TwoProd by Dekker's
-    split: numba has no fused multiply-add to ask for, and these functions are compiled
-    without contraction)."""
+def _dd_times(xh, xl, h):
+    """(xh + xl) h in double-double (TwoProd by a fused multiply-add: ``fma``, the
+    intrinsic ``systems.codegen`` imports into the drivers' module)."""
     p = xh * h
-    ah, al = _split(xh)
-    e = ((ah * hh - p) + ah * hl + al * hh) + al * hl
+    e = fma(xh, h, -p)
     e += xl * h
     s = p + e
     return s, e - (s - p)
@@ -926,15 +917,15 @@ def _dd_plus(xh, xl, yh, yl):
     return t, e - (t - s)
 
 
-def _taylor_first(D, i, u, h, hh, hl, y, comp):
+def _taylor_first(D, i, u, h, y, comp):
     """y[i] - comp[i] += ((u + c_2) h + c_1) h in double-double: the state's orders 1 and
     2 ``c_k`` double-double in ``D`` (``taylor_double``'s out: rows c_1, its low part,
-    c_2, its low part), ``u = sum_{k>=3} C[k, i] h^(k-2)`` in double, ``(hh, hl)`` the
-    split of h. The state stays the double-double ``(y, -comp)``."""
+    c_2, its low part), ``u = sum_{k>=3} C[k, i] h^(k-2)`` in double. The state stays
+    the double-double ``(y, -comp)``."""
     xh, xl = _dd_plus(u, 0.0, D[2, i], D[3, i])
-    xh, xl = _dd_times(xh, xl, h, hh, hl)
+    xh, xl = _dd_times(xh, xl, h)
     xh, xl = _dd_plus(xh, xl, D[0, i], D[1, i])
-    xh, xl = _dd_times(xh, xl, h, hh, hl)
+    xh, xl = _dd_times(xh, xl, h)
     sh, sl = _dd_plus(y[i], -comp[i], xh, xl)
     y[i] = sh
     comp[i] = -sl
@@ -954,18 +945,17 @@ def _taylor_advance_double(C, D, order, h, y, comp):
     double-double (``_taylor_first``)."""
     m = y.shape[0]
     i = 0
-    hh, hl = _split(h)
     if order >= 4:
         tail = C[2:]
         while i + 4 <= m:
             d0, d1, d2, d3 = _taylor_horner4(tail, order - 2, i, h)
-            _taylor_first(D, i, d0, h, hh, hl, y, comp)
-            _taylor_first(D, i + 1, d1, h, hh, hl, y, comp)
-            _taylor_first(D, i + 2, d2, h, hh, hl, y, comp)
-            _taylor_first(D, i + 3, d3, h, hh, hl, y, comp)
+            _taylor_first(D, i, d0, h, y, comp)
+            _taylor_first(D, i + 1, d1, h, y, comp)
+            _taylor_first(D, i + 2, d2, h, y, comp)
+            _taylor_first(D, i + 3, d3, h, y, comp)
             i += 4
     while i < m:
-        _taylor_first(D, i, _taylor_tail(C, order, i, h), h, hh, hl, y, comp)
+        _taylor_first(D, i, _taylor_tail(C, order, i, h), h, y, comp)
         i += 1
 
 
@@ -1218,10 +1208,9 @@ def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status,
                         yl[i] = y[i, lane]
                         cl[i] = comp[i, lane]
                     fd(T[lane], yl, cl, P, D)  # the lane's own, as its single run's
-                    hh, hl = _split(h)
                     for i in range(m):
                         u = inc[i, lane] if order >= 4 else _taylor_tail(C[:, :, lane], order, i, h)
-                        _taylor_first(D, i, u, h, hh, hl, yl, cl)
+                        _taylor_first(D, i, u, h, yl, cl)
                 if not _finite(yl):  # the state stays the step's start
                     status[row] = STATUS_NON_FINITE
                     live[lane] = 0

@@ -113,6 +113,14 @@ def test_kepler_after_100_periods_in_double_double_is_the_exact_orbit_to_1e_12(e
     assert error <= bound, error
 
 
+def test_a_tolerance_out_of_range_says_what_taylor_takes():
+    assert STEPPERS["taylor"].setting_error(tol=DOUBLE) is None
+    assert STEPPERS["taylor"].setting_error(tol=1e-16) is None
+    reason = STEPPERS["taylor"].setting_error(tol=1e-18)
+    assert "between 1e-16 and 1" in reason and "double-double" in reason, reason
+    assert "double-double" not in STEPPERS["dop853"].setting_error(tol=1e-18)
+
+
 def test_kepler_over_eccentricities_in_double_double():
     # as below, in double-double: measured 6.3e-13 at most, median 2.3e-13 (16 values:
     # 4.4e-13 and 1.5e-13; 32 values: 5.7e-13 and 1.6e-13)
