@@ -183,9 +183,12 @@ def run(args: argparse.Namespace) -> int:
         accuracy = found.as_dict()
         if not found.accurate:
             status_, message = "inaccurate", found.message
+    double = bool(getattr(run_.runner, "double", False))
     report = {
         "method": method,
         "why": why,
+        # taylor below machine epsilon: the state and orders 1 and 2 in double-double
+        "arithmetic": "double-double" if double else "double",
         "steps": int(last.steps),
         "rhs_evaluations": int(last.rhs_evaluations),
         "setting": {last.setting: last.setting_value} if last.setting else {},
@@ -365,6 +368,11 @@ def readable(scene, report: dict) -> str:
         f"{report['wall_s']:.3g} s after {report['prepare_s']:.3g} s of preparation (numba "
         f"compiled or loaded its kernels in {report['compile_s']:.3g} s of these)",
     ]
+    if report["arithmetic"] == "double-double":
+        lines.append(
+            "  arithmetic: the state and the series' orders 1 and 2 in double-double (a "
+            "tolerance below machine epsilon)"
+        )
     if report["max_rel_energy_error"] is not None:
         lines.append(f"  max relative energy error: {report['max_rel_energy_error']:.3g}")
     if report["max_constraint_violation"] is not None:

@@ -107,3 +107,15 @@ def test_derive_json_has_the_degrees_of_freedom(capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["degrees_of_freedom"] == 1
     assert report["constraints"]["holonomic"] == ["-l**2 + x**2 + y**2"]
+
+
+def test_run_says_when_taylor_runs_in_double_double(capsys):
+    """A taylor tolerance below machine epsilon turns on double-double orders 1 and 2:
+    ``run`` says so (``arithmetic``), and says ``double`` otherwise."""
+    assert main(["run", "harmonic_oscillator", "--method", "taylor", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["arithmetic"] == "double"
+    given = ["run", "harmonic_oscillator", "--method", "taylor", "--tol", "1e-16"]
+    assert main([*given, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["arithmetic"] == "double-double"
+    assert main(given) == 0
+    assert "in double-double" in capsys.readouterr().out

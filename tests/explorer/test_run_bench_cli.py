@@ -19,6 +19,7 @@ SCENES = Path(__file__).resolve().parents[2] / "resources" / "scenes"
 ROOT = Path(__file__).resolve().parents[2]
 JSON_KEYS = {
     "accuracy",
+    "arithmetic",
     "max_constraint_violation",
     "method",
     "why",
