@@ -2,8 +2,9 @@
 PYTHON ?= python3
 VENV := .venv
 # pytest-xdist processes for `make test` (each file runs whole in one; 0: no workers). Three
-# on two cores: the suite waits a third of its time (windows drawing, child processes
-# starting: 824 s of CPU in 564 s with two workers), and a third worker fills it
+# on two cores: with two the suite waited a third of its time (windows drawing, child
+# processes starting: 824 s of CPU in 564 s); measured, three took 9:03 and 9:23 of pytest
+# against 9:23 for two with 19 tests fewer: no clear gain yet, and no harm
 TEST_WORKERS ?= 3
 # test-quick's files mostly wait (GUI frames, child processes): a third worker fills the
 # cores while the others wait (3 min 07 s with two workers, 2 min 56 s with three)
