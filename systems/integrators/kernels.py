@@ -1034,6 +1034,30 @@ def _taylor_h(C, y, coef, t, t_end):
     return h, last
 
 
+def _taylor_lane_steps(C, y, yl, coef, T, t_end, H, ends, live, status, lo, n):
+    """Each of the first ``n`` lanes still live: its next step from its coefficients
+    (``_taylor_h``) into ``H`` (0 for none) and ``ends`` (1: it lands on ``t_end``). A lane
+    whose step collapses or is not finite gets that status (row ``lo + lane``) and stops.
+    Returns how many lanes stopped; ``yl`` is scratch of the state's size."""
+    stopped = 0
+    for lane in range(H.shape[0]):
+        H[lane] = 0.0
+        if lane >= n or live[lane] == 0:
+            continue
+        for i in range(yl.shape[0]):
+            yl[i] = y[i, lane]
+        t = T[lane]
+        h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
+        if not h > 4e-14 * max(abs(t), 1.0):
+            status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
+            live[lane] = 0
+            stopped += 1
+            continue
+        H[lane] = h
+        ends[lane] = 1 if last else 0
+    return stopped
+
+
 def _taylor_lanes(C, order, H, inc):
     """inc[i, lane] = sum_{k=1}^{order} C[k, i, lane] H[lane]^k for every lane at once
     (each as ``_taylor_horner``'s: the same fused multiply-adds in the same order),
@@ -1172,21 +1196,8 @@ def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status,
         running = n
         while running > 0:
             fb(T, y, P, C)
-            for lane in range(B):  # each lane's step (H 0: none)
-                H[lane] = 0.0
-                if lane >= n or live[lane] == 0:
-                    continue
-                for i in range(m):
-                    yl[i] = y[i, lane]
-                t = T[lane]
-                h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
-                if not h > 4e-14 * max(abs(t), 1.0):
-                    status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
-                    live[lane] = 0
-                    running -= 1
-                    continue
-                H[lane] = h
-                ends[lane] = 1 if last else 0
+            # each lane's step (H 0: none)
+            running -= _taylor_lane_steps(C, y, yl, coef, T, t_end, H, ends, live, status, lo, n)
             # every lane's sums at once (from order 3 where the first two orders and the
             # state are double-double, as _taylor_advance_double's)
             if not double:
@@ -1350,21 +1361,8 @@ def taylor_batch_section_parallel(
         running = n
         while running > 0:
             fb(T, y, P, C)
-            for lane in range(B):  # each lane's step (H 0: none)
-                H[lane] = 0.0
-                if lane >= n or live[lane] == 0:
-                    continue
-                for i in range(m):
-                    yl[i] = y[i, lane]
-                t = T[lane]
-                h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
-                if not h > 4e-14 * max(abs(t), 1.0):
-                    status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
-                    live[lane] = 0
-                    running -= 1
-                    continue
-                H[lane] = h
-                ends[lane] = 1 if last else 0
+            # each lane's step (H 0: none)
+            running -= _taylor_lane_steps(C, y, yl, coef, T, t_end, H, ends, live, status, lo, n)
             _taylor_lanes(C, order, H, inc)
             for lane in range(n):
                 h = H[lane]
@@ -1512,21 +1510,10 @@ def taylor_batch_megno_parallel(fb, Y, clock0, P, coef, lanes, out, status, coun
         running = n_rows
         while running > 0:
             fb(T, y, P, C)
-            for lane in range(B):  # each lane's step (H 0: none)
-                H[lane] = 0.0
-                if lane >= n_rows or live[lane] == 0:
-                    continue
-                for i in range(m):
-                    yl[i] = y[i, lane]
-                t = T[lane]
-                h, last = _taylor_h(C[:, :, lane], yl, coef, t, t_end)
-                if not h > 4e-14 * max(abs(t), 1.0):
-                    status[lo + lane] = STATUS_STEP_COLLAPSED if h == h else STATUS_NON_FINITE
-                    live[lane] = 0
-                    running -= 1
-                    continue
-                H[lane] = h
-                ends[lane] = 1 if last else 0
+            # each lane's step (H 0: none)
+            running -= _taylor_lane_steps(
+                C, y, yl, coef, T, t_end, H, ends, live, status, lo, n_rows
+            )
             _taylor_lanes(C, order, H, inc)
             for lane in range(n_rows):
                 h = H[lane]
