@@ -179,22 +179,22 @@ def remembered_value(key: str, tag: str, compute: Callable[[], T]) -> T:
     if not enabled():
         must_compute()
         return compute()
-    name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
-    path = usable_directory(cache_root() / "values") / f"{name}.pickle"
-    data = read_checked(path, tag)
-    if data is not None:
-        try:
-            return pickle.loads(data)
-        except Exception as exc:  # noqa: BLE001 - whatever a damaged entry raises, compute anew
-            discard(path, f"failed to load: {type(exc).__name__}")
+    value = known_value(key, tag)
+    if value is not MISSING:
+        return value
     must_compute()
     value = compute()
     try:
         data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
     except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
         return value
-    write_checked(path, data, tag)
+    write_checked(_value_path(key, tag), data, tag)
     return value
+
+
+def _value_path(key: str, tag: str) -> Path:
+    name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
+    return usable_directory(cache_root() / "values") / f"{name}.pickle"
 
 
 class NotKnown(Exception):  # noqa: N818 - what happened, not an error
@@ -237,8 +237,7 @@ def known_value(key: str, tag: str):
     ``MISSING`` (no entry, the cache off, or an entry that does not verify or load)."""
     if not enabled():
         return MISSING
-    name = hashlib.sha256(f"{key}\0{tag}".encode()).hexdigest()[:32]
-    path = usable_directory(cache_root() / "values") / f"{name}.pickle"
+    path = _value_path(key, tag)
     data = read_checked(path, tag)
     if data is None:
         return MISSING
