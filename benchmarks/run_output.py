@@ -21,7 +21,9 @@ dense output (``kernels.dop853_sample``): three more stages and the dense coeffi
 for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms); 1.47-1.6x (4.8 ms
 at load 2-3) once the loop allocated nothing and inlined its samples (a row 94 -> 14 ns),
 and the command computed H at the rows once and the velocities at the last row only
-(no --out). The drivers are
+(no --out); 1.17-1.33x at load 7 once H at the rows went over vectors of four rows
+(``systems.rows``: 0.34 -> 0.08 ms) and the taylor rows two at a time (0.62 -> 0.46 ms
+over the steps alone, thread CPU). The drivers are
 warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
 second otherwise), as ``python main.py warm`` does once per installation;
 ``PHASE_EXPLORER_CACHE`` chooses the cache. Timings on a shared machine vary: read the
@@ -70,6 +72,7 @@ def main() -> bool:
         # as the command's preparation does: the method's loop and the system functions
         # it calls (taylor's coefficient function) loaded before the clock starts
         precompile(compiled, method, compiled.initial_state())
+        compiled.rows()  # H over vectors of rows, as the command prepares it
         start = time.perf_counter()
         given = {} if chosen else setting
         run = Run(

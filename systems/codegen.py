@@ -117,7 +117,8 @@ def template_source() -> str:
     ``systems.matrix_solve.solve_augmented``, with the driver templates (functions
     named ``DRIVER_*``) instantiated once per family: for each ``X_step`` defined there,
     ``DRIVER_`` becomes ``X_``, ``STEP`` ``X_step``, ``WORK`` ``X_work``, ``SAMPLE``
-    ``X_sample`` and ``SAMPLE_WORK`` ``X_sample_work``.
+    ``X_sample``, ``SAMPLE_ROWS`` ``X_sample_rows`` and ``SAMPLE_WORK`` ``X_sample_work``;
+    a template the family defines itself (``taylor_sample_rows``) is left out for it.
     """
     from systems import constraints, matrix_solve
     from systems.integrators import kernels
@@ -138,9 +139,10 @@ def template_source() -> str:
     fma = "from systems.integrators.fma import fma\n"
     parts = [constants_source(), limits, fma, shared, matrix_solve.kernel_source()]
     for family in STEP_DEF.findall(shared):
-        instance = drivers.replace("DRIVER_", f"{family}_")
+        instance = _templates_of(family, drivers, shared).replace("DRIVER_", f"{family}_")
         instance = re.sub(r"\bSTEP\(", f"{family}_step(", instance)
         instance = re.sub(r"\bSAMPLE\(", f"{family}_sample(", instance)
+        instance = re.sub(r"\bSAMPLE_ROWS\(", f"{family}_sample_rows(", instance)
         instance = re.sub(r"\bSAMPLE_WORK\(", f"{family}_sample_work(", instance)
         parts.append(re.sub(r"\bWORK\(", f"{family}_work(", instance))
     return "\n\n".join(part.strip() + "\n" for part in parts)
@@ -177,6 +179,17 @@ def execute(source: str, path: str, namespace: dict, prefix: str = "") -> None:
     exec(_retarget(_compiled_prefix(prefix), path), namespace)  # noqa: S102
     lines = prefix.count("\n")
     exec(compile("\n" * lines + source[len(prefix) :], path, "exec"), namespace)  # noqa: S102
+
+
+def _templates_of(family: str, drivers: str, shared: str) -> str:
+    """The ``DRIVER_*`` templates of ``drivers`` but those ``family`` defines itself in
+    ``shared`` (``taylor_sample_rows`` for ``DRIVER_sample_rows``)."""
+    kept = []
+    for chunk in re.split(r"(?m)^(?=def )", drivers):
+        name = re.match(r"def DRIVER_(\w+)\(", chunk)
+        if name is None or f"def {family}_{name[1]}(" not in shared:
+            kept.append(chunk)
+    return "".join(kept)
 
 
 def _split_drivers(body: str) -> tuple[str, str]:
@@ -240,7 +253,7 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
         options = "nogil=True, cache=True, error_model='numpy'"
         if name.endswith("_parallel"):
             options += ", parallel=True"
-        if name.endswith(("_sample", "_step")) or name in INLINED:
+        if name.endswith(("_sample", "_sample_rows", "_step")) or name in INLINED:
             # a call handing on the tuples of arrays by value cost about a leapfrog step
             options += ", inline='always'"
         if name in FUSED:
@@ -256,7 +269,7 @@ INLINED = ("_taylor_h",)
 shared with the batch loop (called, it cost the step 15-40 ns: Hénon–Heiles 0.069 ->
 0.084 us outside the coefficient function, Kepler 0.073 -> 0.111)."""
 
-FUSED = ("_taylor_horner", "_taylor_horner4", "_taylor_lanes")
+FUSED = ("_taylor_horner", "_taylor_horner4", "_taylor_horner4x2", "_taylor_lanes")
 """Generated functions compiled with ``fastmath={"contract"}``: each multiply and add a
 fused multiply-add where the CPU has one (a Taylor series' Horner sums: 21 against 35
 ns for four order-20 sums, and one rounding instead of two). They call no other

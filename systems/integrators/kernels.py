@@ -1608,6 +1608,122 @@ def taylor_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
     return STATUS_RUNNING, evals
 
 
+def _taylor_horner4x2(C, order, i, a, b):
+    """``_taylor_horner4`` at two steps ``a`` and ``b`` at once: sixteen chains in flight,
+    each sum as ``_taylor_horner``'s (run's rows two at a time: 21 -> 14 ns a row of
+    four variables at order 20). It calls nothing (``codegen.FUSED``)."""
+    p = a * a
+    q = b * b
+    if order % 2 == 0:
+        e0 = C[order - 1, i]
+        e1 = C[order - 1, i + 1]
+        e2 = C[order - 1, i + 2]
+        e3 = C[order - 1, i + 3]
+        o0 = C[order, i]
+        o1 = C[order, i + 1]
+        o2 = C[order, i + 2]
+        o3 = C[order, i + 3]
+        f0, f1, f2, f3 = e0, e1, e2, e3
+        g0, g1, g2, g3 = o0, o1, o2, o3
+        top = order - 3
+    else:
+        e0 = C[order, i] * p + C[order - 2, i]
+        e1 = C[order, i + 1] * p + C[order - 2, i + 1]
+        e2 = C[order, i + 2] * p + C[order - 2, i + 2]
+        e3 = C[order, i + 3] * p + C[order - 2, i + 3]
+        f0 = C[order, i] * q + C[order - 2, i]
+        f1 = C[order, i + 1] * q + C[order - 2, i + 1]
+        f2 = C[order, i + 2] * q + C[order - 2, i + 2]
+        f3 = C[order, i + 3] * q + C[order - 2, i + 3]
+        o0 = C[order - 1, i]
+        o1 = C[order - 1, i + 1]
+        o2 = C[order - 1, i + 2]
+        o3 = C[order - 1, i + 3]
+        g0, g1, g2, g3 = o0, o1, o2, o3
+        top = order - 4
+    for k in range(top, 0, -2):
+        c0 = C[k, i]
+        c1 = C[k, i + 1]
+        c2 = C[k, i + 2]
+        c3 = C[k, i + 3]
+        d0 = C[k + 1, i]
+        d1 = C[k + 1, i + 1]
+        d2 = C[k + 1, i + 2]
+        d3 = C[k + 1, i + 3]
+        e0 = e0 * p + c0
+        e1 = e1 * p + c1
+        e2 = e2 * p + c2
+        e3 = e3 * p + c3
+        o0 = o0 * p + d0
+        o1 = o1 * p + d1
+        o2 = o2 * p + d2
+        o3 = o3 * p + d3
+        f0 = f0 * q + c0
+        f1 = f1 * q + c1
+        f2 = f2 * q + c2
+        f3 = f3 * q + c3
+        g0 = g0 * q + d0
+        g1 = g1 * q + d1
+        g2 = g2 * q + d2
+        g3 = g3 * q + d3
+    return (
+        (o0 * a + e0) * a, (o1 * a + e1) * a, (o2 * a + e2) * a, (o3 * a + e3) * a,
+        (g0 * b + f0) * b, (g1 * b + f1) * b, (g2 * b + f2) * b, (g3 * b + f3) * b,
+    )  # fmt: skip
+
+
+def taylor_sample_rows(fns, prev, state, times, lo, hi, P, coef, work, swork, states, out_y, row):
+    """``DRIVER_sample_rows`` of the taylor family: each row ``taylor_sample``'s sums,
+    two rows at a time where the state has four variables or more
+    (``_taylor_horner4x2``), written straight into ``out_y``."""
+    order = coef[2]
+    yprev, cprev, kprev = prev
+    C = work[0]
+    evals = 0
+    if work[-1][0] == 0.0:  # a step undone since: its coefficients again
+        C = swork[0]
+        fns[0](kprev[CLOCK_T], yprev, P, C)
+        evals = 1
+    t0 = kprev[CLOCK_T]
+    tc = kprev[CLOCK_TC]
+    m = yprev.shape[0]
+    j = 0
+    if m >= 4:
+        while lo + j + 2 <= hi:
+            a = (times[lo + j] - t0) + tc
+            b = (times[lo + j + 1] - t0) + tc
+            r = row + j
+            i = 0
+            while i + 4 <= m:
+                d0, d1, d2, d3, x0, x1, x2, x3 = _taylor_horner4x2(C, order, i, a, b)
+                out_y[r, i] = yprev[i] + (d0 - cprev[i])
+                out_y[r, i + 1] = yprev[i + 1] + (d1 - cprev[i + 1])
+                out_y[r, i + 2] = yprev[i + 2] + (d2 - cprev[i + 2])
+                out_y[r, i + 3] = yprev[i + 3] + (d3 - cprev[i + 3])
+                out_y[r + 1, i] = yprev[i] + (x0 - cprev[i])
+                out_y[r + 1, i + 1] = yprev[i + 1] + (x1 - cprev[i + 1])
+                out_y[r + 1, i + 2] = yprev[i + 2] + (x2 - cprev[i + 2])
+                out_y[r + 1, i + 3] = yprev[i + 3] + (x3 - cprev[i + 3])
+                i += 4
+            while i < m:
+                out_y[r, i] = yprev[i] + (_taylor_horner(C, order, i, a) - cprev[i])
+                out_y[r + 1, i] = yprev[i] + (_taylor_horner(C, order, i, b) - cprev[i])
+                i += 1
+            if not (_finite(out_y[r]) and _finite(out_y[r + 1])):
+                return STATUS_NON_FINITE, evals, j + (1 if _finite(out_y[r]) else 0)
+            j += 2
+    while lo + j < hi:  # the last row of an odd count, or a state of fewer than four
+        code, used = taylor_sample(
+            fns, prev, state, times[lo + j], P, coef, work, swork, states, False
+        )
+        if not _finite(states[0]):
+            return STATUS_NON_FINITE, evals, j
+        for k in range(m):
+            out_y[row + j, k] = states[0][k]
+        j += 1
+    return STATUS_RUNNING, evals, hi - lo
+
+
 # -- constrained systems: the multipliers, the projection, contacts and impacts ------------------
 # ``cs`` is the scene's tuple of constraint functions (``Family.functions`` of the
 # constrained families, in this order: ``c_free_rhs``, ``c_positions``, ``c_rows``,
@@ -2512,7 +2628,7 @@ def DRIVER_run(fns, state, P, coef, work, spare, limits, section, samples, out, 
 def DRIVER_answer(fns, prev, state, P, coef, work, scratch, times, counts, out):
     """The rows for the times ``times[sampled:]`` before the time of ``state`` (the end of
     the step from ``prev``; ``counts = (sampled, outputs)``): a time at the step's start
-    gets its state (after any jump applied there), the others ``SAMPLE``'s, into
+    gets its state (after any jump applied there), the others ``SAMPLE_ROWS``'s, into
     ``out = (out_t, out_y)`` from row ``outputs``. ``scratch = (swork, (y, comp,
     clock))``. Returns (status, evaluations, sampled, outputs); a sample that fails ends
     it with the problem's status."""
@@ -2521,26 +2637,42 @@ def DRIVER_answer(fns, prev, state, P, coef, work, scratch, times, counts, out):
     out_t, out_y = out
     sampled, outputs = counts
     t = state[2][CLOCK_T]
-    first = True
-    evals = 0
-    while sampled < times.shape[0] and times[sampled] < t and outputs < out_t.shape[0]:
-        s = times[sampled]
-        row = yprev
-        if s > kprev[CLOCK_T]:
-            code, used = SAMPLE(fns, prev, state, s, P, coef, work, swork, states, first)
-            first = False
-            evals += used
-            if code == STATUS_RUNNING and not _finite(states[0]):
-                code = STATUS_NON_FINITE
-            if code != STATUS_RUNNING:
-                return code, evals, sampled, outputs
-            row = states[0]
-        out_t[outputs] = s
+    room = out_t.shape[0]
+    while sampled < times.shape[0] and times[sampled] <= kprev[CLOCK_T] and outputs < room:
+        out_t[outputs] = times[sampled]
         for k in range(yprev.shape[0]):
-            out_y[outputs, k] = row[k]
+            out_y[outputs, k] = yprev[k]
         outputs += 1
         sampled += 1
-    return STATUS_RUNNING, evals, sampled, outputs
+    end = sampled  # the times inside the step, as many as there is room for
+    while end < times.shape[0] and times[end] < t and outputs + (end - sampled) < room:
+        end += 1
+    if end == sampled:
+        return STATUS_RUNNING, 0, sampled, outputs
+    code, evals, done = SAMPLE_ROWS(
+        fns, prev, state, times, sampled, end, P, coef, work, swork, states, out_y, outputs
+    )
+    for j in range(done):
+        out_t[outputs + j] = times[sampled + j]
+    return code, evals, sampled + done, outputs + done
+
+
+def DRIVER_sample_rows(fns, prev, state, times, lo, hi, P, coef, work, swork, states, out_y, row):
+    """``out_y[row + j]`` the state at ``times[lo + j]`` (inside the step from ``prev`` to
+    ``state``) for j < ``hi - lo``, one ``SAMPLE`` each, until one fails or is not
+    finite. Returns (status, evaluations, rows written). A family may define its own
+    ``X_sample_rows`` (the taylor family's takes two rows at a time)."""
+    evals = 0
+    for j in range(hi - lo):
+        code, used = SAMPLE(fns, prev, state, times[lo + j], P, coef, work, swork, states, j == 0)
+        evals += used
+        if code == STATUS_RUNNING and not _finite(states[0]):
+            code = STATUS_NON_FINITE
+        if code != STATUS_RUNNING:
+            return code, evals, j
+        for k in range(states[0].shape[0]):
+            out_y[row + j, k] = states[0][k]
+    return STATUS_RUNNING, evals, hi - lo
 
 
 def DRIVER_fictitious(fns, prev, state, s, P, coef, swork, scratch):
