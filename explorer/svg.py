@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPoint, QPointF, QRect, QRectF, QSize
+from PySide6.QtCore import QPoint, QPointF, QRect, QRectF, QSize, Qt
 from PySide6.QtGui import QBrush, QPainter, QPainterPath, QPen, QTransform
 from PySide6.QtWidgets import QWidget
 
@@ -284,11 +284,18 @@ def _draw_image(painter, widget, item: pg.ImageItem, rect: QRectF) -> int:
         target.height() * sy,
     )
     flipped = _to_widget(widget, item).m22() < 0
-    image = qimage.mirrored(False, True) if flipped else qimage
+    image = _upside_down(qimage) if flipped else qimage
     if flipped:
         source.moveTop(qimage.height() - source.bottom())
     painter.drawImage(target, image, source)
     return 1
+
+
+def _upside_down(image):
+    """``image`` flipped top to bottom: ``QImage.flipped`` from Qt 6.9, where
+    ``mirrored`` is deprecated (and warns), ``mirrored`` before."""
+    flip = getattr(image, "flipped", None)
+    return flip(Qt.Orientation.Vertical) if flip is not None else image.mirrored(False, True)
 
 
 def write_svg(
