@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import threading
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -174,8 +173,7 @@ class CompiledSystem:
         self.require("hamiltonian")
         ts, Y = _batch(t, Y, 2 * self.n)
         out = np.empty(len(Y))
-        if not self._over_rows("hamiltonian", ts, Y, out):
-            self._batch("batch_scalar", "hamiltonian", ts, Y, out)
+        self._batch("batch_scalar", "hamiltonian", ts, Y, out)
         return out
 
     def velocities(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
@@ -185,35 +183,6 @@ class CompiledSystem:
         out = np.empty((len(Y), self.n))
         self._batch("batch_vector", "velocities", ts, Y, out)
         return out
-
-    def rows(self):
-        """H over vectors of rows (``systems.rows.Rows``), written and compiled on first
-        use (20-130 ms, or a few read from the disk), or None where it cannot be (the
-        scalar loop then serves). ``run`` asks for it while it prepares a scene."""
-        key = "rows"
-        with _rows_lock:
-            if key not in self._numeric:
-                self._numeric[key] = _rows_of(self.mechanics, self.wanted)
-        return self._numeric[key]
-
-    def _over_rows(self, name: str, ts: np.ndarray, Y: np.ndarray, out: np.ndarray) -> bool:
-        """Function ``name`` of the rows of ``Y`` into ``out`` through ``rows()``, the last
-        group of ``rows.LANES`` padded with copies of the last row; False (nothing done)
-        for fewer than ``ROWS_FROM`` rows or where ``rows()`` is None."""
-        if len(Y) < ROWS_FROM:
-            return False
-        found = self.rows()
-        if found is None or name not in found.names:
-            return False
-        lanes = found.lanes
-        whole = len(Y) - len(Y) % lanes
-        found(name, ts[:whole], Y[:whole], self.parameters, out[:whole])
-        if whole < len(Y):
-            pad = np.arange(whole, whole + lanes).clip(max=len(Y) - 1)
-            tail = np.empty((lanes, *out.shape[1:]))
-            found(name, ts[pad], Y[pad], self.parameters, tail)
-            out[whole:] = tail[: len(Y) - whole]
-        return True
 
     def momenta(self, t: np.ndarray | float, Q: np.ndarray, Qdot: np.ndarray) -> np.ndarray:
         """p from (q, qdot); ``Q``, ``Qdot`` shape (N, n); returns (N, n)."""
@@ -470,35 +439,6 @@ def compile_system(
     """Write and load the wanted functions of ``mechanics`` in this process: ``system_code``
     then ``load_system`` (which see)."""
     return load_system(mechanics, system_code(mechanics, wanted, backend=backend))
-
-
-ROWS_FROM = 16
-"""Rows from which ``CompiledSystem.hamiltonian`` goes over vectors of rows
-(``systems.rows``): fewer go through the scalar loop, one row (a start's energy) always
-so."""
-
-_rows_lock = threading.Lock()
-
-
-def _rows_of(mechanics: Mechanics, wanted: frozenset[str]):
-    """``systems.rows.Rows`` of H (if ``wanted``), or None where it cannot be written.
-    (qdot over rows measured 35 against 21 ms to compile for the double pendulum, for
-    ``run --out`` alone: left to the scalar loop.)"""
-    from systems import derivation_cache, rows
-
-    names = sorted(wanted & {"hamiltonian"})
-    if not names:
-        return None
-    writer = _KernelWriter(mechanics)
-    try:
-        specs = writer.specs(frozenset(names))
-        kind = f"llvm rows {derivation_cache.code_hash(rows)}"
-        text = _remembered(
-            mechanics, kind, frozenset(names), lambda: rows.write_ir(specs, writer.rename)
-        )
-        return rows.Rows(text, names)
-    except llvm_kernels.Unsupported:
-        return None
 
 
 def _remembered(mechanics: Mechanics, kind: str, wanted: frozenset[str], compute) -> str:

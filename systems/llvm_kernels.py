@@ -557,11 +557,6 @@ class LLVMKernels:
         }
         self._callers: dict[str, object] = {}
 
-    def address(self, name: str) -> int:
-        """The address of the machine code of function ``name`` (one not in ``names``,
-        called otherwise than the drivers call: ``systems.rows``)."""
-        return self._engine.get_function_address(name)
-
     def __getattr__(self, name: str):
         functions = self.__dict__.get("functions", {})
         if name not in functions:

@@ -122,12 +122,8 @@ def run(args: argparse.Namespace) -> int:
     options = integration_options(args, method, t_end)
     y0 = compiled.initial_state()
     # the system's functions were compiled (or loaded) with it; the method's driver,
-    # compiled once per installation, is loaded here, and H over vectors of rows (the
-    # energy at every row) written and compiled
-    loaded = time.perf_counter()
-    compiled.rows()
-    compile_s = compiled.build_seconds + time.perf_counter() - loaded
-    compile_s += precompile(compiled, method, y0)
+    # compiled once per installation, is loaded here
+    compile_s = compiled.build_seconds + precompile(compiled, method, y0)
     prepare_s = time.perf_counter() - start
 
     times = sample_times(args, t_end)
