@@ -21,9 +21,10 @@ dense output (``kernels.dop853_sample``): three more stages and the dense coeffi
 for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms); 1.47-1.6x (4.8 ms
 at load 2-3) once the loop allocated nothing and inlined its samples (a row 94 -> 14 ns),
 and the command computed H at the rows once and the velocities at the last row only
-(no --out); 1.17-1.33x at load 7 once H at the rows went over vectors of four rows
-(``systems.rows``: 0.34 -> 0.08 ms) and the taylor rows two at a time (0.62 -> 0.46 ms
-over the steps alone, thread CPU). The drivers are
+(no --out); the taylor rows two at a time and the answering loop inlined into the
+driver's: 0.62 -> 0.37 ms over the steps alone (thread CPU), 1.43-1.49x at load 5.7. H at the rows over vectors of four rows with glibc's libmvec cut its 0.34
+ms to 0.08, but loading that code cost 1.4-2 ms a process (20-130 ms to compile it
+first): a loss for one run, so not kept. The drivers are
 warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
 second otherwise), as ``python main.py warm`` does once per installation;
 ``PHASE_EXPLORER_CACHE`` chooses the cache. Timings on a shared machine vary: read the
@@ -72,7 +73,6 @@ def main() -> bool:
         # as the command's preparation does: the method's loop and the system functions
         # it calls (taylor's coefficient function) loaded before the clock starts
         precompile(compiled, method, compiled.initial_state())
-        compiled.rows()  # H over vectors of rows, as the command prepares it
         start = time.perf_counter()
         given = {} if chosen else setting
         run = Run(

@@ -253,7 +253,7 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
         options = "nogil=True, cache=True, error_model='numpy'"
         if name.endswith("_parallel"):
             options += ", parallel=True"
-        if name.endswith(("_sample", "_sample_rows", "_step")) or name in INLINED:
+        if name.endswith(("_sample", "_sample_rows", "_step", "_answer")) or name in INLINED:
             # a call handing on the tuples of arrays by value cost about a leapfrog step
             options += ", inline='always'"
         if name in FUSED:
