@@ -19,6 +19,7 @@ import functools
 import gc
 import hashlib
 import inspect
+import os
 import re
 import sys
 import textwrap
@@ -360,6 +361,37 @@ def module_name(system_source: str, *, with_templates: bool = False) -> str:
     return _name(_module_key(system_source, with_templates)[1], with_templates)
 
 
+DRIVER_BUILDS_KEPT = 3
+"""Builds of the drivers kept in the cache (``prune_drivers``): every change of the
+templates compiles a build of its own, about 10 MB of numba's cache (27 of them had
+grown to 289 MB here). The current one, and the others most recently used: two
+installations sharing a cache each keep theirs."""
+
+
+def prune_drivers(keep: int = DRIVER_BUILDS_KEPT) -> list[str]:
+    """Remove the drivers' modules, and numba's cache files of them, but for the current
+    build and the ``keep - 1`` others most recently used (``_import`` marks a build's
+    file when it is loaded); returns the names removed. What cannot be removed is left."""
+    folder = cache_dir()
+    current = _name(_driver_key(), True)
+
+    def last_used(path: Path) -> float:
+        try:
+            return path.stat().st_mtime
+        except OSError:
+            return 0.0
+
+    others = [p for p in folder.glob(f"{_name('', True)}*.py") if p.stem != current]
+    others.sort(key=last_used, reverse=True)
+    removed = []
+    for path in others[max(keep - 1, 0) :]:
+        for stale in (path, *(folder / "__pycache__").glob(f"{path.stem}.*")):
+            with contextlib.suppress(OSError):
+                stale.unlink()
+        removed.append(path.stem)
+    return removed
+
+
 def _name(key: str, drivers: bool) -> str:
     return f"pe_{'drivers' if drivers else 'kernels'}_{key}"
 
@@ -376,6 +408,9 @@ def _import(source: str, data: bytes, key: str, prefix: str, drivers: bool) -> M
         except OSError as exc:
             path = fall_back(path.parent, exc.strerror or type(exc).__name__) / path.name
             write_atomic(path, data)
+    if drivers:  # when this build was last used (``prune_drivers``)
+        with contextlib.suppress(OSError):
+            os.utime(path)
     module = ModuleType(name)
     module.__file__ = str(path)
     sys.modules[name] = module

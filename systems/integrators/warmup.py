@@ -108,6 +108,9 @@ def warm_drivers(progress=None) -> float:
     warm_map_loops(systems["free"])
     warm_section_portraits(systems["free"])
     _warm.set()
+    from systems.codegen import prune_drivers
+
+    prune_drivers()  # the builds of former versions of the templates
     return time.perf_counter() - start
 
 
