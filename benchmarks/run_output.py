@@ -22,13 +22,13 @@ for each step that holds rows (1.2 ms), a polynomial per row (0.4 ms); 1.47-1.6x
 at load 2-3) once the loop allocated nothing and inlined its samples (a row 94 -> 14 ns),
 and the command computed H at the rows once and the velocities at the last row only
 (no --out); the taylor rows two at a time and the answering loop inlined into the
-driver's: 0.62 -> 0.37 ms over the steps alone (thread CPU), 1.43-1.49x at load 5.7. H at the rows over vectors of four rows with glibc's libmvec cut its 0.34
-ms to 0.08, but loading that code cost 1.4-2 ms a process (20-130 ms to compile it
-first): a loss for one run, so not kept. The drivers are
-warmed first in a child process (``warm_drivers``: about a minute on an empty cache, a
-second otherwise), as ``python main.py warm`` does once per installation;
-``PHASE_EXPLORER_CACHE`` chooses the cache. Timings on a shared machine vary: read the
-numbers, not only PASS.
+driver's: 0.62 -> 0.37 ms over the steps alone (thread CPU), 1.43-1.49x at load 5.7.
+H at the rows over vectors of four rows with glibc's libmvec cut its 0.34 ms to 0.08,
+but loading that code cost 1.4-2 ms a process (20-130 ms to compile it first): a loss
+for one run, so not kept. The drivers are warmed first in a child process
+(``warm_drivers``: about a minute on an empty cache, a second otherwise), as ``python
+main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the cache.
+Timings on a shared machine vary: read the numbers, not only PASS.
 """
 
 from __future__ import annotations
