@@ -84,7 +84,10 @@ def measure(scene: str, folder: str) -> dict:
     }
     for tab in TABS:
         window.show_tab(tab)
-        spin(lambda: False, 1.5)  # let the Textbook compute and the panels paint
+        # let the Textbook compute (the tab's job submitted on showing it, delivered), then
+        # the panels lay out and paint what it drew
+        spin(lambda: window.textbook.runner.pending == 0, 120)
+        spin(lambda: False, 0.1)
         path = Path(folder) / f"window-{available.width()}x{available.height()}-{tab}.png"
         window.grab().save(str(path))
         plots = []
