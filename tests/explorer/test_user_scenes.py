@@ -19,9 +19,9 @@ copies against the originals where they are) and checked here on every run.
   launch, exports) replays offscreen in a new window, as ``open --session`` does, runs
   through and records the same script again.
 
-Numba never compiles here: the scenes' kernels stay on their plain-Python twins (what the
-window runs first), so the file takes seconds per scene instead of a compile each. The
-replay goes to a new window. Windows are closed whatever their builder is doing: while it
+Each scene's system functions are written as LLVM IR and compiled in milliseconds, and
+the stepping loops come compiled from the session's cache (``python main.py warm``), so
+the file takes seconds per scene. The replay goes to a new window. Windows are closed whatever their builder is doing: while it
 lays out the derivation (sympy's printing, the equilibrium search) was where an
 asynchronous ``Abandoned`` once landed inside an import and hung the process
 (``tests/systems/test_deadline.py``).
