@@ -21,10 +21,10 @@ copies against the originals where they are) and checked here on every run.
 
 Each scene's system functions are written as LLVM IR and compiled in milliseconds, and
 the stepping loops come compiled from the session's cache (``python main.py warm``), so
-the file takes seconds per scene. The replay goes to a new window. Windows are closed whatever their builder is doing: while it
-lays out the derivation (sympy's printing, the equilibrium search) was where an
-asynchronous ``Abandoned`` once landed inside an import and hung the process
-(``tests/systems/test_deadline.py``).
+the file takes seconds per scene. The replay goes to a new window. Windows are closed
+whatever their builder is doing: while it lays out the derivation (sympy's printing,
+the equilibrium search) was where an asynchronous ``Abandoned`` once landed inside an
+import and hung the process (``tests/systems/test_deadline.py``).
 """
 
 from __future__ import annotations
