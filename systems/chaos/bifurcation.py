@@ -109,6 +109,26 @@ class OrbitDiagram:
     t0: float
     wall_s: float
     complete: bool
+    tol: float | None = None
+    steps: np.ndarray | None = None
+
+    @property
+    def checked(self) -> str:
+        """What the numbers were checked against, in words (no energy: the drive changes
+        it, and the damping too)."""
+        if self.tol is None:
+            return (
+                f"{self.method}, {self.per_period} fixed steps a period of the drive: no "
+                "error estimate (the drive changes the energy, so it is not checked)"
+            )
+        done = self.steps[self.status == 0] if self.steps is not None else np.zeros(0)
+        taken = f"; {int(done.min())} to {int(done.max())} steps an orbit" if len(done) else ""
+        return (
+            f"taylor, every step sized so that the series' last two terms stay below "
+            f"the tolerance {self.tol:.3g} (an estimate of the local error, not a bound); "
+            f"the samples from the series' dense output{taken}; the drive changes the "
+            "energy, so it is not checked"
+        )
 
     def variable(self, name: str, wrap: bool = False) -> np.ndarray:
         """(N, K) samples of the state variable ``name``; an angle ``wrap``ped to (-pi, pi]."""
@@ -134,6 +154,10 @@ class StrobeKernel:
     fns: tuple
     coef: tuple
     _entry: object = None
+    tol: float | None = None
+    """taylor's tolerance (None for a fixed-step method)."""
+    lanes: int = 0
+    """taylor's SIMD lanes a batch."""
 
 
 def strobe_kernel(
@@ -145,11 +169,14 @@ def strobe_kernel(
     method: str | None = None,
     per_period: int = PER_PERIOD,
     t0: float = 0.0,
+    tol: float | None = None,
 ) -> StrobeKernel:
     """The strobe loop of ``compiled`` scanning ``parameter``.
 
     ``transient`` (a time) is rounded up to whole periods of the drive at the scene's
-    values (default ``DEFAULT_TRANSIENT_PERIODS`` periods).
+    values (default ``DEFAULT_TRANSIENT_PERIODS`` periods). ``method``: a fixed-step
+    method with an ensemble loop (``per_period`` steps a period), or ``"taylor"``
+    (adaptive steps at ``tol``, default machine epsilon; ``per_period`` unused).
 
     Raises
     ------
@@ -176,10 +203,15 @@ def strobe_kernel(
     mechanics = compiled.mechanics
     method = method or default_map_method(mechanics)
     stepper = STEPPERS.get(method)
-    if stepper is None or not stepper.family.ensemble:
+    if stepper is None or not (stepper.family.ensemble or method == "taylor"):
         usable = [name for name, s in STEPPERS.items() if s.family.ensemble]
         raise ValueError(
-            f"an orbit diagram runs a fixed-step method ({', '.join(usable)}), not {method!r}"
+            f"an orbit diagram runs a fixed-step method ({', '.join(usable)}) or taylor, "
+            f"not {method!r}"
+        )
+    if tol is not None and method != "taylor":
+        raise ValueError(
+            f"{method} takes a number of steps a period, not a tolerance (taylor does)"
         )
     reason = stepper.applies_to(mechanics)
     if reason:
@@ -194,6 +226,8 @@ def strobe_kernel(
         periods = math.ceil(transient / period - 1e-9)
     family = stepper.family
     y0 = compiled.initial_state(t0)
+    if method == "taylor":
+        return _taylor_kernel(compiled, stepper, names.index(parameter), periods, samples, t0, tol)
     coef = family.coefficients(stepper, compiled, t0, y0, False)
     fns = compiled.functions(family.functions)
     loop = getattr(loop_module(), f"{family.kernel}_strobe_parallel")
@@ -203,9 +237,30 @@ def strobe_kernel(
     )  # fmt: skip
 
 
+def _taylor_kernel(compiled, stepper, parameter: int, periods: int, samples: int, t0, tol):
+    """``strobe_kernel``'s taylor loop (``kernels.taylor_batch_strobe_parallel``): the
+    batch function with parameters per lane (``TaylorKernels.sweep``), the double-double
+    orders and ``coef`` of a taylor run at ``tol`` (``runners.TaylorRunner``'s)."""
+    from systems.codegen import driver_module
+
+    y0 = compiled.initial_state(t0)
+    if tol is None:
+        tol = stepper.family.default_setting(compiled, stepper, t0, y0, math.inf)
+    problem = stepper.setting_error(None, tol)
+    if problem:
+        raise ValueError(problem)
+    runner = stepper.family.runner(compiled, stepper, y0, t0, math.inf, float(tol), None)
+    function, lanes = compiled.taylor().sweep()
+    return StrobeKernel(
+        compiled, "taylor", parameter, 0, int(periods), samples, float(t0),
+        drive_frequencies(compiled.mechanics), driver_module().taylor_batch_strobe_parallel,
+        (function, runner.fns[1]), runner.coef, tol=float(tol), lanes=lanes,
+    )  # fmt: skip
+
+
 def strobe_chunk(
     kernel: StrobeKernel, values: np.ndarray, y0: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The samples of the orbits from ``y0`` (2n,) at the parameter's ``values`` (N,):
     the unit of an orbit diagram's work.
 
@@ -215,9 +270,12 @@ def strobe_chunk(
     periods : ndarray, shape (N,)
         The drive's period at each value (NaN where it is not periodic: the row is not run).
     status : ndarray of int, shape (N,)
+    steps : ndarray of int, shape (N,)
+        The steps each orbit took (a fixed-step row that stopped early: -1, not counted;
+        a row not run: 0).
     """
     from systems.codegen import entry_point
-    from systems.integrators.codes import CLOCK_SIZE, Clock
+    from systems.integrators.codes import CLOCK_SIZE, Clock, Status
 
     compiled = kernel.compiled
     values = np.asarray(values, dtype=float)
@@ -235,24 +293,39 @@ def strobe_chunk(
     )
     out = np.full((N, kernel.samples, m), np.nan)
     status = np.full(N, -1, dtype=np.int64)
+    counts = np.zeros(N, dtype=np.int64)
     run = np.flatnonzero(np.isfinite(periods))
     if not len(run):
-        return out, periods, status
+        return out, periods, status, counts
     Y = np.ascontiguousarray(np.repeat(np.asarray(y0, dtype=float)[None, :], len(run), axis=0))
-    H = np.ascontiguousarray(periods[run] / kernel.per_period)
     Pr = np.ascontiguousarray(P[run])
     clock = np.zeros(CLOCK_SIZE)
     clock[Clock.T] = clock[Clock.T0] = kernel.t0
     clock[Clock.T_END] = clock[Clock.T_PAUSE] = math.inf
     part = np.full((len(run), kernel.samples, m), np.nan)
     part_status = np.zeros(len(run), dtype=np.int64)
-    limits = (kernel.transient_periods, kernel.per_period, kernel.samples)
-    args = (kernel.fns, Y, clock, H, Pr, kernel.coef, limits, part, part_status)
+    if kernel.tol is not None:
+        # as Run(strobe=T) makes its times: t0 + T k, k a float
+        k = np.arange(kernel.transient_periods + 1, kernel.transient_periods + kernel.samples + 1)
+        times = np.ascontiguousarray(kernel.t0 + periods[run, None] * k[None, :].astype(float))
+        steps = np.zeros(len(run), dtype=np.int64)
+        fb, fd = kernel.fns
+        args = (fb, fd, Y, clock, Pr, kernel.coef, times, kernel.lanes, part, part_status, steps)
+    else:
+        H = np.ascontiguousarray(periods[run] / kernel.per_period)
+        limits = (kernel.transient_periods, kernel.per_period, kernel.samples)
+        args = (kernel.fns, Y, clock, H, Pr, kernel.coef, limits, part, part_status)
     if kernel._entry is None:
         kernel._entry = entry_point(kernel.loop, args)
     kernel._entry(*args)
+    if kernel.tol is not None:
+        part_status[part_status == int(Status.END)] = int(Status.RUNNING)
+        counts[run] = steps
+    else:
+        total = (kernel.transient_periods + kernel.samples) * kernel.per_period
+        counts[run] = np.where(part_status == 0, total, -1)
     out[run], status[run] = part, part_status
-    return out, periods, status
+    return out, periods, status, counts
 
 
 def orbit_diagram(
@@ -279,21 +352,22 @@ def orbit_diagram(
     samples = np.full((N, kernel.samples, m), np.nan)
     periods = np.full(N, np.nan)
     status = np.full(N, -1, dtype=np.int64)
+    steps = np.zeros(N, dtype=np.int64)
     chunk = chunk or chunk_rows(CHUNK, ROWS_PER_THREAD)
     chunks = each_chunk(
         strobe_chunk, kernel, np.arange(N), lambda index: (values[index], y0), chunk=chunk,
         client=client, cancelled=cancelled, progress=progress,
     )  # fmt: skip
     done = 0
-    for index, (found, drive, stopped) in chunks:
-        samples[index], periods[index], status[index] = found, drive, stopped
+    for index, (found, drive, stopped, taken) in chunks:
+        samples[index], periods[index], status[index], steps[index] = found, drive, stopped, taken
         done += len(index)
     return OrbitDiagram(
         parameter=compiled.parameter_names[kernel.parameter], values=values, samples=samples,
         periods_T=periods, status=status, names=tuple(state_names(compiled.mechanics)),
         method=kernel.method, per_period=kernel.per_period,
         transient_periods=kernel.transient_periods, t0=kernel.t0,
-        wall_s=time.perf_counter() - start, complete=done == N,
+        wall_s=time.perf_counter() - start, complete=done == N, tol=kernel.tol, steps=steps,
     )  # fmt: skip
 
 

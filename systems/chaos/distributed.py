@@ -183,6 +183,8 @@ class StrobeSpec:
     transient_periods: int
     samples: int
     t0: float
+    tol: float | None = None
+    """taylor's tolerance (None: a fixed-step method)."""
 
 
 def map_spec(kernel) -> MapSpec:
@@ -197,7 +199,7 @@ def strobe_spec(kernel) -> StrobeSpec:
     compiled = kernel.compiled
     return StrobeSpec(
         SystemSpec.of(compiled), kernel.method, compiled.parameter_names[kernel.parameter],
-        kernel.per_period, kernel.transient_periods, kernel.samples, kernel.t0,
+        kernel.per_period, kernel.transient_periods, kernel.samples, kernel.t0, kernel.tol,
     )  # fmt: skip
 
 
@@ -217,9 +219,10 @@ def _map_kernel(spec: MapSpec):
 def _strobe_kernel(spec: StrobeSpec):
     from systems.chaos.bifurcation import strobe_kernel
 
+    options = {"tol": spec.tol} if spec.method == "taylor" else {"per_period": spec.per_period}
     kernel = strobe_kernel(
         spec.system.compile(), spec.parameter, samples=spec.samples, method=spec.method,
-        per_period=spec.per_period, t0=spec.t0,
+        t0=spec.t0, **options,
     )  # fmt: skip
     return dataclasses.replace(kernel, transient_periods=spec.transient_periods, _entry=None)
 

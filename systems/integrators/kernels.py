@@ -1147,6 +1147,45 @@ def _taylor_lanes(C, order, H, inc):
             inc[i, lane] = (o * h + e) * h
 
 
+def _taylor_lane_sum(C, order, kahan, double, fd, t, P, inc, y, comp, lane, h, yl, cl, D):
+    """Lane ``lane``'s state after its step ``h`` into ``yl`` and ``cl`` (m,) from its
+    start in ``y``, ``comp`` (m, B): the batch's sums ``inc`` added with ``_add``, or with
+    ``double`` (from order 3 then) the lane's double-double orders 1 and 2 from ``fd``
+    (``taylor_double`` at ``t`` and the lane's parameters ``P``, as its single run's)
+    and ``_taylor_first``'s sums."""
+    m = yl.shape[0]
+    for i in range(m):
+        yl[i] = y[i, lane]
+        cl[i] = comp[i, lane]
+    if not double:
+        for i in range(m):
+            _add(yl, cl, i, inc[i, lane], kahan)
+        return
+    fd(t, yl, cl, P, D)
+    for i in range(m):
+        u = inc[i, lane] if order >= 4 else _taylor_tail(C[:, :, lane], order, i, h)
+        _taylor_first(D, i, u, h, yl, cl)
+
+
+def _taylor_lane_samples(C, order, y, comp, lane, t, tc, t_next, times, j, out):
+    """The states at ``times[j:]`` before ``t_next`` (the end of lane ``lane``'s step from
+    ``t``, its clock's compensation ``tc``) from the step's series at its start ``y``,
+    ``comp`` (m, B) into ``out`` (k, m) (``taylor_sample``'s sums). Returns the index
+    of the first time left."""
+    m = y.shape[0]
+    while j < times.shape[0] and times[j] < t_next:
+        s = times[j]
+        ds = (s - t) + tc
+        for i in range(m):
+            if s <= t:
+                out[j, i] = y[i, lane]
+            else:
+                d = _taylor_horner(C[:, :, lane], order, i, ds)
+                out[j, i] = y[i, lane] + (d - comp[i, lane])
+        j += 1
+    return j
+
+
 def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status, counts):
     """Many initial states ``Y`` (N, m) in batches of ``lanes``: the coefficients of a
     batch's trajectories from one call of the batch function ``fb`` (``taylor_batch``:
@@ -1209,19 +1248,9 @@ def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status,
                 if h == 0.0:
                     continue
                 row = lo + lane
-                if not double:
-                    for i in range(m):
-                        yl[i] = y[i, lane]
-                        cl[i] = comp[i, lane]
-                        _add(yl, cl, i, inc[i, lane], kahan)
-                else:
-                    for i in range(m):
-                        yl[i] = y[i, lane]
-                        cl[i] = comp[i, lane]
-                    fd(T[lane], yl, cl, P, D)  # the lane's own, as its single run's
-                    for i in range(m):
-                        u = inc[i, lane] if order >= 4 else _taylor_tail(C[:, :, lane], order, i, h)
-                        _taylor_first(D, i, u, h, yl, cl)
+                _taylor_lane_sum(
+                    C, order, kahan, double, fd, T[lane], P, inc, y, comp, lane, h, yl, cl, D
+                )
                 if not _finite(yl):  # the state stays the step's start
                     status[row] = STATUS_NON_FINITE
                     live[lane] = 0
@@ -1231,16 +1260,9 @@ def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status,
                 t = T[lane]
                 last = ends[lane] == 1
                 t_next = t_end if last else t + h
-                while j[lane] < times.shape[0] and times[j[lane]] < t_next:
-                    s = times[j[lane]]
-                    ds = (s - t) + TC[lane]
-                    for i in range(m):
-                        if s <= t:
-                            out[row, j[lane], i] = y[i, lane]
-                        else:
-                            d = _taylor_horner(C[:, :, lane], order, i, ds)
-                            out[row, j[lane], i] = y[i, lane] + (d - comp[i, lane])
-                    j[lane] += 1
+                j[lane] = _taylor_lane_samples(
+                    C, order, y, comp, lane, t, TC[lane], t_next, times, j[lane], out[row]
+                )
                 for i in range(m):
                     y[i, lane] = yl[i]
                     comp[i, lane] = cl[i]
@@ -1259,6 +1281,99 @@ def taylor_batch_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status,
                     s = T[lane] + dd
                     TC[lane] = (s - T[lane]) - dd
                     T[lane] = s
+        for lane in range(n):
+            for i in range(m):
+                Y[lo + lane, i] = y[i, lane]
+
+
+# -- orbit diagrams: each orbit its own parameters and sample times (the taylor family) ---------
+
+
+def taylor_batch_strobe_parallel(fb, fd, Y, clock0, P, coef, times, lanes, out, status, counts):
+    """``taylor_batch_parallel``'s orbits with each row its own parameters ``P`` (N, k)
+    and its own times ``times`` (N, K), increasing: an orbit diagram's rows
+    (``systems.chaos.bifurcation``), row r's states at t0 + j T_r. ``fb`` is the batch
+    function with parameters per lane (``TaylorKernels.sweep``: P (k, B) flattened),
+    ``fd`` called with the lane's own row of ``P``. No end time: every step is the one
+    a run without one takes (``Run(strobe=...)``), and a row ends once its last time
+    is sampled (``STATUS_END``) or at the problem that stopped it (its later samples
+    left as they were). ``clock0`` gives the start time; ``out`` (N, K, m) gets the
+    states from the series (``_taylor_lane_samples``), ``counts`` (N,) the steps."""
+    kahan = coef[1]
+    order = coef[2]
+    width = coef[0]
+    double = coef[5]
+    N = Y.shape[0]
+    m = Y.shape[1]
+    k = P.shape[1]
+    K = times.shape[1]
+    B = lanes
+    t0 = clock0[CLOCK_T]
+    t_end = math.inf
+    for batch in prange((N + B - 1) // B):
+        lo = batch * B
+        n = min(B, N - lo)
+        y = np.empty((m, B))
+        comp = np.zeros((m, B))
+        T = np.full(B, t0)
+        TC = np.zeros(B)
+        C = np.empty((order + 1, width, B))
+        H = np.zeros(B)
+        ends = np.zeros(B, dtype=np.int64)
+        inc = np.empty((m, B))
+        yl = np.empty(m)
+        cl = np.empty(m)
+        D = np.zeros((4, m))
+        Pb = np.empty(k * B)
+        live = np.zeros(B, dtype=np.int64)
+        j = np.zeros(B, dtype=np.int64)
+        for lane in range(B):
+            row = lo + lane if lane < n else lo  # spare lanes copy a row, unused
+            for i in range(m):
+                y[i, lane] = Y[row, i]
+            for q in range(k):
+                Pb[q * B + lane] = P[row, q]
+            if lane < n:
+                live[lane] = 1
+                status[row] = STATUS_RUNNING
+                counts[row] = 0
+        running = n
+        while running > 0:
+            fb(T, y, Pb, C)
+            running -= _taylor_lane_steps(C, y, yl, coef, T, t_end, H, ends, live, status, lo, n)
+            if not double:
+                _taylor_lanes(C, order, H, inc)
+            elif order >= 4:
+                _taylor_lanes(C[2:], order - 2, H, inc)
+            for lane in range(n):
+                h = H[lane]
+                if h == 0.0:
+                    continue
+                row = lo + lane
+                t = T[lane]
+                _taylor_lane_sum(
+                    C, order, kahan, double, fd, t, P[row], inc, y, comp, lane, h, yl, cl, D
+                )
+                if not _finite(yl):  # the state stays the step's start
+                    status[row] = STATUS_NON_FINITE
+                    live[lane] = 0
+                    running -= 1
+                    continue
+                counts[row] += 1
+                j[lane] = _taylor_lane_samples(
+                    C, order, y, comp, lane, t, TC[lane], t + h, times[row], j[lane], out[row]
+                )
+                for i in range(m):
+                    y[i, lane] = yl[i]
+                    comp[i, lane] = cl[i]
+                dd = h - TC[lane]
+                s = T[lane] + dd
+                TC[lane] = (s - T[lane]) - dd
+                T[lane] = s
+                if j[lane] == K:
+                    status[row] = STATUS_END
+                    live[lane] = 0
+                    running -= 1
         for lane in range(n):
             for i in range(m):
                 Y[lo + lane, i] = y[i, lane]

@@ -740,6 +740,23 @@ class _BatchWriter(_Writer):
         return result
 
 
+class _SweepWriter(_BatchWriter):
+    """``taylor_batch``'s code with parameters of each lane's own (a sweep: an orbit
+    diagram's values, ``systems.chaos.bifurcation``): ``P`` is (k, B) flattened, lane
+    ``l``'s parameter ``j`` at ``P[j B + l]``, read as one vector where the batch splats
+    one number. Lane by lane the same operations as ``taylor_coefficients`` at that
+    lane's parameters."""
+
+    def value0(self, arg: Arg):
+        if arg.kind == "par":
+            found = self.parameters.get(arg.value)
+            if found is None:
+                pointer = self.vector_at(self.data["P"], self.int(arg.value * self.B))
+                found = self.parameters[arg.value] = self.b.load(pointer, name=f"P{arg.value}")
+            return found
+        return super().value0(arg)
+
+
 _MARKER = "taylor straight-line code"
 
 
@@ -858,6 +875,15 @@ def write_taylor_batch_ir(decomposition: Decomposition, B: int, budget: int = UN
     return f"; taylor m={decomposition.m} width={width} lanes={B}\n{text}"
 
 
+def write_taylor_sweep_ir(decomposition: Decomposition, B: int) -> str:
+    """``write_taylor_batch_ir``'s function (same name and header) with parameters of
+    each lane's own (``_SweepWriter``): written only when a sweep asks for it
+    (``TaylorKernels.sweep``), never by the default build."""
+    text = _write(_SweepWriter, decomposition, BATCH_NAME, UNROLL_BUDGET, B=B)
+    width = decomposition.m + len(decomposition.nodes)
+    return f"; taylor m={decomposition.m} width={width} lanes={B}\n{text}"
+
+
 def write_taylor_ir(decomposition: Decomposition) -> str:
     """The LLVM IR text of ``taylor_coefficients`` for ``decomposition``, with a first
     comment line giving m and the width of ``out`` (m + nodes).
@@ -941,6 +967,7 @@ class TaylorKernels:
         self.code = code
         self.mechanics = mechanics
         self._batch = None
+        self._sweep = None
         self._double = None
         self.m, self.width = code.m, code.width
         self.kernels = _kernels(code.text, NAME)
@@ -958,6 +985,18 @@ class TaylorKernels:
             kernels = _kernels(text, BATCH_NAME)
             self._batch = (kernels, kernels.functions[BATCH_NAME], B)
         return self._batch[1], self._batch[2]
+
+    def sweep(self):
+        """The batch function with parameters of each lane's own (``taylor_batch``'s
+        signature, P (k, B) flattened: ``write_taylor_sweep_ir``), written and compiled
+        the first time an orbit diagram asks for it (``systems.chaos.bifurcation``), its
+        machine code kept on disk like the others'. Returns (function, lanes)."""
+        if self._sweep is None:
+            B = lanes()
+            d = taylor_decompose.decompose_mechanics(self.mechanics)
+            kernels = _kernels(write_taylor_sweep_ir(d, B), BATCH_NAME)
+            self._sweep = (kernels, kernels.functions[BATCH_NAME], B)
+        return self._sweep[1], self._sweep[2]
 
     def double(self):
         """The double-double orders 1 and 2 (``systems.taylor.double.DoubleKernels``),

@@ -111,6 +111,80 @@ def test_a_run_with_a_strobe_gives_the_states_once_per_period(pendulum):
         Run(pendulum, strobe=T, section=(0, 0.0, 1))
 
 
+def _strobe_run(compiled, value: float, periods: int, tol=None) -> np.ndarray:
+    """The states at the first ``periods`` periods of the drive of a single taylor run
+    (``Run(strobe=T)``) at A = ``value`` from START: (periods, 2)."""
+    at = compiled.with_parameters({"A": value})
+    run = Run(at, method="taylor", tol=tol, y0=START, strobe=bf.drive_period(at))
+    states: list = []
+    while len(states) < periods:
+        states += list(run.advance(0.05).events_y)
+    return np.array(states[:periods])
+
+
+@pytest.mark.parametrize("tol", [None, 1e-16])
+def test_a_taylor_diagram_is_each_values_single_run_bitwise(pendulum, tol):
+    """``method="taylor"``: the orbits in SIMD batches, each lane its own A (11 values:
+    a full batch and a part one on any CPU) and its own times; every row is the single
+    taylor run's strobe at its value, bitwise (the same steps, the same series), also in
+    double-double (``tol`` below machine epsilon: each lane's ``taylor_double`` at its
+    own parameters). Were the parameters lane 0's, the rows would all be row 0's."""
+    values = np.array([1.06, 1.07, 1.08, 1.1, 1.2, 1.3, 1.4, 1.5, 1.05, 1.065, 1.075])
+    kernel = bf.strobe_kernel(pendulum, "A", transient=0.0, samples=3, method="taylor", tol=tol)
+    assert kernel.tol == (tol or np.finfo(float).eps) and bool(kernel.coef[5]) == (tol is not None)
+    diagram = bf.orbit_diagram(kernel, values, y0=START)
+    assert (diagram.status == 0).all() and diagram.tol == kernel.tol
+    assert (diagram.steps > 50).all()  # several steps a period, counted per row
+    assert "tolerance" in diagram.checked and "energy" in diagram.checked
+    for row, value in enumerate(values):
+        assert np.array_equal(diagram.samples[row], _strobe_run(pendulum, value, 3, tol)), value
+    assert len({diagram.samples[row, -1, 1] for row in range(len(values))}) == len(values)
+
+
+def test_taylor_and_rk4_agree_where_rk4_is_accurate(pendulum):
+    """Period 1 (A = 1.06) and period 2 (1.076): the taylor diagram's samples are the
+    rk4 diagram's (400 steps a period) to its accuracy, with the same periods."""
+    T = bf.drive_period(pendulum)
+    values = np.array([1.06, 1.076])
+    options = {"transient": 300 * T, "samples": 8}
+    rk4 = bf.orbit_diagram(
+        bf.strobe_kernel(pendulum, "A", method="rk4", per_period=400, **options), values, y0=START
+    )
+    taylor = bf.orbit_diagram(
+        bf.strobe_kernel(pendulum, "A", method="taylor", **options), values, y0=START
+    )
+    assert rk4.method == "rk4" and taylor.method == "taylor" and rk4.tol is None
+    assert np.abs(taylor.samples - rk4.samples).max() < 1e-6
+    assert (
+        list(bf.periods(taylor, 1e-6, angles=(0,)))
+        == list(bf.periods(rk4, 1e-6, angles=(0,)))
+        == [1, 2]
+    )
+
+
+def test_a_taylor_diagram_stops_between_chunks_when_cancelled(pendulum):
+    kernel = bf.strobe_kernel(pendulum, "A", transient=0.0, samples=2, method="taylor")
+    asked = []
+
+    def cancelled() -> bool:
+        asked.append(1)
+        return len(asked) > 1  # after the first chunk
+
+    diagram = bf.orbit_diagram(
+        kernel, np.linspace(1.0, 1.2, 6), y0=START, chunk=2, cancelled=cancelled
+    )
+    assert not diagram.complete
+    assert (diagram.status[:2] == 0).all() and (diagram.status[2:] == -1).all()
+    assert np.isfinite(diagram.samples[:2]).all() and np.isnan(diagram.samples[2:]).all()
+
+
+def test_a_tolerance_is_taylors_only(pendulum):
+    with pytest.raises(ValueError, match="rk4 takes a number of steps.*not a tolerance"):
+        bf.strobe_kernel(pendulum, "A", method="rk4", tol=1e-10)
+    with pytest.raises(ValueError, match="tol"):
+        bf.strobe_kernel(pendulum, "A", method="taylor", tol=2.0)
+
+
 def test_a_turning_angle_is_compared_modulo_two_pi_at_its_own_scale():
     k = np.arange(16)
     theta = 1e4 + 2 * np.pi * k + 0.01 * (k % 2)  # turning, and alternating by 0.01

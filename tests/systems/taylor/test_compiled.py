@@ -139,6 +139,31 @@ def test_the_batch_function_is_the_scalar_one_lane_by_lane(name):
             assert np.array_equal(out[:, : kernels.m, lane], want[:, : kernels.m]), (order, lane)
 
 
+@pytest.mark.parametrize("name", ["driven_damped_pendulum", "every_function"])
+def test_the_sweep_function_is_the_scalar_one_at_each_lanes_parameters(name):
+    """``TaylorKernels.sweep`` (an orbit diagram's batch: P (k, B), each lane its own
+    parameters) gives each lane's coefficients bitwise as ``taylor_coefficients`` at
+    that lane's parameters, time and state, in both forms; with lane 0's parameters
+    everywhere the other lanes would differ."""
+    mechanics = _mechanics(name)
+    kernels = load_taylor(mechanics)
+    function, B = kernels.sweep()
+    compiled = compile_system(mechanics, ("rhs",))
+    rng = np.random.default_rng(4)
+    P = compiled.parameters[:, None] * rng.uniform(0.8, 1.2, (len(compiled.parameters), B))
+    Y = compiled.initial_state()[:, None] + rng.uniform(-0.1, 0.1, (kernels.m, B))
+    T = rng.uniform(0.0, 2.0, B)
+    for order in (UNROLLED, 7):
+        out = np.zeros((order + 1, kernels.width, B))
+        kernels._sweep[0].taylor_batch(T, np.ascontiguousarray(Y), P.ravel(), out)
+        for lane in range(B):
+            want = kernels.coefficients(T[lane], Y[:, lane].copy(), P[:, lane].copy(), order)
+            assert np.array_equal(out[:, : kernels.m, lane], want[:, : kernels.m]), (order, lane)
+            if lane:
+                other = kernels.coefficients(T[lane], Y[:, lane].copy(), P[:, 0].copy(), order)
+                assert not np.array_equal(out[:, : kernels.m, lane], other[:, : kernels.m])
+
+
 def test_a_conserved_variable_is_a_constant_and_quotients_share_a_reciprocal():
     """Polar Kepler: ``decompose_mechanics`` makes p_theta (its equation 0) a constant,
     so ``p_theta / (m r^2)`` and ``k / r^2`` are scalings of one node ``1 / r^2``; the
