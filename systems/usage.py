@@ -448,6 +448,7 @@ def diagram_setup(
     start: Mapping[str, float] | None = None,
     variable: str | None = None,
     spell: Callable[[str], str] = cli_name,
+    tol: float | None = None,
 ):
     """Compile ``mechanics`` for an orbit diagram over ``parameter``.
 
@@ -463,11 +464,11 @@ def diagram_setup(
     """
     from systems.angles import angle_coordinates
     from systems.chaos import bifurcation as bf
-    from systems.chaos.maps import default_map_method, state_names
+    from systems.chaos.maps import state_names
     from systems.compiled import compile_system
     from systems.integrators import STEPPERS
 
-    method_ = method or default_map_method(mechanics)
+    method_ = method or bf.default_strobe_method(mechanics)
     wants = (STEPPERS[method_].wants if method_ in STEPPERS else frozenset()) | {"hamiltonian"}
     compiled = compile_system(mechanics, wants)
     y0 = start_state(compiled, start, spell("start"))
@@ -478,6 +479,8 @@ def diagram_setup(
     if variable not in names:
         raise UsageError(f"{spell('variable')} is one of {', '.join(names)}, not {variable!r}")
     options = {} if steps_per_period is None else {"per_period": steps_per_period}
+    if tol is not None:
+        options["tol"] = tol
     if steps_per_period is not None and not 4 <= steps_per_period <= 100_000:
         raise UsageError(
             f"{spell('steps_per_period')} must be from 4 to 100000, not {steps_per_period}"

@@ -46,11 +46,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--method",
         default=None,
-        help="a fixed-step method (default rk4 for a damped or forced scene)",
+        help="taylor (adaptive Taylor series in SIMD batches; the default where it applies) "
+        "or a fixed-step method such as rk4 (the default elsewhere)",
     )
     parser.add_argument(
+        "--tol", type=float, default=None,
+        help="taylor's tolerance (default machine epsilon)",
+    )  # fmt: skip
+    parser.add_argument(
         "--steps-per-period", type=int, default=None,
-        help="fixed steps per period of the drive (default 200)",
+        help="a fixed-step method's steps per period of the drive (default 200)",
     )  # fmt: skip
     parser.add_argument(
         "--start", default="",
@@ -109,13 +114,18 @@ def run(args: argparse.Namespace) -> int:
         compiled, kernel, y0, variable, angles = diagram_setup(
             mechanics, args.scene, parameter=args.parameter, transient=args.transient,
             samples=args.samples, method=args.method, steps_per_period=args.steps_per_period,
-            start=start_values, variable=args.variable,
+            start=start_values, variable=args.variable, tol=args.tol,
         )  # fmt: skip
     names = state_names(mechanics)
     if not args.json:
+        how = (
+            f"tolerance {kernel.tol:.3g}"
+            if kernel.tol is not None
+            else f"{kernel.per_period} steps a period"
+        )
         print(
             f"{len(values)} orbits, {kernel.transient_periods} + {kernel.samples} periods "
-            f"each ({kernel.method}, {kernel.per_period} steps a period)"
+            f"each ({kernel.method}, {how})"
             + (f" on the Dask cluster {args.dask}" if args.dask else "")
             + "; Ctrl+C stops",
             file=sys.stderr,
@@ -159,7 +169,10 @@ def run(args: argparse.Namespace) -> int:
         "range": [float(values[0]), float(values[-1]), len(values)],
         "variable": variable,
         "method": kernel.method,
-        "steps_per_period": kernel.per_period,
+        "steps_per_period": None if kernel.tol is not None else kernel.per_period,
+        "tol": kernel.tol,
+        "steps": [int(n) for n in diagram.steps],
+        "checked": diagram.checked,
         "transient_periods": kernel.transient_periods,
         "samples": kernel.samples,
         "drive_period": bf.drive_period(compiled),
@@ -179,6 +192,7 @@ def run(args: argparse.Namespace) -> int:
             f"{scene.title}: orbit diagram over {args.parameter} in [{values[0]:g}, {values[-1]:g}]"
         )
         print(f"{text} (up to {kernel.samples // 2} periods of the drive); {diagram.wall_s:.1f} s")
+        print(f"checked: {diagram.checked}")
         if stopped:
             print(f"{stopped} orbits stopped early (left out)")
         print(f"wrote {args.out}")

@@ -6,7 +6,10 @@ range, Draw, and the state once per period of the drive after a transient is plo
 against the parameter, every value one row of one parallel compiled loop
 (``bifurcation.orbit_diagram``) run in a thread of its own (``orbit-diagram``) with a
 progress bar and Cancel between chunks. Every orbit starts from the scene's start. The
-driven damped pendulum's period-doubling route to chaos: A from 1.0 to 1.5.
+driven damped pendulum's period-doubling route to chaos: A from 1.0 to 1.5. The method is
+``bifurcation.default_strobe_method``'s (taylor where it applies: more accurate and
+faster than rk4 at 200 steps a period on every driven scene of the catalogue), named
+under the plot.
 """
 
 from __future__ import annotations
@@ -62,7 +65,8 @@ class DiagramRun(RelayThread):
                 samples=SAMPLES,
             )  # fmt: skip
             diagram = bf.orbit_diagram(
-                kernel, self.values, y0=self.y0, chunk=CHUNK, cancelled=self.stopping.is_set,
+                kernel, self.values, y0=self.y0, chunk=bf.chunk_values(kernel, CHUNK),
+                cancelled=self.stopping.is_set,
                 progress=lambda done, total: self._emit("progressed", done, total),
             )  # fmt: skip
         except Exception as exc:  # noqa: BLE001 - said in the view, never lost
@@ -256,7 +260,8 @@ class OrbitDiagramView(QWidget):
         self.info.setText(
             f"{diagram.names[index]} once per period of the drive after "
             f"{diagram.transient_periods} periods, {SAMPLES} periods a value; no period "
-            f"within {SAMPLES // 2} at {chaotic} of {len(found)} values ({diagram.wall_s:.1f} s)."
+            f"within {SAMPLES // 2} at {chaotic} of {len(found)} values ({diagram.method}, "
+            f"{diagram.wall_s:.1f} s)."
         )
 
     def _on_relay_failed(self, generation: int, message: str) -> None:

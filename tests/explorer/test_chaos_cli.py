@@ -85,7 +85,10 @@ def test_bifurcation_npz_and_json(tmp_path, capsys):
                    "--start", f"theta={-np.pi / 2!r},theta_dot=0", "--out", str(out))  # fmt: skip
     assert report["periods"] == [1, 1, 2]  # period 2 from 1.0663
     assert report["drive_period"] == pytest.approx(3 * np.pi)
-    assert report["method"] == "rk4" and report["variable"] == "p_theta"
+    assert report["method"] == "taylor" and report["variable"] == "p_theta"
+    assert report["tol"] == np.finfo(float).eps and report["steps_per_period"] is None
+    assert len(report["steps"]) == 3 and min(report["steps"]) > 2123 * 10
+    assert "tolerance" in report["checked"] and "not checked" in report["checked"]
     assert report["transient_periods"] == 2123  # 20000 / 3 pi, rounded up
     data = np.load(out)
     assert data["samples"].shape == (3, 8, 2) and np.allclose(data["values"], [1.06, 1.065, 1.07])
@@ -110,6 +113,10 @@ def test_bifurcation_png(tmp_path, capsys):
          "--variable is one of theta, p_theta"),
         (["driven_damped_pendulum", "--parameter", "A", "--range", "1:2:3", "--samples", "0"],
          "samples per value"),
+        (["driven_damped_pendulum", "--parameter", "A", "--range", "1:2:3", "--method", "rk4",
+          "--tol", "1e-9"], "rk4 takes a number of steps a period, not a tolerance"),
+        (["driven_damped_pendulum", "--parameter", "A", "--range", "1:2:3",
+          "--steps-per-period", "400"], "taylor takes a tolerance, not a number of steps"),
     ],
 )  # fmt: skip
 def test_bifurcation_mistakes(tmp_path, capsys, argv, message):

@@ -33,6 +33,7 @@ def test_the_driven_pendulums_period_doubling(qtbot, window, monkeypatch):
     x, y = view.scatter.getData()
     assert len(x) == 12 * 32 and np.isfinite(y).all()
     assert "once per period" in view.info.text() and view.draw_button.isEnabled()
+    assert diagram.method == "taylor" and "taylor" in view.info.text()
 
 
 def test_cancel_and_an_autonomous_scene(qtbot, window, monkeypatch):

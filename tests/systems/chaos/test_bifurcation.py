@@ -65,7 +65,9 @@ def test_the_cascade_goes_on_to_chaos(pendulum):
 def test_the_samples_are_the_states_at_whole_periods(pendulum):
     # A = 1.06: periodic (at 1.2 the motion is chaotic and amplifies any difference)
     T = 3 * math.pi
-    kernel = bf.strobe_kernel(pendulum, "A", transient=5 * T, samples=4, per_period=400)
+    kernel = bf.strobe_kernel(
+        pendulum, "A", transient=5 * T, samples=4, method="rk4", per_period=400
+    )
     assert kernel.transient_periods == 5
     diagram = bf.orbit_diagram(kernel, np.array([1.06]), y0=START)
     times = T * np.arange(6, 10)
@@ -183,6 +185,9 @@ def test_a_tolerance_is_taylors_only(pendulum):
         bf.strobe_kernel(pendulum, "A", method="rk4", tol=1e-10)
     with pytest.raises(ValueError, match="tol"):
         bf.strobe_kernel(pendulum, "A", method="taylor", tol=2.0)
+    with pytest.raises(ValueError, match="taylor takes a tolerance, not a number of steps"):
+        bf.strobe_kernel(pendulum, "A", method="taylor", per_period=400)
+    assert bf.strobe_kernel(pendulum, "A").method == "taylor"  # the default where it applies
 
 
 def test_a_turning_angle_is_compared_modulo_two_pi_at_its_own_scale():
