@@ -58,9 +58,9 @@ def default_strobe_method(mechanics) -> str:
     scenes taylor at machine epsilon was 4 to 9 orders of magnitude more accurate than
     the fixed-step default at ``PER_PERIOD`` steps a period (driven damped pendulum
     9e-12 against 5e-7, Kapitza 5e-14 against 2e-9, Mathieu 9e-14 against 3e-5 with
-    yoshida4, variable-length pendulum 7e-11 against 1e-4) and 5 to 9 times faster
-    (its steps fit the orbit, the fixed ones the worst part of the period). The choice
-    is fixed by that measurement, not timed at run time."""
+    yoshida4, variable-length pendulum 7e-11 against 1e-4) and 4.8 to 9 times faster
+    over two runs (its steps fit the orbit, the fixed ones the worst part of the
+    period). The choice is fixed by that measurement, not timed at run time."""
     from systems.integrators.registry import STEPPERS
 
     if STEPPERS["taylor"].applies_to(mechanics) is None:
