@@ -123,6 +123,11 @@ class OrbitDiagram:
     status : ndarray of int, shape (N,)
         0 every period reached, else the ``Status`` that stopped the row, -1 not computed
         (cancelled).
+    tol : float or None
+        taylor's tolerance (None: ``method`` is fixed-step, ``per_period`` steps a
+        period).
+    steps : ndarray of int, shape (N,), or None
+        The steps each orbit took (``strobe_chunk``'s).
     """
 
     parameter: str
@@ -152,10 +157,11 @@ class OrbitDiagram:
         done = self.steps[self.status == 0] if self.steps is not None else np.zeros(0)
         taken = f"; {int(done.min())} to {int(done.max())} steps an orbit" if len(done) else ""
         return (
-            f"taylor, every step sized so that the series' last two terms stay below "
-            f"the tolerance {self.tol:.3g} (an estimate of the local error, not a bound); "
-            f"the samples from the series' dense output{taken}; the drive changes the "
-            "energy, so it is not checked"
+            f"taylor at tolerance {self.tol:.3g}: every step sized by Jorba and Zou's rule "
+            "so that the series' last terms are about the tolerance of the state (an "
+            "estimate of the local error, not a bound), no step collapsed or went "
+            f"non-finite in the orbits that completed; the samples from the series{taken}; "
+            "the drive changes the energy, so it is not checked"
         )
 
     def variable(self, name: str, wrap: bool = False) -> np.ndarray:
