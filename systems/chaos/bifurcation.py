@@ -287,11 +287,12 @@ def _taylor_kernel(compiled, stepper, parameter: int, periods: int, samples: int
     if problem:
         raise ValueError(problem)
     runner = stepper.family.runner(compiled, stepper, y0, t0, math.inf, float(tol), None)
-    function, lanes = compiled.taylor().sweep()
+    function, lanes, width = compiled.taylor().sweep()
+    coef = (width, *runner.coef[1:])  # the columns of the sweep's out, not the scalar's
     return StrobeKernel(
         compiled, "taylor", parameter, 0, int(periods), samples, float(t0),
         drive_frequencies(compiled.mechanics), driver_module().taylor_batch_strobe_parallel,
-        (function, runner.fns[1]), runner.coef, tol=float(tol), lanes=lanes,
+        (function, runner.fns[1]), coef, tol=float(tol), lanes=lanes,
     )  # fmt: skip
 
 

@@ -990,13 +990,17 @@ class TaylorKernels:
         """The batch function with parameters of each lane's own (``taylor_batch``'s
         signature, P (k, B) flattened: ``write_taylor_sweep_ir``), written and compiled
         the first time an orbit diagram asks for it (``systems.chaos.bifurcation``), its
-        machine code kept on disk like the others'. Returns (function, lanes)."""
+        machine code kept on disk like the others'. Returns (function, lanes, width):
+        the width of its ``out``, its own decomposition's, which need not be the scalar
+        code's (``self.width``: that text is remembered per scene, and the scene's
+        equations derived another way may decompose into other nodes)."""
         if self._sweep is None:
             B = lanes()
             d = taylor_decompose.decompose_mechanics(self.mechanics)
             kernels = _kernels(write_taylor_sweep_ir(d, B), BATCH_NAME)
-            self._sweep = (kernels, kernels.functions[BATCH_NAME], B)
-        return self._sweep[1], self._sweep[2]
+            width = d.m + len(d.nodes)
+            self._sweep = (kernels, kernels.functions[BATCH_NAME], B, width)
+        return self._sweep[1:]
 
     def double(self):
         """The double-double orders 1 and 2 (``systems.taylor.double.DoubleKernels``),

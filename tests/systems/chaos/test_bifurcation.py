@@ -143,6 +143,21 @@ def test_a_taylor_diagram_is_each_values_single_run_bitwise(pendulum, tol):
     assert len({diagram.samples[row, -1, 1] for row in range(len(values))}) == len(values)
 
 
+def test_the_strobe_loop_takes_the_sweep_functions_own_width(pendulum, monkeypatch):
+    """The scalar code is remembered per scene and may come from another decomposition
+    of the same equations (the scene derived another way: more nodes, another width);
+    the loop's ``out`` has the sweep function's own columns, or it reads garbage."""
+    taylor = pendulum.taylor()
+    width = taylor.width
+    monkeypatch.setattr(taylor, "width", width + 3)
+    kernel = bf.strobe_kernel(pendulum, "A", transient=0.0, samples=2, method="taylor")
+    monkeypatch.undo()
+    assert kernel.coef[0] == width
+    diagram = bf.orbit_diagram(kernel, np.array([1.06, 1.2]), y0=START)
+    assert (diagram.status == 0).all()
+    assert np.array_equal(diagram.samples[0], _strobe_run(pendulum, 1.06, 2))
+
+
 def test_taylor_and_rk4_agree_where_rk4_is_accurate(pendulum):
     """Period 1 (A = 1.06) and period 2 (1.076): the taylor diagram's samples are the
     rk4 diagram's (400 steps a period) to its accuracy, with the same periods."""

@@ -147,7 +147,8 @@ def test_the_sweep_function_is_the_scalar_one_at_each_lanes_parameters(name):
     everywhere the other lanes would differ."""
     mechanics = _mechanics(name)
     kernels = load_taylor(mechanics)
-    function, B = kernels.sweep()
+    function, B, width = kernels.sweep()
+    assert width == kernels.width  # the same decomposition here
     compiled = compile_system(mechanics, ("rhs",))
     rng = np.random.default_rng(4)
     P = compiled.parameters[:, None] * rng.uniform(0.8, 1.2, (len(compiled.parameters), B))
