@@ -269,7 +269,7 @@ def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, st
     ``(chosen, why)``, with taylor's price added where it was measured. A chosen
     tolerance is remembered for the run (``chosen_tolerance``); the text's first line
     then says it (``"taylor tol=1e-13"``)."""
-    from systems.taylor.decompose import decompose_mechanics
+    from systems.taylor.compiled import decomposition_of
 
     if get_stepper(TAYLOR).applies_to(compiled.mechanics) is not None:
         return chosen, why
@@ -284,7 +284,7 @@ def _with_taylor(compiled, chosen, why, price, t0, y0, horizon) -> tuple[str, st
         if error > MARGIN * ENERGY_TARGET:
             worst_error = max(worst_error, error)
             continue
-        decomposition = decomposition or decompose_mechanics(compiled.mechanics)
+        decomposition = decomposition or decomposition_of(compiled.mechanics)
         order = taylor_order(tol)
         each = taylor_equivalents(decomposition, order)
         priced.append((steps_rate * each, tol, order, each, steps_rate, error))
@@ -351,7 +351,7 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
     one at most ``LOOSER_GAIN`` of it, each step at ``taylor_equivalents`` evaluations,
     DOP853 at its counted ones.
     """
-    from systems.taylor.decompose import decompose_mechanics
+    from systems.taylor.compiled import decomposition_of
 
     refusal = get_stepper(TAYLOR).applies_to(compiled.mechanics)
     if refusal is not None:
@@ -395,7 +395,7 @@ def _by_state(compiled, method, reason, t0, y0, horizon) -> tuple[str, str]:
     their_error = over_run(errors(theirs[0]))
     their_rate = theirs[1] / theirs[3]
     accuracy = max(target, their_error)
-    decomposition = decompose_mechanics(compiled.mechanics)
+    decomposition = decomposition_of(compiled.mechanics)
     priced = []  # (cost per unit time, tol, order, each, steps per unit time, error)
     worst_error = 0.0
     for tol in TAYLOR_TOLERANCES:

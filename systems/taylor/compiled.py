@@ -909,6 +909,32 @@ class TaylorCode:
     seconds: float = 0.0
 
 
+def decomposition_of(mechanics) -> taylor_decompose.Decomposition:
+    """The Taylor decomposition of ``mechanics``, remembered per scene: every function
+    written from it (the scalar coefficients, the batch, the sweep, the double-double
+    orders) and the cost the automatic choice counts take the same nodes in every
+    process. The same equations decompose into other nodes when their expressions were
+    built otherwise: a derivation read back from the disk (unpickled, its sums and
+    products rebuilt) gave the double pendulum 50 nodes where the fresh one gave 48, and
+    a batch function written from one and run with the other's width read garbage.
+
+    Raises
+    ------
+    NotDecomposable
+        As ``decompose.decompose_mechanics``.
+    """
+    from systems import derivation_cache
+
+    reason = taylor_decompose.refusal(mechanics)
+    if reason:
+        raise taylor_decompose.NotDecomposable(reason)
+    key = f"taylor decomposition {derivation_cache.scene_key(mechanics.scene)}"
+    tag = f"decomposition {derivation_cache.code_hash(taylor_decompose)}"
+    return derivation_cache.remembered_value(
+        key, tag, lambda: taylor_decompose.decompose_mechanics(mechanics)
+    )
+
+
 def taylor_code(mechanics) -> TaylorCode:
     """Write (or read from the disk cache) the coefficient function of ``mechanics``.
 
@@ -931,7 +957,7 @@ def taylor_code(mechanics) -> TaylorCode:
     tag = f"taylor {code} llvmlite {llvmlite.__version__}"
 
     def write() -> str:
-        return write_taylor_ir(taylor_decompose.decompose_mechanics(mechanics))
+        return write_taylor_ir(decomposition_of(mechanics))
 
     text = derivation_cache.remembered(mechanics.scene, tag, write)
     found = _HEADER.search(text)
@@ -980,7 +1006,15 @@ class TaylorKernels:
         the value the batch ensemble loop takes. Returns (function, lanes)."""
         if self._batch is None:
             B = lanes()
-            d = taylor_decompose.decompose_mechanics(self.mechanics)
+            d = decomposition_of(self.mechanics)
+            if d.m + len(d.nodes) != self.width:  # the batch loops allocate self.width
+                from systems.cache_integrity import cache_root
+
+                raise RuntimeError(
+                    f"the Taylor batch function of {self.mechanics.scene.title!r} has "
+                    f"{d.m + len(d.nodes)} columns where its scalar function has "
+                    f"{self.width}; clear the cache ({cache_root()})"
+                )
             text = write_taylor_batch_ir(d, B)
             kernels = _kernels(text, BATCH_NAME)
             self._batch = (kernels, kernels.functions[BATCH_NAME], B)
@@ -991,12 +1025,11 @@ class TaylorKernels:
         signature, P (k, B) flattened: ``write_taylor_sweep_ir``), written and compiled
         the first time an orbit diagram asks for it (``systems.chaos.bifurcation``), its
         machine code kept on disk like the others'. Returns (function, lanes, width):
-        the width of its ``out``, its own decomposition's, which need not be the scalar
-        code's (``self.width``: that text is remembered per scene, and the scene's
-        equations derived another way may decompose into other nodes)."""
+        the width of its ``out``, from the scene's one decomposition (``decomposition_of``)
+        like the scalar code's."""
         if self._sweep is None:
             B = lanes()
-            d = taylor_decompose.decompose_mechanics(self.mechanics)
+            d = decomposition_of(self.mechanics)
             kernels = _kernels(write_taylor_sweep_ir(d, B), BATCH_NAME)
             width = d.m + len(d.nodes)
             self._sweep = (kernels, kernels.functions[BATCH_NAME], B, width)

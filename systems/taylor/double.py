@@ -312,7 +312,7 @@ class DoubleKernels:
         tag = f"taylor double {code} llvmlite {llvmlite.__version__}"
 
         def write() -> str:
-            return write_double_ir(taylor_decompose.decompose_mechanics(mechanics))
+            return write_double_ir(taylor_compiled.decomposition_of(mechanics))
 
         self.text = derivation_cache.remembered(mechanics.scene, tag, write)
         self.kernels = llvm_kernels.LLVMKernels(
