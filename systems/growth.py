@@ -28,7 +28,9 @@ UNBOUNDED_GROWTH = 1e6
 """A coordinate this many times its start scale, grown steadily: the run stops."""
 GROWN_AT_STOP = 1e3
 """A run stopped otherwise (overflow, energy guard) after growth by this much: unbounded."""
-MAX_DECADES = 320
+MAX_DECADES = 308
+"""Decades recorded at most: 10.0 ** 309 is past the largest double (Python raises
+OverflowError there; a state of 1e308 times its scale had crashed the watch)."""
 STEADY = 2.0
 """The last of the last three decade intervals at most this times the first: steady."""
 

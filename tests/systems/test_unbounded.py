@@ -127,3 +127,19 @@ def test_growth_watch_tells_exponential_from_power_law_growth():
         watch = GrowthWatch(("x",), np.array([1.0, 0.0]))
         t = np.concatenate([[0.0], np.geomspace(1e-3, 1e7, 20001)])
         assert watch.update(t, np.column_stack([(1 + t) ** power, 0 * t])) is None
+
+
+def test_growth_watch_takes_states_up_to_the_largest_double():
+    """A coordinate passing 1e308 times its scale, in one block or over many: the decades
+    stop at the largest double (10.0 ** 309 raised OverflowError inside the watch)."""
+    t = np.linspace(0.0, 710.0, 7101)
+    x = np.exp(np.minimum(t, 709.0))  # up to 8.2e307, then held
+    x[-1] = np.finfo(float).max
+    for blocks in (1, 71):
+        watch = GrowthWatch(("x",), np.array([1.0, 0.0]))
+        found = []
+        for part in np.array_split(np.arange(len(t)), blocks):
+            found.append(watch.update(t[part], np.column_stack([x[part], 0 * x[part]])))
+        first = next(f for f in found if f is not None)
+        assert first[1].rate == pytest.approx(1.0, rel=0.05)
+        assert len(watch.crossed[0]) == 308
