@@ -107,6 +107,7 @@ def warm_drivers(progress=None) -> float:
         progress("chaos maps and section portraits")
     warm_map_loops(systems["free"])
     warm_section_portraits(systems["free"])
+    warm_orbit_diagrams()
     _warm.set()
     from systems.codegen import prune_drivers
 
@@ -145,6 +146,32 @@ def warm_section_portraits(compiled) -> None:
     start = compiled.initial_state()
     energy = float(compiled.hamiltonian(0.0, start[None])[0])
     section_portrait(compiled, Section(1, 0.0, 0), energy, np.stack([start, start]), t_end=1e-3)
+
+
+DRIVEN = """
+title = "Warm-up: a spring pumped with period 2 pi"
+[system]
+coordinates = ["x"]
+parameters = { delta = 1.0, epsilon = 0.3 }
+kinetic = "x_dot**2/2"
+potential = "(delta + epsilon*cos(t))*x**2/2"
+[initial]
+x = 0.1
+"""
+
+
+def warm_orbit_diagrams() -> None:
+    """Compile (or load) the orbit diagram's default loop (``taylor_batch_strobe_parallel``:
+    the first diagram had waited about 7 s for it) with two values of a driven spring's
+    parameter, one period each."""
+    from systems.chaos.bifurcation import strobe_chunk, strobe_kernel
+    from systems.compiled import compile_system
+    from systems.mechanics import derive
+    from systems.scene import parse_scene
+
+    compiled = compile_system(derive(parse_scene(DRIVEN, source="<warm-up driven>")))
+    kernel = strobe_kernel(compiled, "epsilon", transient=0.0, samples=1, method="taylor")
+    strobe_chunk(kernel, np.array([0.2, 0.3]), compiled.initial_state())
 
 
 def copy_drivers(source: Path, target: Path) -> bool:

@@ -74,8 +74,8 @@ def test_copy_drivers_takes_the_drivers_and_nothing_else(tmp_path):
 
 def test_the_default_chaos_map_loops_come_from_the_cache_in_a_new_process():
     """``warm_drivers`` (the session's, as ``python main.py warm``) compiled the map loops
-    of the methods maps take by default, taylor's map and the section portraits' batch:
-    a new process loads them, compiles none."""
+    of the methods maps take by default, taylor's map, the section portraits' batch and
+    the orbit diagrams' taylor strobe loop: a new process loads them, compiles none."""
     script = """
 import json
 from systems.chaos.map_kernels import loop_module
@@ -103,12 +103,22 @@ start = compiled.initial_state()
 map_chunk(map_kernel(load_tangent(compiled), method="taylor", t_end=0.1), start[None])
 energy = float(compiled.hamiltonian(0.0, start[None])[0])
 section_portrait(compiled, Section(0, 0.0, 1), energy, start[None], t_end=0.1)
+# the orbit diagram's default loop (taylor, each lane its own parameters)
+from systems.chaos.bifurcation import orbit_diagram, strobe_kernel
+
+driven = compile_system(derive(load_scene("driven_damped_pendulum")), ("rhs", "hamiltonian"))
+parameter = driven.parameter_names[0]
+value = float(driven.parameters[0])
+kernel = strobe_kernel(driven, parameter, transient=0.0, samples=1)
+assert kernel.method == "taylor"
+orbit_diagram(kernel, [value, 1.01 * value])
 loops = [getattr(loop_module(), f"{STEPPERS[m].family.kernel}_megno_parallel")
          for m in MAP_METHODS]
 loops += [driver_module().taylor_batch_megno_parallel,
-          driver_module().taylor_batch_section_parallel]
+          driver_module().taylor_batch_section_parallel,
+          driver_module().taylor_batch_strobe_parallel]
 print(json.dumps({"misses": sum(sum(loop.stats.cache_misses.values()) for loop in loops),
                   "hits": sum(sum(loop.stats.cache_hits.values()) for loop in loops)}))
 """
     report = _fresh(script)
-    assert report == {"misses": 0, "hits": 5}, report
+    assert report == {"misses": 0, "hits": 6}, report
