@@ -860,6 +860,11 @@ def _grows(compiled, t: float, y: np.ndarray, growth) -> bool:
     DOP853 run over the time of one decade (ln 10 / rate)."""
     if not (math.isfinite(growth.rate) and growth.rate > 0) or not np.all(np.isfinite(y)):
         return False
+    if abs(y[growth.index]) > np.finfo(float).max / 10.0:
+        # a decade more is past the largest double: no run can follow it, and the steady
+        # decades the watch recorded up to here are the evidence (the bead's r at 1.7e308
+        # was called singular when its last block ended there)
+        return True
     horizon = math.log(10.0) / growth.rate
     probe = make_runner(
         compiled, STEPPERS["dop853"], y, t, t + horizon, 1e-10, None, max_step=horizon / 30

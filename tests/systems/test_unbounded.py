@@ -143,3 +143,15 @@ def test_growth_watch_takes_states_up_to_the_largest_double():
         first = next(f for f in found if f is not None)
         assert first[1].rate == pytest.approx(1.0, rel=0.05)
         assert len(watch.crossed[0]) == 308
+
+
+def test_growth_at_the_edge_of_the_doubles_is_growth(bead):
+    """Where the last good state is within a decade of the largest double (where a run's
+    last block ends decides it), the steady decades are the evidence: no probe can follow
+    one more decade."""
+    from systems.growth import Growth
+    from systems.simulation import _grows
+
+    y = np.array([1.7e308, 1.7e308])
+    growth = Growth("r", 1.7e308, 710.4, 1.0, 1.0, 0)
+    assert _grows(bead, 710.4, y, growth)
