@@ -924,10 +924,12 @@ class MainWindow(QMainWindow):
         if self.compiled is None:
             return
         for key, panel in self.panels.items():
-            if key == "workprecision" or not self._panel_visible(key):
+            # the work-precision and orbit diagrams draw their own results, not the store's
+            refresh = getattr(panel, "refresh", None)
+            if refresh is None or not self._panel_visible(key):
                 continue
             if self.store.take_dirty(key):
-                panel.refresh(self.store)
+                refresh(self.store)
                 if key == "phase":
                     self.panel_refreshes += 1
         if self._frame_due:
