@@ -521,6 +521,7 @@ class System:
         samples: int = 64,
         method: str | None = None,
         steps_per_period: int | None = None,
+        tol: float | None = None,
         start: Mapping[str, float] | None = None,
         variable: str | None = None,
         progress: Callable[[int, int], None] | None = None,
@@ -530,6 +531,8 @@ class System:
         ``python main.py bifurcation``: for each of ``values`` (N,), the orbit from the
         scene's start (or ``start``) runs ``transient`` (default 300 periods of the
         drive), then ``samples`` periods, its state kept at each period's end.
+        ``method`` taylor (the default where it applies) takes ``tol`` (default machine
+        epsilon), a fixed-step method ``steps_per_period``.
         ``progress(done, total)`` is called after each chunk of values; ``dask`` as
         ``chaosmap``'s (chunks of the values on a Dask cluster).
 
@@ -553,7 +556,7 @@ class System:
         compiled, kernel, y0, variable, angles = diagram_setup(
             self.mechanics, self.name or "the scene", parameter=parameter, transient=transient,
             samples=samples, method=method, steps_per_period=steps_per_period, start=start,
-            variable=variable, spell=str,
+            variable=variable, spell=str, tol=tol,
         )  # fmt: skip
         with cluster as client:
             diagram = bf.orbit_diagram(kernel, values, y0=y0, progress=progress, client=client)

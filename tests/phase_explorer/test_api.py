@@ -170,3 +170,15 @@ def test_the_api_and_the_command_line_compute_the_same_map_and_diagram(tmp_path,
         "A", np.linspace(1.0, 1.1, 4), transient=300, samples=8
     )
     np.testing.assert_array_equal(diagram.samples, said["samples"])
+    # a tolerance reaches taylor's steps from either side, and changes them
+    assert main([*argv, "--transient", "30", "--samples", "4", "--tol", "1e-9",
+                 "--out", str(out)]) == 0  # fmt: skip
+    capsys.readouterr()
+    said = np.load(out)
+    driven = pe.load("driven_damped_pendulum")
+    looser = driven.bifurcation("A", np.linspace(1.0, 1.1, 4), transient=30, samples=4, tol=1e-9)
+    np.testing.assert_array_equal(looser.samples, said["samples"])
+    tight = driven.bifurcation("A", np.linspace(1.0, 1.1, 4), transient=30, samples=4)
+    assert looser.method == tight.method == "taylor"
+    assert not np.array_equal(looser.samples, tight.samples)
+    assert np.allclose(looser.samples, tight.samples, atol=1e-6)
