@@ -37,10 +37,10 @@ def _energy_error_and_evaluations(compiled, method: str, t_end: float):
     H = np.concatenate([b.diagnostics["H"] for b in blocks if len(b.t)])
     evaluations = last.rhs_evaluations
     if method == "taylor":
-        from systems.taylor.decompose import decompose_mechanics
+        from systems.taylor.compiled import decomposition_of
 
         order = measured_module.taylor_order(last.setting_value)
-        decomposition = decompose_mechanics(compiled.mechanics)
+        decomposition = decomposition_of(compiled.mechanics)
         evaluations = last.steps * measured_module.taylor_equivalents(decomposition, order)
     return float(np.max(np.abs(H - H0)) / max(abs(H0), 1e-8)), evaluations
 

@@ -28,7 +28,7 @@ from systems.integrators.stepsize import ENERGY_TARGET
 from systems.mechanics import derive
 from systems.scene import load_scene
 from systems.simulation import Run, Sampler, run_to_end
-from systems.taylor.decompose import decompose_mechanics
+from systems.taylor.compiled import decomposition_of
 from tests.systems import scenes
 
 USER_SYSTEMS = Path(__file__).resolve().parents[2] / "user_systems"
@@ -78,7 +78,7 @@ def _priced(compiled, method: str, t_end: float) -> float:
     if method != "taylor":
         return float(last.rhs_evaluations)
     order = taylor_order(last.setting_value)
-    return last.steps * taylor_equivalents(decompose_mechanics(compiled.mechanics), order)
+    return last.steps * taylor_equivalents(decomposition_of(compiled.mechanics), order)
 
 
 def _claimed(why: str) -> tuple[float, float]:

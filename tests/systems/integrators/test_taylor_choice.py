@@ -15,6 +15,7 @@ from systems.integrators.stepsize import ENERGY_TARGET
 from systems.mechanics import derive
 from systems.scene import load_scene
 from systems.simulation import run_to_end
+from systems.taylor.compiled import decomposition_of
 from systems.taylor.decompose import decompose_mechanics
 from tests.systems.integrators.test_measured_choice import _compiled  # (the same systems)
 
@@ -39,7 +40,7 @@ def _priced_run(compiled, method: str, t_end: float, order: int = 20) -> tuple[f
     error = float(np.max(np.abs(H - H0)) / max(abs(H0), 1e-8))
     cost = float(last.rhs_evaluations)
     if method == "taylor":
-        cost = last.steps * taylor_equivalents(decompose_mechanics(compiled.mechanics), order)
+        cost = last.steps * taylor_equivalents(decomposition_of(compiled.mechanics), order)
     return error, cost
 
 

@@ -10,11 +10,12 @@ from systems.taylor.compiled import (
     NAME,
     UNROLL_BUDGET,
     UNROLLED,
+    decomposition_of,
     load_taylor,
     taylor_code,
     unrolled_terms,
 )
-from systems.taylor.decompose import NotDecomposable, decompose_mechanics
+from systems.taylor.decompose import NotDecomposable
 from tests.systems.taylor.test_systems import _mechanics
 
 SCENES = (
@@ -32,7 +33,7 @@ SCENES = (
 @pytest.mark.parametrize("name", SCENES)
 def test_the_coefficients_are_the_reference_evaluators(name):
     mechanics = _mechanics(name)
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     kernels = load_taylor(mechanics)
     assert kernels.width == d.m + len(d.nodes)
     compiled = compile_system(mechanics, ("rhs",))
@@ -74,7 +75,7 @@ def test_the_ir_is_remembered_per_scene(tmp_path, monkeypatch):
     second = taylor_code(mechanics)
     assert second.text == first.text
     assert f"@{NAME}(" in first.text or f'@"{NAME}"(' in first.text
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     assert (first.m, first.width) == (d.m, d.m + len(d.nodes))
     stored = list(tmp_path.rglob("*.txt"))
     assert any(first.text.encode() in path.read_bytes() for path in stored)
@@ -173,7 +174,7 @@ def test_a_conserved_variable_is_a_constant_and_quotients_share_a_reciprocal():
     from systems.taylor.decompose import decompose
 
     mechanics = _mechanics("planetary_motion")
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     parameters = [mechanics.params[name] for name, _ in mechanics.scene.parameters]
     variables = (*mechanics.q, *mechanics.p)
     plain = decompose(mechanics.hamilton_equations, variables, parameters, mechanics.t)

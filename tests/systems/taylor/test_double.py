@@ -7,8 +7,7 @@ import sympy
 
 from systems.compiled import compile_system
 from systems.taylor.coefficients import taylor_coefficients
-from systems.taylor.compiled import load_taylor
-from systems.taylor.decompose import decompose_mechanics
+from systems.taylor.compiled import decomposition_of, load_taylor
 from systems.taylor.double import compensated
 from tests.systems.taylor.test_compiled import SCENES
 from tests.systems.taylor.test_systems import _mechanics
@@ -41,7 +40,7 @@ def test_orders_1_and_2_are_double_double_of_the_compensated_state(name):
     3.1e-32, 7.4e-32 and 1.7e-32 of each order's largest), where the double coefficients
     of ``y`` are good to 1e-16 of ``y`` only."""
     mechanics = _mechanics(name)
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     assert all(compensated(node) for node in d.nodes if not node.constant)
     double = load_taylor(mechanics).double()
     compiled = compile_system(mechanics, ("rhs",))
@@ -69,7 +68,7 @@ def test_the_double_double_orders_are_the_double_ones_to_round_off(name):
     evaluator's orders 1 and 2 of each column's largest, the high part the double-double
     rounded (|low| at most half an ulp of it)."""
     mechanics = _mechanics(name)
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     double = load_taylor(mechanics).double()
     compiled = compile_system(mechanics, ("rhs",))
     P = compiled.parameters * 1.1

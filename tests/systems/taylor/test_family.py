@@ -15,7 +15,7 @@ from systems.scene import load_scene, parse_scene
 from systems.simulation import Run, stream
 from systems.taylor import reference
 from systems.taylor.coefficients import jorba_zou
-from systems.taylor.decompose import decompose_mechanics
+from systems.taylor.compiled import decomposition_of
 
 EPS = float(np.finfo(float).eps)
 
@@ -55,7 +55,7 @@ def kepler_exact(y0: np.ndarray, t: float) -> tuple[np.ndarray, float]:
 @pytest.mark.parametrize("name", ["kepler_cartesian", "double_pendulum", "henon_heiles"])
 def test_the_steps_are_the_reference_integrators(name):
     compiled = _compiled(name)
-    d = decompose_mechanics(compiled.mechanics)
+    d = decomposition_of(compiled.mechanics)
     y0 = compiled.initial_state()
     runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, math.inf, None, None)
     assert runner.order == 20
@@ -231,7 +231,7 @@ def test_the_order_follows_the_tolerance_and_the_step_the_motion():
     assert max(counts.values()) <= 1.5 * min(counts.values()), counts
     # the truncation error of a step is about the tolerance (relative to max(1, |y|)):
     # a step against the series of twice the order over the same h
-    d = decompose_mechanics(compiled.mechanics)
+    d = decomposition_of(compiled.mechanics)
     for tol in (1e-6, 1e-10, EPS):
         step = reference.taylor_step(d, 0.0, y0, compiled.parameters, tol)
         runner = make_runner(compiled, STEPPERS["taylor"], y0, 0.0, math.inf, tol, None)

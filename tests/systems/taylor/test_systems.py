@@ -18,6 +18,7 @@ import sympy as sp
 from systems.mechanics import derive
 from systems.scene import load_scene, parse_scene
 from systems.taylor.coefficients import evaluate, taylor_coefficients
+from systems.taylor.compiled import decomposition_of
 from systems.taylor.decompose import NotDecomposable, decompose, decompose_mechanics
 
 EVERY_HAMILTONIAN = " + ".join(
@@ -82,7 +83,7 @@ def _euler_series(mechanics, t0, y0, P, order, bits=100):
 
 def test_the_harmonic_oscillator_has_the_cosine_and_sine_series():
     mechanics = _mechanics("harmonic_oscillator")
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     omega = math.sqrt(1.7 / 0.8)
     c = taylor_coefficients(d, 0.0, [1.0, 0.0], [0.8, 1.7], 20)  # m = 0.8, k = 1.7
     k = np.arange(21)
@@ -104,7 +105,7 @@ def test_the_harmonic_oscillator_has_the_cosine_and_sine_series():
 )
 def test_the_coefficients_are_those_of_eulers_differences_in_high_precision(name, order):
     mechanics = _mechanics(name)
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     P = np.array([v for _, v in mechanics.scene.parameters]) * 1.1
     rng = np.random.default_rng(3)
     y0 = np.array([v for _, v in mechanics.scene.initial], dtype=float)
@@ -125,7 +126,7 @@ def test_order_20_steps_reproduce_a_tight_dop853_run(name):
 
     mechanics = _mechanics(name)
     compiled = compile_system(mechanics, ("rhs",))
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     P = compiled.parameters
     y = compiled.initial_state()
     t, h = 0.0, 0.01  # the double pendulum's series converges within about 0.4 at its start
@@ -140,7 +141,7 @@ def test_order_20_steps_reproduce_a_tight_dop853_run(name):
 
 def test_the_decomposition_evaluates_to_the_equations_and_shares_subexpressions():
     mechanics = _mechanics("every_function")
-    d = decompose_mechanics(mechanics)
+    d = decomposition_of(mechanics)
     rhs = sp.lambdify(
         [
             mechanics.t,
