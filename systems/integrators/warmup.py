@@ -56,21 +56,66 @@ _started = threading.Lock()
 _thread: threading.Thread | None = None
 
 
-def warm_drivers(progress=None) -> float:
+def warm_drivers(progress=None, processes: int = 2) -> float:
     """Compile (or load from numba's cache) every family's driver; returns the seconds.
 
-    ``progress(text)``, if given, is called before each family.
+    ``progress(text)``, if given, is called before each piece of work this process does,
+    and with the names of the pieces handed to a second process. ``processes``: with 2
+    (the default, on a machine with two cores or more), ``SECOND_PART`` is compiled in a
+    worker process (``systems.processes``) while this one compiles the rest: numba
+    compiles on one core, and the two parts take about the same time (70 and 75 s on an
+    empty cache, against 143 s in one process).
     """
+    import os
+
+    start = time.perf_counter()
+    systems = _warm_systems()  # written to the caches before the second process reads them
+    names = list(_tasks())
+    second = [name for name in names if name in SECOND_PART]
+    job = None
+    if processes >= 2 and (os.cpu_count() or 1) >= 2 and second:
+        from systems import processes as workers
+
+        if progress is not None:
+            progress(", ".join(second) + " (in a second process)")
+        job = workers.submit(warm_part, second, what="compiling " + ", ".join(second))
+        names = [name for name in names if name not in SECOND_PART]
+    try:
+        warm_part(names, progress, systems)
+        if job is not None:
+            job.result()
+    finally:
+        if job is not None:
+            job.cancel()  # Ctrl+C or a failure here: the worker ends too
+    _warm.set()
+    from systems.codegen import prune_drivers
+
+    prune_drivers()  # the builds of former versions of the templates
+    return time.perf_counter() - start
+
+
+SECOND_PART = frozenset(
+    {"taylor", "taylor map", "section portraits", "orbit diagrams", "constrained",
+     "constrained_fixed"}
+)  # fmt: skip
+"""What ``warm_drivers`` hands to a second process: every piece that writes or reads the
+Taylor code of a warm-up system stays in one process, which then decomposes each system
+once (``systems.taylor.compiled.decomposition_of``) rather than two processes each
+remembering their own; the constrained families share their constraint loops. A new
+family goes with the first part."""
+
+
+def _warm_systems() -> dict:
+    """The two warm-up systems, compiled (``FREE`` and ``CONSTRAINED``), after the loops
+    every family calls (the augmented solve, ``preload_drivers``')."""
     from systems.codegen import driver_module
     from systems.compiled import compile_system
-    from systems.integrators.registry import STEPPERS
     from systems.llvm_kernels import SOLVER_SIGNATURE
     from systems.mechanics import derive
     from systems.scene import parse_scene
-    from systems.simulation import Run, ensemble, precompile
 
-    start = time.perf_counter()
     driver_module().solve_augmented.compile(SOLVER_SIGNATURE)
+    preload_drivers()
     systems = {}
     for name, text in (("free", FREE), ("constrained", CONSTRAINED)):
         mechanics = derive(parse_scene(text, source=f"<warm-up {name}>"))
@@ -85,55 +130,77 @@ def warm_drivers(progress=None) -> float:
         if name == "free":
             compiled.drawing(0.0, y0[None])
         systems[name] = compiled
-    done: set[str] = set()
+    return systems
+
+
+def _tasks() -> dict:
+    """The pieces of the warm-up by name, in order: each family's loops (the registry's
+    family names), then the chaos maps', taylor's map, the section portraits' and the
+    orbit diagrams'; each a function of the warm-up systems."""
+    from systems.integrators.registry import STEPPERS
+
+    tasks = {}
     for stepper in STEPPERS.values():
         family = stepper.family
-        if family.kernel is None or family.name in done:
-            continue
-        done.add(family.name)
-        if progress is not None:
-            progress(family.name)
-        compiled = systems["constrained" if family.constrained else "free"]
-        for section in (None, (1, 0.0, 1)):
-            precompile(compiled, stepper.name, section=section)
-        # the loop that finds the states at given times (Sampler: run --out, export)
-        setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
-        run = Run(compiled, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
-        run.advance(0.01, samples=np.array([5e-3]))
-        if family.ensemble or family.adaptive_ensemble:
-            Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
-            ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
-    if progress is not None:
-        progress("chaos maps and section portraits")
-    warm_map_loops(systems["free"])
-    warm_section_portraits(systems["free"])
-    warm_orbit_diagrams()
-    _warm.set()
-    from systems.codegen import prune_drivers
+        if family.kernel is not None and family.name not in tasks:
+            tasks[family.name] = lambda systems, name=stepper.name: _warm_family(systems, name)
+    tasks["chaos maps"] = lambda systems: warm_map_loops(systems["free"])
+    tasks["taylor map"] = lambda systems: warm_map_loops(systems["free"], ("taylor",))
+    tasks["section portraits"] = lambda systems: warm_section_portraits(systems["free"])
+    tasks["orbit diagrams"] = lambda systems: warm_orbit_diagrams()
+    return tasks
 
-    prune_drivers()  # the builds of former versions of the templates
-    return time.perf_counter() - start
+
+def warm_part(names: list[str], progress=None, systems: dict | None = None) -> None:
+    """Do the pieces of the warm-up named ``names`` (keys of ``_tasks``) in this process;
+    ``systems``: the warm-up systems, compiled here if not given."""
+    systems = systems if systems is not None else _warm_systems()
+    tasks = _tasks()
+    for name in names:
+        if progress is not None:
+            progress(name)
+        tasks[name](systems)
+
+
+def _warm_family(systems: dict, method: str) -> None:
+    """Compile (or load) the loops of ``method``'s family: with and without a section,
+    the sampling loop (Sampler: run --out, export) and, where it has them, ensembles."""
+    from systems.integrators.registry import STEPPERS
+    from systems.simulation import Run, ensemble, precompile
+
+    stepper = STEPPERS[method]
+    family = stepper.family
+    compiled = systems["constrained" if family.constrained else "free"]
+    for section in (None, (1, 0.0, 1)):
+        precompile(compiled, stepper.name, section=section)
+    setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
+    run = Run(compiled, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
+    run.advance(0.01, samples=np.array([5e-3]))
+    if family.ensemble or family.adaptive_ensemble:
+        Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
+        ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
 
 
 MAP_METHODS = ("yoshida4", "rk4", "gauss_legendre4")
 """The methods whose chaos-map loops the warm-up compiles: those a map or an orbit
-diagram takes by default (``systems.chaos.maps.default_map_method``); and taylor's
-(``chaosmap --method taylor``: a loop of the drivers, ``taylor_batch_megno_parallel``).
-Another method's loop compiles on its first use, about 6 s, then comes from numba's
-cache."""
+diagram takes by default (``systems.chaos.maps.default_map_method``). Taylor's
+(``chaosmap --method taylor``: a loop of the drivers, ``taylor_batch_megno_parallel``) is
+a piece of its own, "taylor map". Another method's loop compiles on its first use,
+about 6 s, then comes from numba's cache."""
 
 
-def warm_map_loops(compiled) -> None:
-    """Compile (or load) the chaos map's loop of each of ``MAP_METHODS`` with a map of
-    one orbit and one step on ``compiled`` (a conservative, separable system)."""
+def warm_map_loops(compiled, methods: tuple[str, ...] = MAP_METHODS) -> None:
+    """Compile (or load) the chaos map's loop of each of ``methods`` with a map of one
+    orbit and one step on ``compiled`` (a conservative, separable system); taylor's takes
+    its own steps."""
     from systems.chaos.maps import map_chunk, map_kernel
     from systems.chaos.variational import load_tangent
 
     tangent = load_tangent(compiled)
     start = compiled.initial_state()[None]
-    for method in MAP_METHODS:
-        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, dt=1e-3), start)
-    map_chunk(map_kernel(tangent, method="taylor", t_end=1e-3), start)  # its own steps
+    for method in methods:
+        step = {} if method == "taylor" else {"dt": 1e-3}
+        map_chunk(map_kernel(tangent, method=method, t_end=1e-3, **step), start)
 
 
 def warm_section_portraits(compiled) -> None:

@@ -122,3 +122,26 @@ print(json.dumps({"misses": sum(sum(loop.stats.cache_misses.values()) for loop i
 """
     report = _fresh(script)
     assert report == {"misses": 0, "hits": 6}, report
+
+
+def test_the_second_process_takes_named_pieces_and_leaves_the_first_some():
+    """``SECOND_PART`` names pieces of the warm-up (a misspelt one would silently stay in
+    the first process), every Taylor piece among them (one process decomposes each
+    warm-up system), and leaves the other families to the first process."""
+    from systems.integrators.warmup import SECOND_PART, _tasks
+
+    names = set(_tasks())
+    assert SECOND_PART <= names
+    assert {name for name in names if "taylor" in name} <= SECOND_PART
+    assert {"section portraits", "orbit diagrams"} <= SECOND_PART
+    assert names - SECOND_PART >= {"runge_kutta", "gauss", "dop853", "chaos maps"}
+
+
+def test_a_part_of_the_warm_up_runs_in_a_worker_process():
+    """What ``warm_drivers`` hands to a second process crosses to a worker and runs
+    there (the warm-up systems derived and compiled in the worker), from the session's
+    cache."""
+    from systems import processes
+    from systems.integrators.warmup import warm_part
+
+    assert processes.run(warm_part, ["orbit diagrams"], what="a piece of the warm-up") is None
