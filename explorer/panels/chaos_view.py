@@ -35,6 +35,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.curves import set_title, style_plot
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from systems import processes
 
@@ -203,7 +204,7 @@ class ChaosView(QWidget):
                 ("sali", "SALI and GALI (log)", "index"),
             )
         ):
-            plot = self.layout_widget.addPlot(row=0, col=col)
+            plot = add_plot(self.layout_widget, row=0, col=col)
             style_plot(plot)
             set_title(plot, title)
             plot.setLabel("bottom", "t")

@@ -34,6 +34,7 @@ from explorer.panels.curves import (
     set_title,
     style_plot,
 )
+from explorer.panels.lazy_menu import add_plot
 from explorer.trajectories import backfill_points
 from systems.angles import angle_flags, wrap
 from systems.sketch import Sketch, sketch
@@ -103,7 +104,7 @@ class ConfigurationView(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.layout_widget)
-        self.mechanism = self.layout_widget.addPlot(row=0, col=0)
+        self.mechanism = add_plot(self.layout_widget, row=0, col=0)
         self.mechanism.setAspectLocked(True)
         style_plot(self.mechanism)
         self.mechanism.setLabel("bottom", "x")
@@ -221,7 +222,7 @@ class ConfigurationView(QWidget):
         scene = compiled.mechanics.scene
         q1, q2 = scene.coordinates[:2]
         if self._path_plot is None:
-            self._path_plot = self.layout_widget.addPlot(**self._path_cell())
+            self._path_plot = add_plot(self.layout_widget, **self._path_cell())
             style_plot(self._path_plot)
             self._path_keeper = RangeKeeper(self._path_plot)
             self._path_plot.getViewBox().sigResized.connect(self._on_path_resized)

@@ -46,6 +46,7 @@ from explorer.panels.curves import (
     set_title,
     style_plot,
 )
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.log_axis import SparseLogAxis
 from explorer.trajectories import backfill_energy, is_gap
 from systems.symmetries import ROTATIONS, TRANSLATIONS, charge_functions
@@ -112,8 +113,8 @@ class ConservedView(QWidget):
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.layout_widget)
         # the relative error spans a fraction of a decade over a short run: sparse labels
-        self.energy_plot = self.layout_widget.addPlot(
-            row=0, col=0, axisItems={"left": SparseLogAxis("left")}
+        self.energy_plot = add_plot(
+            self.layout_widget, row=0, col=0, axisItems={"left": SparseLogAxis("left")}
         )
         style_plot(self.energy_plot)
         self.energy_plot.setLabel("bottom", "t")
@@ -195,7 +196,7 @@ class ConservedView(QWidget):
 
     def _add_momentum_plot(self, scene) -> None:
         if self._kept_momentum is None:
-            plot = self.layout_widget.addPlot(row=0, col=2)
+            plot = add_plot(self.layout_widget, row=0, col=2)
             plot.setXLink(self.energy_plot)
             style_plot(plot)
             plot.setLabel("bottom", "t")

@@ -51,6 +51,7 @@ from explorer.panels.curves import (
     set_title,
     style_plot,
 )
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.log_axis import SparseLogAxis
 from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from explorer.trajectories import is_gap
@@ -156,18 +157,18 @@ class ConstraintForcesView(QWidget):
         self.layout_widget = PacedLayoutWidget(gap=REPAINT_GAP_SECONDS)
         self.layout_widget.setBackground("w")
         ci = self.layout_widget.ci
-        self.force_plot = self.layout_widget.addPlot(row=0, col=0)
+        self.force_plot = add_plot(self.layout_widget, row=0, col=0)
         style_plot(self.force_plot)
         self.force_plot.setLabel("bottom", "t")
         self.force_legend = add_outside_legend(ci, row=0, col=1, columns=1, side="right")
-        self.virtual_plot = self.layout_widget.addPlot(
-            row=0, col=2, axisItems={"left": SparseLogAxis("left")}
+        self.virtual_plot = add_plot(
+            self.layout_widget, row=0, col=2, axisItems={"left": SparseLogAxis("left")}
         )
         style_plot(self.virtual_plot)
         self.virtual_plot.setLabel("bottom", "t")
         self.virtual_plot.setLogMode(y=True)
         set_title(self.virtual_plot, "Virtual work (relative)")
-        self.power_plot = self.layout_widget.addPlot(row=0, col=3)
+        self.power_plot = add_plot(self.layout_widget, row=0, col=3)
         style_plot(self.power_plot)
         self.power_plot.setLabel("bottom", "t")
         set_title(self.power_plot, "Power P and work W")

@@ -38,6 +38,7 @@ from PySide6.QtWidgets import (
 
 from explorer.buffers import GrowingArray
 from explorer.panels.curves import OutsideLegend, RangeKeeper, set_title, style_plot
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.log_axis import SparseLogAxis
 from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from explorer.trajectories import is_gap
@@ -239,8 +240,8 @@ class ModeEnergyView(QWidget):
 
         self.layout_widget = pg.GraphicsLayoutWidget()
         self.layout_widget.setBackground("w")
-        self.time_plot = self.layout_widget.addPlot(
-            row=0, col=0, axisItems={"left": SparseLogAxis("left")}
+        self.time_plot = add_plot(
+            self.layout_widget, row=0, col=0, axisItems={"left": SparseLogAxis("left")}
         )
         style_plot(self.time_plot)
         self.time_plot.setLabel("bottom", "t")
@@ -249,8 +250,8 @@ class ModeEnergyView(QWidget):
         self.legend = GridLegend(columns=2, side="right")
         self.layout_widget.ci.addItem(self.legend, row=0, col=1)
         self.layout_widget.ci.layout.setAlignment(self.legend, Qt.AlignmentFlag.AlignTop)
-        self.spectrum_plot = self.layout_widget.addPlot(
-            row=0, col=2, axisItems={"left": SparseLogAxis("left")}
+        self.spectrum_plot = add_plot(
+            self.layout_widget, row=0, col=2, axisItems={"left": SparseLogAxis("left")}
         )
         style_plot(self.spectrum_plot)
         self.spectrum_plot.setLabel("bottom", "mode k")

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.background import ProgressControls, RelayThread
+from explorer.panels.lazy_menu import LazyMenuViewBox
 from explorer.panels.offered_dock import OfferedDockLink, attach_hidden
 from explorer.session.script import MAX_DIAGRAM_VALUES
 
@@ -124,7 +125,7 @@ class OrbitDiagramView(QWidget):
                        self.draw_button, self.cancel_button, self.progress):  # fmt: skip
             controls.addWidget(widget)
         controls.addStretch(1)
-        self.plot_widget = pg.PlotWidget(background="w")
+        self.plot_widget = pg.PlotWidget(background="w", viewBox=LazyMenuViewBox())
         self.plot = self.plot_widget.getPlotItem()
         self.plot.showGrid(x=True, y=True, alpha=0.2)
         self.scatter = pg.ScatterPlotItem(size=2, pen=None, brush=pg.mkBrush(20, 20, 90, 170))

@@ -50,6 +50,7 @@ from explorer.panels.curves import (
     set_title,
     style_plot,
 )
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.ranges import axis_range
 from explorer.panels.section_fill_layer import SectionFillLayer
 from systems.angles import angle_flags, wrap
@@ -162,7 +163,7 @@ class PhaseView(QWidget):
 
         self.plot_widget = PacedLayoutWidget(gap=REPAINT_GAP_SECONDS)
         self.plot_widget.setBackground("w")
-        self.plot = self.plot_widget.addPlot(row=0, col=0)
+        self.plot = add_plot(self.plot_widget, row=0, col=0)
         self.view_box = self.plot.getViewBox()
         self.last_menu = None  # the context menu shown last (for tests)
         self._menu_actions: list[QAction] = []

@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.panels.curves import LEGEND_BRUSH, style_plot
+from explorer.panels.lazy_menu import add_plot
 from explorer.panels.log_axis import SparseLogAxis
 
 SYMBOLS = ("o", "s", "t", "d", "+", "x", "star", "p", "h")
@@ -110,14 +111,16 @@ class WorkPrecisionView(QWidget):
         self.plot_area = pg.GraphicsLayoutWidget()
         self.plot_area.setBackground("w")
         self.error_plot = style_plot(
-            self.plot_area.addPlot(
+            add_plot(
+                self.plot_area,
                 row=0,
                 col=0,
                 axisItems={"bottom": SparseLogAxis("bottom"), "left": SparseLogAxis("left")},
             )
         )
         self.energy_plot = style_plot(
-            self.plot_area.addPlot(
+            add_plot(
+                self.plot_area,
                 row=0,
                 col=1,
                 axisItems={"bottom": SparseLogAxis("bottom"), "left": SparseLogAxis("left")},

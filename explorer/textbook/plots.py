@@ -7,6 +7,7 @@ from PySide6.QtCore import QObject, QSize, Qt
 from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QLayout, QVBoxLayout, QWidget
 
 from explorer.panels.curves import style_plot
+from explorer.panels.lazy_menu import LazyMenuViewBox
 
 BLUE, RED, GREEN, ORANGE, PURPLE, GREY = (
     "#1f77b4",
@@ -36,9 +37,11 @@ NOTES_WIDTH = (260, 460)
 
 
 class TextbookPlot(pg.PlotWidget):
-    """A plot widget that prefers ``PLOT_HINT``: the tab's layout stretches it to fit."""
+    """A plot widget that prefers ``PLOT_HINT``: the tab's layout stretches it to fit. Its
+    view box builds its context menu when first wanted (``LazyMenuViewBox``)."""
 
     def __init__(self, *args, **kwargs):
+        kwargs.setdefault("viewBox", LazyMenuViewBox())
         super().__init__(*args, **kwargs)
         from explorer.inline_math import math_title
 
@@ -105,7 +108,8 @@ def adopt_menus(widget: pg.PlotWidget) -> None:
     Parentless, they are owned by Python alone and die when the garbage collector frees
     them, on whatever thread runs it (the scene builder's, say), where destroying a
     QObject deadlocks against the GUI thread. Owned by the widget, they are destroyed
-    with it, on the GUI thread. The window flags are kept, so they still pop up.
+    with it, on the GUI thread. The window flags are kept, so they still pop up. (A
+    ``LazyMenuViewBox`` has no menu yet here, and gives the one it builds the same owner.)
     """
     plot = widget.getPlotItem()
     for menu in (getattr(plot, "ctrlMenu", None), getattr(plot.getViewBox(), "menu", None)):
