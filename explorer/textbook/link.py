@@ -3,7 +3,8 @@
 It uses: ``window.system_started(Built)`` (``Built.compiled``), ``window.compiled`` (at
 install), ``window.editor.parameters_changed(dict)`` (optional), ``window.docks``
 and ``window._add_dock`` (optional), ``window.phase_view.plot`` / ``.index`` / ``.mode``
-/ ``.pair_combo`` / ``.mode_changed``, and the window's close event.
+/ ``.pair_combo`` / ``.mode_changed``, ``window.presentation.restyle()`` (optional), and
+the window's close event.
 """
 
 from __future__ import annotations
@@ -58,6 +59,13 @@ class WindowLink(QObject):
         if all(current[k] == v for k, v in known.items()):
             return
         self.panel.set_system(base.with_parameters(known))
+
+    def view_made(self) -> None:
+        """A tab's view was made (on first showing it): in presentation mode its plots
+        are drawn large at once, as those made with the panel were."""
+        presentation = getattr(self.window, "presentation", None)
+        if presentation is not None:
+            presentation.restyle()
 
     def _on_pair_changed(self, _index: int) -> None:
         self._sync_pair()

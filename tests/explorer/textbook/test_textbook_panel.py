@@ -246,3 +246,34 @@ def test_closed_forms_are_read_back_through_the_whitelist_parser(qtbot, textbook
     )
     cells = [cell for row in panel.equilibria.row_texts() for cell in row if "acos" in cell]
     assert any("ω" in cell and "g" in cell for cell in cells), cells
+
+
+def test_a_tab_is_made_when_first_shown_and_computes_for_the_system_shown(qtbot, textbook):
+    from explorer.textbook.action_angle_view import ActionAngleView
+    from explorer.textbook.equilibria_view import EquilibriaView
+
+    window, panel = textbook
+    assert [type(view) for view in panel.made_views] == [EquilibriaView]
+    index = next(i for i in range(panel.tabs.count()) if panel.tabs.tabText(i) == "Action–angle")
+    assert panel.tabs.widget(index).widget() is None  # an empty page until then
+    window.show_tab("action-angle")  # as a click on its tab
+    view = panel.tabs.widget(index).widget()
+    assert isinstance(view, ActionAngleView) and view is panel.action_angle
+    assert [type(view) for view in panel.made_views] == [EquilibriaView, ActionAngleView]
+    assert view.compiled is panel.compiled is not None  # the system the panel shows
+    _wait_result(qtbot, view)  # and it computes, being in front
+    assert view.result.separatrix == pytest.approx(9.81)
+
+
+def test_a_tab_made_while_presenting_is_drawn_large_at_once(qtbot, textbook):
+    from explorer.panels.presentation import LABEL_POINTS
+
+    window, panel = textbook
+    window.presentation.set_active(True)
+    try:
+        view = panel.reduction  # made now, the restyling timer not yet due
+        axis = view.potential_plot.getPlotItem().getAxis("bottom")
+        assert axis.labelStyle.get("font-size") == f"{LABEL_POINTS}pt"
+    finally:
+        window.presentation.set_active(False)
+    assert axis.labelStyle.get("font-size") != f"{LABEL_POINTS}pt"
