@@ -168,11 +168,14 @@ class Mechanics:
         return _tidy(h)
 
 
-def derive(scene: Scene) -> Mechanics:
+def derive(scene: Scene, limited: bool = True) -> Mechanics:
     """Derive the equations of motion, momenta, Hamiltonian and classification.
 
     A scene derived before (same text, same derivation code) is read from the on-disk
-    cache of ``systems.derivation_cache`` instead.
+    cache of ``systems.derivation_cache`` instead. ``limited``: within
+    ``systems.cpu_limit.limit_seconds()`` of CPU time, which only a process's main
+    thread can enforce; False for a scene derived within it elsewhere before (a Dask
+    worker's task, in a thread, rebuilding a client's scene).
 
     Raises
     ------
@@ -187,7 +190,7 @@ def derive(scene: Scene) -> Mechanics:
         return cached
     derivation_cache.must_compute()
     try:
-        with cpu_limit(limit_seconds(), "deriving the equations of motion"):
+        with cpu_limit(limit_seconds() if limited else None, "deriving the equations of motion"):
             mechanics = _derive(scene)
             if (
                 scene.holonomic_constraints

@@ -155,7 +155,10 @@ class SystemSpec:
         from systems.scene import parse_scene
 
         scene = parse_scene(self.scene, source=f"<{self.name or 'scene'}>", name=self.name)
-        compiled = compile_system(derive(scene), self.wanted)
+        # a worker runs its tasks in threads, where no CPU-time limit can act; the client
+        # derived this scene within its limit, and a worker on another machine (another
+        # cache) derives it again
+        compiled = compile_system(derive(scene, limited=False), self.wanted)
         return compiled.with_parameters(np.array(self.parameters))
 
 

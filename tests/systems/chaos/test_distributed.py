@@ -98,3 +98,35 @@ def test_without_the_extra_dask_names_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
     with pytest.raises(UsageError, match=r'optional extra .*pip install -e "\.\[dask\]"'):
         pe.load("driven_damped_pendulum").bifurcation("A", [1.0, 1.1], dask="auto")
+
+
+def test_a_worker_thread_rebuilds_a_scene_its_cache_has_not_seen(tmp_path, monkeypatch):
+    """A Dask worker runs its tasks in threads, and one on another machine has a cache of
+    its own: it derives the client's scene there, without the CPU-time limit only a main
+    thread can enforce (it had raised RuntimeError, seen when a worker's cache missed)."""
+    import threading
+
+    from systems.chaos.distributed import SystemSpec
+    from systems.compiled import compile_system
+    from systems.mechanics import derive
+    from systems.scene import load_scene
+
+    spec = SystemSpec.of(compile_system(derive(load_scene("henon_heiles")), ("rhs",)))
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path / "another machine"))
+    found = {}
+
+    def task():
+        try:
+            found["compiled"] = spec.compile()
+        except Exception as exc:  # noqa: BLE001 - reported below
+            found["error"] = exc
+
+    thread = threading.Thread(target=task)
+    thread.start()
+    thread.join(600)
+    assert "error" not in found, found["error"]
+    compiled = found["compiled"]
+    assert compiled.mechanics.scene.name == "henon_heiles"
+    y0 = compiled.initial_state()
+    assert np.isfinite(compiled.rhs(0.0, y0)).all()
+    assert (tmp_path / "another machine" / "derivations").is_dir()  # derived there, kept
