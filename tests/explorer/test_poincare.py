@@ -5,10 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from explorer import main_window
 from tests.explorer.conftest import wait_for_points
 
 
-def test_section_fills_and_click_starts_orbit_at_the_energy(qtbot, window):
+def test_section_fills_and_click_starts_orbit_at_the_energy(qtbot, window, monkeypatch):
+    # the section run must still be running when the click comes: at t = 5000 it pauses
+    # for Play (a launched orbit then waits), and a fast run had got there first
+    monkeypatch.setattr(main_window, "POINCARE_T_END", 1e9)
     request = window.open_scene("henon_heiles")
     qtbot.waitUntil(
         lambda: window.built is not None and window.built.request == request, timeout=90000

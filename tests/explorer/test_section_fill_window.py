@@ -12,6 +12,7 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor, QImage
 
+from explorer import main_window
 from explorer.orbit_colours import orbit_colour
 from explorer.panels import section_fill_layer
 from explorer.session import Player, ScriptError, parse
@@ -91,6 +92,9 @@ def test_fill_recorded_replayed_and_exported(qtbot, blank_window, tmp_path, monk
 
 def test_esc_stops_a_fill_and_the_window_runs_on(qtbot, blank_window, monkeypatch):
     monkeypatch.setattr(section_fill_layer, "T_END", 2e4)
+    # "runs on" needs a section run with time left: at t = 5000 it pauses for Play (and
+    # says so in the status bar), which a fast run had reached before the fill's Esc
+    monkeypatch.setattr(main_window, "POINCARE_T_END", 1e9)
     window = blank_window
     replay(qtbot, window, "open henon_heiles\nsection on")
     layer = window.phase_view.fill_layer
