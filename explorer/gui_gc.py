@@ -49,6 +49,11 @@ class GuiThreadCollector(QObject):
             gc.enable()
 
     def _on_timer_timeout(self) -> None:
+        self.collect_due()
+
+    def collect_due(self) -> None:
+        """Collect the generations whose allocation counts passed their thresholds, as
+        the interpreter would, in this (the GUI) thread."""
         first, second, third = gc.get_count()
         if first > self.threshold[0]:
             gc.collect(0)

@@ -3,16 +3,27 @@
 ``_no_dangling_qt`` (autouse, in the manner of napari's conftest) records every
 ``QThread`` and ``QTimer`` started during a test and fails the test if one is still
 running when it ends: closing a window must stop everything it started.
+
+``_gui_thread_collection`` (autouse) gives every test what a window gives its process:
+Python's cyclic garbage collected on the GUI thread only (``explorer.gui_gc``).
 """
 
 from __future__ import annotations
 
+import gc
 import time
 import traceback
 import weakref
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from PySide6.QtCore import QThread, QTimer
+from PySide6.QtWidgets import QApplication
+
+from explorer.gui_gc import GuiThreadCollector
+
+EXPLORER_TESTS = Path(__file__).resolve().parent
 
 
 class QtActivity:
@@ -63,8 +74,74 @@ def _caller() -> str:
     return "".join(traceback.format_list(frames[-3:]))
 
 
+class GuiThreadCollection:
+    """Python's cyclic garbage collected on the GUI thread only, from the first test that
+    uses Qt until the next test outside ``tests/explorer`` (``hand_back``).
+
+    A window does this for its lifetime (``explorer.gui_gc``); a test without one (a
+    ``PhaseView`` alone), and every test after a window closed, had the interpreter's
+    own collection, which runs in whichever thread allocates past a threshold. A section
+    fill's thread writing its batch IR (about 10^5 objects) so freed the Qt objects that
+    an earlier view or window had left in reference cycles, and PySide deadlocked: the
+    fill thread in ``QObject::~QObject`` holding Qt's connection lock and waiting for the
+    GIL, the GUI thread holding the GIL in ``runDeletionInMainThread`` and waiting for
+    that lock (gdb, tests/explorer/test_section_fill.py after the window tests; another
+    run crashed in a collection on the GUI thread while a fill thread wrote). Between
+    tests the garbage is collected as the window's timer would (``collect_due``); the
+    full collection (0.15-0.25 s of CPU) is paid once, when the explorer's tests hand
+    the collection back, not after every test.
+    """
+
+    def __init__(self):
+        self.collector: GuiThreadCollector | None = None
+
+    def hold(self, app) -> None:
+        """Collection on the GUI thread (``app``'s) from now on."""
+        if self.collector is None:
+            self.collector = GuiThreadCollector(app)
+            self.collector.start()
+
+    def collect_due(self) -> None:
+        """Collect the generations past their thresholds, here (the GUI thread)."""
+        if self.collector is not None:
+            self.collector.collect_due()
+
+    def hand_back(self) -> None:
+        """Collect everything here (the GUI thread), then the interpreter's own collection
+        again (unless a window still holds it)."""
+        if self.collector is not None:
+            gc.collect()
+            self.collector.stop()
+            self.collector.setParent(None)
+            self.collector = None
+
+
+_COLLECTION = GuiThreadCollection()
+
+
 @pytest.fixture(autouse=True)
-def _no_dangling_qt(monkeypatch, request):
+def _gui_thread_collection(request) -> Iterator[GuiThreadCollection]:
+    """Collection on the GUI thread for every test that uses Qt (``qtbot``, ``qapp``) or
+    runs after one: its threads never free Qt objects (``GuiThreadCollection``)."""
+    app = QApplication.instance()
+    if app is None and {"qtbot", "qapp"} & set(request.fixturenames):
+        app = request.getfixturevalue("qapp")
+    if app is not None:
+        _COLLECTION.hold(app)
+    yield _COLLECTION
+    _COLLECTION.collect_due()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    result = yield  # the test's fixtures are torn down: its windows closed and deleted
+    if nextitem is None or not Path(nextitem.path).resolve().is_relative_to(EXPLORER_TESTS):
+        _COLLECTION.hand_back()
+    return result
+
+
+@pytest.fixture(autouse=True)
+def _no_dangling_qt(monkeypatch, request, _gui_thread_collection):
     activity = QtActivity()
     activity.install(monkeypatch)
     yield activity

@@ -4,6 +4,8 @@ layer cleared with the section, exports, and the refusal where it cannot run."""
 
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 import pyqtgraph as pg
 import pytest
@@ -154,6 +156,26 @@ def test_stopping_a_fill_and_closing(qtbot, view, monkeypatch):
     layer.shutdown()  # the window closing
     qtbot.waitUntil(lambda: not thread.is_alive(), timeout=30000)
     assert not layer.button.isEnabled()
+
+
+def test_the_fill_thread_leaves_garbage_to_the_gui_thread(qtbot, view, monkeypatch):
+    """The fill's thread writes its batch IR (about 10^5 objects): with the interpreter's
+    own collection on, it freed there the Qt objects an earlier view had left in cycles,
+    and hung (tests/explorer/conftest.py, ``GuiThreadCollection``)."""
+    from systems import section_orbits
+
+    collecting = []
+    starts = section_orbits.default_starts
+
+    def watched(*args):
+        collecting.append(gc.isenabled())
+        return starts(*args)
+
+    monkeypatch.setattr(section_orbits, "default_starts", watched)
+    view.set_mode("poincare")
+    view.fill_layer.start(2)
+    _filled(qtbot, view.fill_layer)
+    assert collecting == [False]
 
 
 def test_refused_where_there_is_no_section_or_taylor_does_not_apply(qtbot):

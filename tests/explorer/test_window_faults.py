@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import gc
 import os
 import threading
 import time
@@ -99,17 +98,6 @@ def _timed_close(win) -> float:
     seconds = time.perf_counter() - start
     print(f"closing took {seconds:.3f} s")  # shown with -s, for the record
     return seconds
-
-
-@pytest.fixture(autouse=True)
-def _collect_on_the_gui_thread(qtbot):
-    """After each test (and its window's teardown), free the cyclic garbage its window
-    left here, on the GUI thread: collected later in a worker thread of another test,
-    a parentless pyqtgraph menu would be destroyed there and deadlock against the GUI
-    thread (see explorer/gui_gc.py)."""
-    yield
-    qtbot.wait(10)  # deleteLater of the windows closed in teardown
-    gc.collect()
 
 
 @pytest.fixture
