@@ -347,7 +347,17 @@ def _module_key(system_source: str, with_templates: bool) -> tuple[str, str]:
 def _collection_paused():
     """Python's cyclic garbage collector off while a module creates its dispatchers: the
     burst of objects set off full collections over everything sympy and numba hold, 0.1 s
-    of the drivers' 0.18 s import."""
+    of the drivers' 0.18 s import.
+
+    In the main thread only: the window's GUI-thread collector (``explorer.gui_gc``)
+    switches automatic collection off and on there, and a pause in another thread that
+    began before it started would switch collection back on when it ended, for the
+    window's lifetime (a Qt object freed in a worker thread deadlocks PySide). In a
+    window's threads collection is off anyway."""
+    # get_ident: current_thread() would register a dummy for a Qt thread, left for ever
+    if threading.get_ident() != threading.main_thread().ident:
+        yield
+        return
     enabled = gc.isenabled()
     gc.disable()
     try:
