@@ -6,7 +6,8 @@ crossed: with worker threads that is often not the GUI thread. Freeing a Qt obje
 deadlock against the GUI thread or crash. So while a window is open, automatic collection
 is off and a timer on the GUI thread collects instead, generation by generation, when the
 allocation counts pass the usual thresholds (what ``pyqtgraph.util.GarbageCollector``
-does, but stoppable, so closing the window restores the interpreter's own collection).
+does, but stoppable, so closing the last window restores the interpreter's own
+collection, after a full one on the GUI thread).
 """
 
 from __future__ import annotations
@@ -46,6 +47,11 @@ class GuiThreadCollector(QObject):
         self.timer.stop()
         _active -= 1
         if _active == 0:
+            # what is left in cycles is freed here, on the GUI thread: once the
+            # interpreter collects again, any thread allocating past a threshold would
+            # free it, a window's thread not yet ended at close (a section fill's, joined
+            # for a second at most) among them, and a Qt object freed there deadlocks
+            gc.collect()
             gc.enable()
 
     def _on_timer_timeout(self) -> None:

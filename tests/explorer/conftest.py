@@ -10,7 +10,6 @@ Python's cyclic garbage collected on the GUI thread only (``explorer.gui_gc``).
 
 from __future__ import annotations
 
-import gc
 import time
 import traceback
 import weakref
@@ -110,8 +109,7 @@ class GuiThreadCollection:
         """Collect everything here (the GUI thread), then the interpreter's own collection
         again (unless a window still holds it)."""
         if self.collector is not None:
-            gc.collect()
-            self.collector.stop()
+            self.collector.stop()  # collects everything first (unless a window still holds)
             self.collector.setParent(None)
             self.collector = None
 

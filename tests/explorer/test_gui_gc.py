@@ -24,6 +24,30 @@ def test_collects_on_the_gui_thread_and_restores_automatic_gc(qtbot, _gui_thread
     assert gc.isenabled()
 
 
+def test_the_last_collector_frees_what_is_left_on_the_gui_thread_before_handing_back(
+    qtbot, _gui_thread_collection
+):
+    """When the last window closes, the garbage left in cycles is freed on the GUI thread
+    before the interpreter collects again in whichever thread allocates: a window's
+    thread not yet ended at close (a section fill's) would otherwise free the window's
+    Qt objects, and PySide deadlocks there."""
+    _gui_thread_collection.hand_back()  # the tests' own (conftest) steps aside
+    freed_in = []
+
+    class Cycle:
+        def __del__(self):
+            freed_in.append(threading.get_ident())
+
+    collector = GuiThreadCollector(interval_ms=60_000)  # its timer never fires here
+    collector.start()
+    cycle = Cycle()
+    cycle.me = cycle
+    del cycle
+    collector.stop()
+    assert gc.isenabled()
+    assert freed_in == [threading.get_ident()]
+
+
 def test_a_thread_of_a_qt_test_never_frees_garbage(qtbot):
     """As in a window's process: a thread allocating past the collector's thresholds (a
     section fill writing its batch IR) leaves the cyclic garbage, which in a test holds
