@@ -680,15 +680,6 @@ class MainWindow(QMainWindow):
             return dock.isVisible()
         return not dock.isHidden()  # rendering without a window on screen (export, tests)
 
-    def _panel_on_screen(self, key: str) -> bool:
-        """Whether a redraw would show: a dock whose tab is behind another's counts as
-        visible to Qt (its diagnostics are still computed, so that its plots have no gap
-        when its tab is chosen) though nothing of it shows; its data waits in the store."""
-        if not self._panel_visible(key):
-            return False
-        dock = self.docks.get(key)
-        return dock is None or not self.isVisible() or not dock.visibleRegion().isEmpty()
-
     def _start_system(self, compiled, launches: list[np.ndarray] | None) -> None:
         """Stop the running worker; start a new one on ``compiled`` from the initial state."""
         if self._closed:
@@ -935,7 +926,7 @@ class MainWindow(QMainWindow):
         for key, panel in self.panels.items():
             # the work-precision and orbit diagrams draw their own results, not the store's
             refresh = getattr(panel, "refresh", None)
-            if refresh is None or not self._panel_on_screen(key):
+            if refresh is None or not self._panel_visible(key):
                 continue
             if self.store.take_dirty(key):
                 refresh(self.store)

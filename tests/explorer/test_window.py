@@ -119,37 +119,6 @@ def test_hidden_panel_gets_no_diagnostics(qtbot, window):
     qtbot.waitUntil(lambda: "H" in window.worker.settings.diagnostics, timeout=3000)
 
 
-def test_a_panel_behind_another_tab_is_drawn_once_its_tab_is_chosen(qtbot):
-    """Qt calls a docked panel whose tab is behind another's visible; the redraw passes it
-    by (the double pendulum's constraint forces behind the conserved quantities had been
-    drawn every frame) and draws it with what waited in the store once its tab is
-    chosen."""
-    from explorer.app import create_window
-
-    window = create_window("double_pendulum")
-    window.show()
-    qtbot.waitUntil(lambda: window.compiled is not None, timeout=60000)
-    wait_for_points(qtbot, window, 5)
-    behind, front = window.docks["constraints"], window.docks["conserved"]
-    assert behind in window.tabifiedDockWidgets(front)
-    front.raise_()
-    qtbot.waitUntil(lambda: behind.visibleRegion().isEmpty(), timeout=3000)
-    drawn = []
-    for key in ("constraints", "conserved"):
-        panel = window.panels[key]
-        panel.refresh = lambda store, key=key, draw=panel.refresh: (drawn.append(key), draw(store))
-    window.store.mark_dirty()
-    window._on_redraw_timer_timeout()
-    assert drawn == ["conserved"]
-    behind.raise_()
-    qtbot.waitUntil(lambda: not behind.visibleRegion().isEmpty(), timeout=3000)
-    drawn.clear()
-    window._on_redraw_timer_timeout()
-    assert "constraints" in drawn and "conserved" not in drawn
-    window.close()
-    window.deleteLater()
-
-
 def test_pause_step_and_reset(qtbot, window):
     wait_for_points(qtbot, window, 5)
     window.controls.play_button.setChecked(False)
