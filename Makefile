@@ -4,7 +4,8 @@ VENV := .venv
 # pytest-xdist processes for `make test` (each file runs whole in one; 0: no workers). Three
 # on two cores: with two the suite waited a third of its time (windows drawing, child
 # processes starting: 824 s of CPU in 564 s); measured, three took 9:03 and 9:23 of pytest
-# against 9:23 for two with 19 tests fewer: no clear gain yet, and no harm
+# against 9:23 for two with 19 tests fewer: no clear gain yet, and no harm; four took 9:37
+# against 9:08 for three (session 21: the suite uses about 1.4 of the two cores either way)
 TEST_WORKERS ?= 3
 # test-quick's files mostly wait (GUI frames, child processes): a third worker fills the
 # cores while the others wait (3 min 07 s with two workers, 2 min 56 s with three)
