@@ -169,3 +169,17 @@ def test_derived_values_are_converted_without_parsing_text():
     ):
         with pytest.raises(TypeError):
             convert(hostile)
+
+
+@pytest.mark.parametrize("text", ["__import__('os').getcwd()", "x + 1", b"x", True])
+def test_the_conversions_to_sympy_and_symengine_never_parse_text(text):
+    """``as_expr`` and ``calculus.to_symengine`` (behind every ``sympify`` of a derived
+    value in ``systems.calculus``) refuse a string: sympy's and symengine's ``sympify``
+    would parse (sympy's ``eval``) it; user text goes through ``parse_expression``."""
+    from systems.calculus import to_symengine
+    from systems.expressions import as_expr
+
+    with pytest.raises(TypeError, match="expected a sympy expression or a number"):
+        as_expr(text)
+    with pytest.raises(TypeError, match="expected a sympy expression or a number"):
+        to_symengine(text)
