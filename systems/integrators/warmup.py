@@ -16,6 +16,7 @@ a scene opened then only loads its own functions and its method's loop.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
@@ -66,8 +67,6 @@ def warm_drivers(progress=None, processes: int = 2) -> float:
     compiles on one core, and the two parts take about the same time (70 and 75 s on an
     empty cache, against 143 s in one process).
     """
-    import os
-
     start = time.perf_counter()
     systems = _warm_systems()  # written to the caches before the second process reads them
     names = list(_tasks())

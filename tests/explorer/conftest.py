@@ -107,9 +107,9 @@ class GuiThreadCollection:
 
     def hand_back(self) -> None:
         """Collect everything here (the GUI thread), then the interpreter's own collection
-        again (unless a window still holds it)."""
+        again, both by the collector's ``stop`` (unless a window still holds it)."""
         if self.collector is not None:
-            self.collector.stop()  # collects everything first (unless a window still holds)
+            self.collector.stop()
             self.collector.setParent(None)
             self.collector = None
 
