@@ -21,6 +21,7 @@ cut (a finished run's file being written) ends, then stops.
 
 from __future__ import annotations
 
+import functools
 import signal
 import sys
 import threading
@@ -50,8 +51,23 @@ def stop_signals() -> Iterator[None]:
         yield
         return
     _received.clear()
-    with _handled_by(_raise):
-        yield
+    hook = sys.unraisablehook
+    sys.unraisablehook = functools.partial(_unraisable, hook)
+    try:
+        with _handled_by(_raise):
+            yield
+    finally:
+        sys.unraisablehook = hook
+
+
+def _unraisable(hook, unraisable) -> None:
+    """``sys.unraisablehook`` inside ``stop_signals``: a signal's ``KeyboardInterrupt``
+    raised where Python cannot pass it on (a weak reference's callback, such as the
+    import system's module locks, or a ``__del__``) is not printed as "Exception ignored"
+    with a traceback; the signal is remembered and the command stops by ``check``.
+    Anything else goes to ``hook``."""
+    if not (isinstance(unraisable.exc_value, KeyboardInterrupt) and _received):
+        hook(unraisable)
 
 
 def requested() -> bool:
