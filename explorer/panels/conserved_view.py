@@ -30,7 +30,6 @@ import html
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from explorer.buffers import GrowingArray
@@ -182,15 +181,17 @@ class ConservedView(QWidget):
             curve.remove()
         self._momentum_curves.clear()
         self._charge_curves.clear()
-        # the plot and its legend leave the layout but are kept for the next scene that
-        # has conserved momenta: a PlotItem removed and deleted crashed Qt's next paint
+        # The plot and its legend stay in the layout, hidden (a hidden item takes no
+        # room there), for the next scene that has conserved momenta. A PlotItem removed
+        # and deleted crashed Qt's next paint; one removed from the layout and kept was
+        # Python's to delete, and its destructor crashed (SIGSEGV in ~QGraphicsWidget)
+        # when the garbage collector freed it after the window was gone.
         if self.momentum_plot is not None:
             self.momentum_plot.clear()
-            self.layout_widget.removeItem(self.momentum_plot)
+            self.momentum_plot.hide()
             self.momentum_plot = None
         if self.momentum_legend is not None:
-            self.momentum_legend.clear()
-            self.layout_widget.removeItem(self.momentum_legend)
+            self.momentum_legend.clear()  # hides it: no entries
             self.momentum_legend = None
         self.momentum_range = None
 
@@ -205,10 +206,7 @@ class ConservedView(QWidget):
             )
             self._kept_momentum = (plot, legend, RangeKeeper(plot, time_axis=True))
         else:
-            plot, legend, _ = self._kept_momentum
-            self.layout_widget.addItem(plot, row=0, col=2)
-            self.layout_widget.addItem(legend, row=0, col=3)
-            self.layout_widget.ci.layout.setAlignment(legend, Qt.AlignmentFlag.AlignTop)
+            self._kept_momentum[0].show()
         self.momentum_plot, self.momentum_legend, self.momentum_range = self._kept_momentum
         self.momentum_range.reset()
         labels = [momentum_label(scene.coordinates[i]) for i in self.conserved_momenta]

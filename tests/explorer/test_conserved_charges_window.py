@@ -53,3 +53,21 @@ def test_cartesian_kepler_shows_an_angular_momentum_curve(qtbot, window):
     )
     assert conserved.conserved_charges == [] and conserved._charge_curves == {}
     assert conserved.momentum_plot is None
+    # ... hidden, but still in the panel's layout, where Qt owns them and deletes them
+    # with the window: taken out of it and kept, they were Python's, and the garbage
+    # collector freeing them after the window had gone crashed (SIGSEGV)
+    plot, legend, _ = conserved._kept_momentum
+    layout = conserved.layout_widget.ci
+    assert plot in layout.items and legend in layout.items
+    assert not plot.isVisible() and not legend.isVisible()
+    qtbot.waitUntil(  # laid out again: the energy plot takes the room
+        lambda: conserved.energy_plot.width() > 0.8 * conserved.layout_widget.width(),
+        timeout=10000,
+    )
+    # and shown again for the next scene with a conserved quantity
+    request = window.open_scene("kepler_cartesian")
+    qtbot.waitUntil(
+        lambda: window.built is not None and window.built.request == request, timeout=90000
+    )
+    assert conserved.momentum_plot is plot and plot.isVisible()
+    qtbot.waitUntil(lambda: plot.width() > 0.2 * conserved.layout_widget.width(), timeout=10000)
