@@ -2,9 +2,10 @@
 every cache the program writes, and the window's preferences, go to a temporary folder,
 never the user's.
 
-Under pytest-xdist (``make test`` runs two workers) each worker gets a folder of its own
-inside that one, named after the worker (``gw0``, ``gw1``): the workers never share a
-kernel cache, a derivation cache or preferences.
+Under pytest-xdist (``make test`` runs three workers) each worker gets a folder of its
+own inside that one, named after the worker (``gw0``, ``gw1``...): its own copy of the
+drivers' cache, its own preferences. Derivations, remembered values and scenes' machine
+code are shared (``SHARED_FOLDERS``).
 
 ``PHASE_EXPLORER_THOROUGH=1`` runs the slow property tests with their full example counts
 (``examples``); by default they run fewer, still dozens.
@@ -93,6 +94,8 @@ if "PYTHONPYCACHEPREFIX" not in os.environ:
 # An xdist worker inherits the folders the controller set (or the caller's): it takes a
 # subfolder of its own; the controller removes the whole folder at the end.
 _WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+SHARED_FOLDERS = ("derivations", "values", "machine-code")
+"""The cache folders xdist workers share (the controller's); the rest is each worker's."""
 _SHARED_CACHE = os.environ["PHASE_EXPLORER_CACHE"]
 if _WORKER:
     for _name in ("PHASE_EXPLORER_CACHE", "PHASE_EXPLORER_CONFIG"):
@@ -106,6 +109,17 @@ if _WORKER:
             os.path.join(os.environ["PHASE_EXPLORER_CACHE"], "kernels"),
             dirs_exist_ok=True,
         )
+    # Derivations, remembered values and scenes' machine code are shared: every file is
+    # written whole under another name, then renamed (``systems.files``), so workers read
+    # a complete file or none. Kept apart, each worker derived and compiled the catalogue
+    # again (a third of the files were duplicates). Tests of damaged or missing entries
+    # use caches of their own.
+    os.makedirs(os.environ["PHASE_EXPLORER_CACHE"], exist_ok=True)
+    for _name in SHARED_FOLDERS:
+        _folder = os.path.join(_SHARED_CACHE, _name)
+        os.makedirs(_folder, exist_ok=True)
+        with contextlib.suppress(FileExistsError):
+            os.symlink(_folder, os.path.join(os.environ["PHASE_EXPLORER_CACHE"], _name))
 
 
 def pytest_configure(config):
