@@ -17,28 +17,44 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def measure_on_screen(script: str, arguments: list[str], size: tuple[int, int], folder: Path):
-    """Run ``script`` with ``arguments`` on a ``size`` screen (96 dpi, ratio 1); its last
-    line of output, read as JSON."""
+def _config(size: tuple[int, int], folder: Path) -> Path:
     width, height = size
     config = Path(folder) / f"screen-{width}x{height}.json"
     screen = {"name": "test", "x": 0, "y": 0, "width": width, "height": height}
     config.write_text(json.dumps({"screens": [{**screen, "logicalDpi": 96, "dpr": 1}]}))
+    return config
+
+
+def _start(script: str, arguments: list[str], size: tuple[int, int], folder: Path):
     env = {
         **os.environ,
-        "QT_QPA_PLATFORM": f"offscreen:configfile={config}",
+        "QT_QPA_PLATFORM": f"offscreen:configfile={_config(size, folder)}",
         "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
     }
-    done = subprocess.run(
+    return subprocess.Popen(
         [sys.executable, script, *arguments],
         env=env,
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         text=True,
-        timeout=600,
         cwd=ROOT,
     )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _report(process: subprocess.Popen) -> dict:
+    try:
+        out, err = process.communicate(timeout=600)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, err = process.communicate()
+    assert process.returncode == 0, err[-3000:]
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def measure_on_screen(script: str, arguments: list[str], size: tuple[int, int], folder: Path):
+    """Run ``script`` with ``arguments`` on a ``size`` screen (96 dpi, ratio 1); its last
+    line of output, read as JSON."""
+    return _report(_start(script, arguments, size, folder))
 
 
 def spin(app, condition, seconds: float) -> None:
@@ -49,6 +65,16 @@ def spin(app, condition, seconds: float) -> None:
         time.sleep(0.02)
 
 
-def measure_screens(script: str, sizes, folder: Path) -> dict:
-    """``measure_on_screen(script, [folder], size, folder)`` for each of ``sizes``, by size."""
-    return {size: measure_on_screen(script, [str(folder)], size, folder) for size in sizes}
+def measure_screens(script: str, sizes, folder: Path, arguments: list[str] | None = None) -> dict:
+    """``measure_on_screen(script, arguments or [folder], size, folder)`` for each of
+    ``sizes``, by size: the processes run at the same time (each mostly waits for its
+    window to lay out, paint and compute)."""
+    arguments = [str(folder)] if arguments is None else arguments
+    started = {size: _start(script, arguments, size, folder) for size in sizes}
+    try:
+        return {size: _report(process) for size, process in started.items()}
+    finally:
+        for process in started.values():
+            if process.poll() is None:
+                process.kill()
+                process.wait()

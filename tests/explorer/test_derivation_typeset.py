@@ -239,11 +239,10 @@ def shoot(scene: str, folder: str) -> dict:
 
 @pytest.fixture(scope="module")
 def screenshots(tmp_path_factory):
-    from tests.explorer.screens import measure_on_screen
+    from tests.explorer.screens import measure_screens
 
     folder = tmp_path_factory.mktemp("derivation")
-    arguments = ["double_pendulum", str(folder)]
-    return {size: measure_on_screen(__file__, arguments, size, folder) for size in SCREENS}
+    return measure_screens(__file__, SCREENS, folder, ["double_pendulum", str(folder)])
 
 
 @pytest.mark.soak  # screen-size tests, as tests/explorer/test_window_fits_screen.py

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -111,29 +110,10 @@ def measure(scene: str, folder: str) -> dict:
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory):
     """What the window looks like on each screen size, measured in a process of its own."""
+    from tests.explorer.screens import measure_screens
+
     folder = tmp_path_factory.mktemp("screens")
-    found = {}
-    for width, height in SCREENS:
-        config = folder / f"screen-{width}x{height}.json"
-        screen = {"name": "test", "x": 0, "y": 0, "width": width, "height": height}
-        config.write_text(json.dumps({"screens": [{**screen, "logicalDpi": 96, "dpr": 1}]}))
-        root = Path(__file__).resolve().parents[2]
-        env = {
-            **os.environ,
-            "QT_QPA_PLATFORM": f"offscreen:configfile={config}",
-            "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]),
-        }
-        done = subprocess.run(
-            [sys.executable, __file__, "simple_pendulum", str(folder)],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=600,
-            cwd=root,
-        )
-        assert done.returncode == 0, done.stderr[-3000:]
-        found[(width, height)] = json.loads(done.stdout.strip().splitlines()[-1])
-    return found
+    return measure_screens(__file__, SCREENS, folder, ["simple_pendulum", str(folder)])
 
 
 @pytest.mark.parametrize("size", SCREENS, ids=lambda s: f"{s[0]}x{s[1]}")
