@@ -47,6 +47,9 @@ PRELOAD = [
     "systems.typeset",
     "matplotlib.textpath",  # mathtext, which sets the derivation's equations in type
     "systems.textbook.equilibria",
+    "systems.textbook.jobs",  # scipy.integrate, optimize, special: 0.4 s of each job
+    "systems.normal_modes",
+    "systems.constraint_forces",
 ]
 """Modules the fork server imports once, so that every worker starts with them."""
 
