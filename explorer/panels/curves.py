@@ -415,12 +415,14 @@ def style_plot(plot: pg.PlotItem) -> pg.PlotItem:
     """House style: a light grid, no SI-prefix rescaling of the axes (it hides the units),
     axes cached as pixels."""
     plot.showGrid(x=True, y=True, alpha=0.15)
+    for name in ("left", "bottom", "right", "top"):
+        # with the prefix on, every change of range sets the axis label's HTML again,
+        # hidden axes' too (pyqtgraph's AxisItem.updateAutoSIPrefix): 28 a second
+        plot.getAxis(name).enableAutoSIPrefix(False)
     for name in ("left", "bottom"):
-        axis = plot.getAxis(name)
-        axis.enableAutoSIPrefix(False)
         # an axis (with its grid) only changes with its range: keep its pixels, so a
         # frame that moves a curve does not re-render every tick label
-        axis.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        plot.getAxis(name).setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
     return plot
 
 

@@ -41,6 +41,23 @@ def test_pendulum_window_is_alive(qtbot, window):
     assert window.worker.frames < len(window.store.main.t)
 
 
+def test_running_redraws_set_no_axis_label_again(qtbot, window, monkeypatch):
+    """Frames move the plots' ranges; no axis sets its label's HTML again for that (with
+    pyqtgraph's automatic SI prefix every axis did, hidden ones too: 28 a second)."""
+    import pyqtgraph as pg
+
+    set_again = []
+    update_label = pg.AxisItem._updateLabel
+    monkeypatch.setattr(
+        pg.AxisItem, "_updateLabel", lambda axis: (set_again.append(axis), update_label(axis))
+    )
+    wait_for_points(qtbot, window, 30)
+    redraws = window.redraws
+    qtbot.waitUntil(lambda: window.redraws > redraws + 10, timeout=20000)
+    assert len(window.store.main.t) > 30  # the orbit grew, and the ranges with it
+    assert set_again == []
+
+
 def test_click_in_phase_view_launches_a_trajectory(qtbot, window):
     wait_for_points(qtbot, window, 5)
     phase = window.phase_view
