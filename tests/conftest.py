@@ -128,10 +128,11 @@ def pytest_configure(config):
     process), into the cache the workers copy."""
     if _WORKER:
         return
-    from systems.integrators.warmup import warm_drivers
+    from systems.integrators.warmup import drivers_warmed, warm_drivers
 
     _seed_drivers_from_installation()
-    warm_drivers()
+    if not drivers_warmed():  # seeded from a complete warm-up: every loop is on disk
+        warm_drivers()
     if _LINKING is not None:
         _LINKING.join()
 
@@ -139,8 +140,9 @@ def pytest_configure(config):
 def _seed_drivers_from_installation() -> None:
     """Copy the drivers ``python main.py warm`` left in the user's cache, if they are those
     of this source, into the session's cache: only read there, never written, and it
-    saves a minute of compiling per session (``make test-quick`` warms first). A copy that
-    does not verify is rebuilt like any damaged cache entry."""
+    saves a minute of compiling per session (``make test-quick`` warms first), and with
+    the stamp of a complete warm-up the session loads nothing (``drivers_warmed``). A copy
+    that does not verify is rebuilt like any damaged cache entry."""
     from pathlib import Path
 
     from systems.integrators.warmup import copy_drivers

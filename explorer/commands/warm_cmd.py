@@ -15,7 +15,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from systems.integrators.warmup import warm_drivers
+    from systems.integrators.warmup import drivers_warmed, warm_drivers
+
+    if drivers_warmed():
+        print("the stepping loops are compiled already", file=sys.stderr)
+        return 0
 
     def progress(family: str) -> None:
         print(f"  {family}", file=sys.stderr, flush=True)

@@ -16,6 +16,7 @@ a scene opened then only loads its own functions and its method's loop.
 
 from __future__ import annotations
 
+import json
 import os
 import threading
 import time
@@ -87,10 +88,59 @@ def warm_drivers(progress=None, processes: int = 2) -> float:
         if job is not None:
             job.cancel()  # Ctrl+C or a failure here: the worker ends too
     _warm.set()
+    from systems.cache_integrity import write_atomic
     from systems.codegen import prune_drivers
 
     prune_drivers()  # the builds of former versions of the templates
+    state = _drivers_state()
+    if state is not None:
+        try:
+            write_atomic(_stamp_path(), json.dumps(state, sort_keys=True).encode())
+        except OSError:
+            pass  # the next warm-up loads them all again
     return time.perf_counter() - start
+
+
+def drivers_warmed() -> bool:
+    """True when ``warm_drivers`` ran to its end on this cache and the files it left are
+    as it left them (its stamp beside numba's files: the drivers' and the map loops'
+    modules, numba's cache files of them and their sizes, numba's version). Warming
+    again would then only load every loop from numba's cache (14 s of a test session's
+    start); a file removed or grown since (a signature compiled later) makes it False."""
+    import json
+
+    try:
+        recorded = json.loads(_stamp_path().read_text())
+    except (OSError, ValueError):
+        return False
+    return recorded == _drivers_state()
+
+
+def _stamp_path() -> Path:
+    from systems.codegen import _driver_key, cache_dir
+
+    return cache_dir() / "__pycache__" / f"pe_drivers_{_driver_key()}.warm"
+
+
+def _drivers_state() -> dict | None:
+    """The files a complete warm-up leaves, by name, with their sizes (None: a module is
+    missing)."""
+    import numba
+
+    from systems.chaos.map_kernels import loop_module_name
+    from systems.codegen import _driver_key, cache_dir
+
+    folder = cache_dir()
+    files = {}
+    for module in (f"pe_drivers_{_driver_key()}", loop_module_name()):
+        try:
+            files[f"{module}.py"] = (folder / f"{module}.py").stat().st_size
+            for entry in (folder / "__pycache__").glob(f"{module}.*"):
+                if entry.suffix != ".warm":
+                    files[f"__pycache__/{entry.name}"] = entry.stat().st_size
+        except OSError:
+            return None
+    return {"numba": numba.__version__, "files": files}
 
 
 SECOND_PART = frozenset(

@@ -3,12 +3,16 @@ functions load nothing more, and the drivers can be copied into a cold cache."""
 
 from __future__ import annotations
 
+import pytest
+
 from systems.codegen import driver_module
 from systems.integrators.warmup import copy_drivers
 
 PRELOADED = """
 import json
 import numpy as np
+import pytest
+
 from systems.codegen import driver_module
 from systems.compiled import compile_system
 from systems.integrators.warmup import warm_numba
@@ -94,6 +98,8 @@ for name, method in (("henon_heiles", "yoshida4"), ("henon_heiles", "gauss_legen
     tangent = load_tangent(compiled)
     map_chunk(map_kernel(tangent, method=method, t_end=0.1), compiled.initial_state()[None])
 # taylor's map and the section portraits' batch: loops of the drivers' module
+import pytest
+
 from systems.codegen import driver_module
 from systems.section import Section
 from systems.section_orbits import section_portrait
@@ -145,3 +151,69 @@ def test_a_part_of_the_warm_up_runs_in_a_worker_process():
     from systems.integrators.warmup import warm_part
 
     assert processes.run(warm_part, ["orbit diagrams"], what="a piece of the warm-up") is None
+
+
+def test_the_session_starts_from_a_complete_warm_up():
+    """The session's cache (tests/conftest.py: the installation's copied, or its own
+    ``warm_drivers``) holds the stamp a complete warm-up writes, naming numba's files."""
+    import json
+    from pathlib import Path
+
+    from tests.conftest import _SHARED_CACHE
+
+    folder = Path(_SHARED_CACHE) / "kernels"
+    (stamp,) = (folder / "__pycache__").glob(f"{driver_module().__name__}.warm")
+    files = json.loads(stamp.read_text())["files"]
+    assert any(name.endswith(".nbi") for name in files)
+    assert all((folder / name).is_file() for name in files)
+
+
+def test_a_warm_up_is_done_again_only_when_its_files_changed(tmp_path, monkeypatch):
+    """``drivers_warmed`` (``python main.py warm`` and the test session ask it first):
+    True for the files a complete warm-up left; False without its stamp, with a numba
+    file grown (a signature compiled since) or gone, or under another numba."""
+    import json
+
+    from systems.cache_integrity import cache_root, write_atomic
+    from systems.integrators import warmup
+
+    assert copy_drivers(cache_root(), tmp_path)
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    pycache = tmp_path / "kernels" / "__pycache__"
+    for stamp in pycache.glob("*.warm"):
+        stamp.unlink()
+    assert not warmup.drivers_warmed()
+
+    def stamp(state) -> None:  # as the end of warm_drivers writes it
+        write_atomic(warmup._stamp_path(), json.dumps(state, sort_keys=True).encode())
+
+    complete = warmup._drivers_state()
+    stamp(complete)
+    assert warmup.drivers_warmed()
+    stamp({**complete, "numba": "0.1"})
+    assert not warmup.drivers_warmed()
+    stamp(complete)
+    index = next(pycache.glob(f"{driver_module().__name__}*.nbi"))
+    data = index.read_bytes()
+    index.write_bytes(data + b"\0")
+    assert not warmup.drivers_warmed()
+    index.write_bytes(data)
+    assert warmup.drivers_warmed()
+    next(pycache.glob(f"{driver_module().__name__}*.nbc")).unlink()
+    assert not warmup.drivers_warmed()
+
+
+def test_warm_on_a_warmed_cache_says_so_and_compiles_nothing(tmp_path, monkeypatch, capsys):
+    import json
+
+    from explorer.cli import main
+    from systems.cache_integrity import cache_root, write_atomic
+    from systems.integrators import warmup
+
+    assert copy_drivers(cache_root(), tmp_path)
+    monkeypatch.setenv("PHASE_EXPLORER_CACHE", str(tmp_path))
+    state = json.dumps(warmup._drivers_state(), sort_keys=True).encode()
+    write_atomic(warmup._stamp_path(), state)
+    monkeypatch.setattr(warmup, "warm_drivers", lambda *a, **k: pytest.fail("warmed again"))
+    assert main(["warm"]) == 0
+    assert "compiled already" in capsys.readouterr().err
