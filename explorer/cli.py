@@ -19,7 +19,7 @@ import importlib
 import os
 import signal
 import sys
-from contextlib import nullcontext
+from contextlib import nullcontext, suppress
 
 COMMANDS = (
     "list", "derive", "run", "bench", "methods", "periodic", "lyapunov", "chaosmap",
@@ -52,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run the command; return the process exit status."""
+    _name_crashes()
     stdout = sys.stdout
     sys.stdout = _Output(stdout)
     try:
@@ -75,6 +76,17 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if isinstance(sys.stdout, _Output):
             sys.stdout = stdout
+
+
+def _name_crashes() -> None:
+    """Python's fault handler on stderr: a crash in compiled code (Qt's, numba's) prints
+    every thread's Python stack before the process ends, instead of nothing (a rare
+    SIGSEGV when a Qt command ends after a signal left only its exit status)."""
+    import faulthandler
+
+    if not faulthandler.is_enabled():
+        with suppress(OSError, ValueError):  # a stderr without a descriptor
+            faulthandler.enable(sys.stderr)
 
 
 class OutputError(OSError):

@@ -119,3 +119,21 @@ def test_run_says_when_taylor_runs_in_double_double(capsys):
     assert json.loads(capsys.readouterr().out)["arithmetic"] == "double-double"
     assert main(given) == 0
     assert "in double-double" in capsys.readouterr().out
+
+
+def test_a_crash_in_compiled_code_names_where_it_happened():
+    """A command leaves Python's fault handler on: a segmentation fault (here a read at
+    address 0, as a crash in Qt's or numba's code) prints the Python stack on stderr
+    instead of ending the process with only its status."""
+    crash = (
+        "import ctypes, sys\nfrom explorer.cli import main\nmain(['list'])\nctypes.string_at(0)\n"
+    )
+    process = subprocess.run(
+        [sys.executable, "-c", crash],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).parents[2],
+        timeout=120,
+    )
+    assert process.returncode == -11
+    assert "Segmentation fault" in process.stderr and "string_at" in process.stderr
