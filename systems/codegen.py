@@ -299,6 +299,12 @@ def _driver_key() -> str:
     return _module_key("", with_templates=True)[1]
 
 
+def driver_module_name() -> str:
+    """The name of ``driver_module``'s module (and file, with ``.py``), without building
+    it."""
+    return _name(_driver_key(), True)
+
+
 def build_module(system_source: str, *, with_templates: bool = False) -> ModuleType:
     """Write, import and return the kernel module for ``system_source``.
 
@@ -385,7 +391,7 @@ def prune_drivers(keep: int = DRIVER_BUILDS_KEPT) -> list[str]:
     build and the ``keep - 1`` others most recently used (``_import`` marks a build's
     file when it is loaded); returns the names removed. What cannot be removed is left."""
     folder = cache_dir()
-    current = _name(_driver_key(), True)
+    current = driver_module_name()
 
     def last_used(path: Path) -> float:
         try:

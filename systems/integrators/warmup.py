@@ -107,8 +107,6 @@ def drivers_warmed() -> bool:
     modules, numba's cache files of them and their sizes, numba's version). Warming
     again would then only load every loop from numba's cache (14 s of a test session's
     start); a file removed or grown since (a signature compiled later) makes it False."""
-    import json
-
     try:
         recorded = json.loads(_stamp_path().read_text())
     except (OSError, ValueError):
@@ -117,9 +115,9 @@ def drivers_warmed() -> bool:
 
 
 def _stamp_path() -> Path:
-    from systems.codegen import _driver_key, cache_dir
+    from systems.codegen import cache_dir, driver_module_name
 
-    return cache_dir() / "__pycache__" / f"pe_drivers_{_driver_key()}.warm"
+    return cache_dir() / "__pycache__" / f"{driver_module_name()}.warm"
 
 
 def _drivers_state() -> dict | None:
@@ -128,11 +126,11 @@ def _drivers_state() -> dict | None:
     import numba
 
     from systems.chaos.map_kernels import loop_module_name
-    from systems.codegen import _driver_key, cache_dir
+    from systems.codegen import cache_dir, driver_module_name
 
     folder = cache_dir()
     files = {}
-    for module in (f"pe_drivers_{_driver_key()}", loop_module_name()):
+    for module in (driver_module_name(), loop_module_name()):
         try:
             files[f"{module}.py"] = (folder / f"{module}.py").stat().st_size
             for entry in (folder / "__pycache__").glob(f"{module}.*"):
@@ -300,10 +298,10 @@ def copy_drivers(source: Path, target: Path) -> bool:
     import shutil
 
     from systems.chaos.map_kernels import loop_module_name
-    from systems.codegen import _driver_key
+    from systems.codegen import driver_module_name
 
     installed, kernels = Path(source) / "kernels", Path(target) / "kernels"
-    name = f"pe_drivers_{_driver_key()}"
+    name = driver_module_name()
     if not (installed / f"{name}.py").is_file():
         return False
     try:
