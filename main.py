@@ -4,8 +4,8 @@ import sys
 
 if __name__ == "__main__":
     try:
-        from explorer.cli import main
+        from explorer.cli import entry
     except KeyboardInterrupt:  # Ctrl+C while the program was still being loaded
         print("stopped (Ctrl+C)", file=sys.stderr)
         sys.exit(130)
-    sys.exit(main())
+    entry()

@@ -10,16 +10,21 @@ When the program reading the output closes it early (``derive simple_pendulum | 
 the reader has what it wanted. An output that cannot be written (standard output on a
 full disk) and any other error of the system (``OSError``) end with one message and
 status 1, never a traceback.
+
+``entry`` is what ``main.py`` and the ``phase-explorer`` script run: ``main``, then the
+end of the process (see there for a command that started Qt).
 """
 
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import signal
 import sys
 from contextlib import nullcontext, suppress
+from typing import NoReturn
 
 COMMANDS = (
     "list", "derive", "run", "bench", "methods", "periodic", "lyapunov", "chaosmap",
@@ -48,6 +53,41 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         module.add_parser(sub)
     return parser
+
+
+def entry(argv: list[str] | None = None) -> NoReturn:
+    """Run ``main`` and end the process with its status.
+
+    After a command that started Qt (the window, a replay, an export), the process ends
+    without Python's teardown (``_end_qt``); any other ends as Python does.
+    """
+    status = main(argv)
+    _end_qt(status)
+    sys.exit(status)
+
+
+def _end_qt(status: int) -> None:
+    """End the process with ``status`` at once if a ``QApplication`` exists.
+
+    The exit handlers run first (worker processes end, temporary folders go, buffered
+    output is written), but not PySide's: it deletes every Qt object Python still holds
+    when their Python methods can no longer run, and a figure panel left to it (a view
+    whose construction Ctrl+C interrupted, a closed window in a reference cycle) crashed
+    the process with SIGSEGV in ``~QGraphicsWidget``, after its work was done. Nothing
+    of Qt's needs its destructors here: no QSettings, no temporary files of Qt's.
+    """
+    core = sys.modules.get("PySide6.QtCore")
+    if core is None or core.QCoreApplication.instance() is None:
+        return
+    from explorer.commands.stopping import HANDLED
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, HANDLED)  # the status is decided
+    for stream in (sys.stdout, sys.stderr):
+        with suppress(OSError, ValueError):
+            stream.flush()
+    atexit.unregister(getattr(core, "__moduleShutdown"))
+    atexit._run_exitfuncs()
+    os._exit(status)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,8 +120,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _name_crashes() -> None:
     """Python's fault handler on stderr: a crash in compiled code (Qt's, numba's) prints
-    every thread's Python stack before the process ends, instead of nothing (a rare
-    SIGSEGV when a Qt command ends after a signal left only its exit status)."""
+    every thread's Python stack before the process ends, instead of nothing (a SIGSEGV
+    at the end of a Qt command once left only its exit status: ``_end_qt``)."""
     import faulthandler
 
     if not faulthandler.is_enabled():

@@ -137,3 +137,34 @@ def test_a_crash_in_compiled_code_names_where_it_happened():
     )
     assert process.returncode == -11
     assert "Segmentation fault" in process.stderr and "string_at" in process.stderr
+
+
+def test_a_figure_left_to_the_exit_does_not_crash_the_process():
+    """After a command that started Qt, the entry point ends the process without PySide's
+    deletion of what Python still holds: a panel left to the exit in a reference cycle
+    (as one whose construction Ctrl+C interrupted) crashed it there with SIGSEGV, after
+    the command's work was done (the cycle not collected by then: here, no collection at
+    all). The other exit handlers still run, and the output is written whole."""
+    script = (
+        "import atexit, gc, sys\n"
+        "from explorer.app import application\n"
+        "from explorer.headless import make_panel\n"
+        "from explorer.cli import entry\n"
+        "app = application()\n"
+        "view = make_panel('phase')\n"
+        "view.show()\n"
+        "app.processEvents()\n"
+        "view.close()\n"
+        "gc.disable()\n"
+        "cycle = [view, None]\n"
+        "cycle[1] = cycle\n"
+        "del view, cycle\n"
+        "atexit.register(print, 'the exit handlers ran')\n"
+        "entry(['list'])\n"
+    )
+    process = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=300
+    )
+    assert process.returncode == 0, (process.returncode, process.stderr[-3000:])
+    assert "double_pendulum" in process.stdout
+    assert process.stdout.rstrip().endswith("the exit handlers ran")

@@ -433,12 +433,12 @@ LAUNCH = (
     "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
     "for s in (signal.SIGTERM, signal.SIGHUP): signal.signal(s, signal.SIG_DFL)\n"
     "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])\n"
-    "from explorer.cli import main\n"
+    "from explorer.cli import entry\n"
     "try:\n"
     "    print('launched', file=sys.stderr, flush=True)\n"
     "except KeyboardInterrupt:\n"
     "    sys.exit(128 + signal.SIGINT)\n"
-    "sys.exit(main(sys.argv[1:]))\n"
+    "entry(sys.argv[1:])\n"
 )
 """``main.py`` (as the ``phase-explorer`` entry point runs it), started with the three
 signals at their defaults whatever the test worker's; it says so on stderr once loaded.
