@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import faulthandler
 import importlib
 import os
 import signal
@@ -58,10 +59,17 @@ def build_parser() -> argparse.ArgumentParser:
 def entry(argv: list[str] | None = None) -> NoReturn:
     """Run ``main`` and end the process with its status.
 
-    After a command that started Qt (the window, a replay, an export), the process ends
-    without Python's teardown (``_end_qt``); any other ends as Python does.
+    Once ``main`` has returned, the status is decided: Ctrl+C is ignored from there (a
+    ``KeyboardInterrupt`` in the exit handlers printed a traceback). After a command that
+    started Qt (the window, a replay, an export), the process ends without Python's
+    teardown (``_end_qt``); any other ends as Python does.
     """
-    status = main(argv)
+    status = 128 + signal.SIGINT
+    try:
+        status = main(argv)
+    except KeyboardInterrupt:  # landed as ``main`` returned
+        _say("stopped (Ctrl+C)")
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _end_qt(status)
     sys.exit(status)
 
@@ -79,9 +87,6 @@ def _end_qt(status: int) -> None:
     core = sys.modules.get("PySide6.QtCore")
     if core is None or core.QCoreApplication.instance() is None:
         return
-    from explorer.commands.stopping import HANDLED
-
-    signal.pthread_sigmask(signal.SIG_BLOCK, HANDLED)  # the status is decided
     for stream in (sys.stdout, sys.stderr):
         with suppress(OSError, ValueError):
             stream.flush()
@@ -92,10 +97,10 @@ def _end_qt(status: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run the command; return the process exit status."""
-    _name_crashes()
     stdout = sys.stdout
-    sys.stdout = _Output(stdout)
     try:
+        _name_crashes()
+        sys.stdout = _Output(stdout)
         status = _main(argv)
         sys.stdout.flush()  # here, so that a closed or full output is caught below
         return status
@@ -110,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         where = f": {exc.filename}" if exc.filename else ""
         _say(f"error: {exc.strerror or exc}{where}")
         return 1
-    except KeyboardInterrupt:  # while the parser was built (imports), before any command
+    except KeyboardInterrupt:  # before any command: the parser built (imports), the fault handler
         _say("stopped (Ctrl+C)")
         return 128 + signal.SIGINT
     finally:
@@ -122,8 +127,6 @@ def _name_crashes() -> None:
     """Python's fault handler on stderr: a crash in compiled code (Qt's, numba's) prints
     every thread's Python stack before the process ends, instead of nothing (a SIGSEGV
     at the end of a Qt command once left only its exit status: ``_end_qt``)."""
-    import faulthandler
-
     if not faulthandler.is_enabled():
         with suppress(OSError, ValueError):  # a stderr without a descriptor
             faulthandler.enable(sys.stderr)

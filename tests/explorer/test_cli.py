@@ -1,4 +1,5 @@
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -168,3 +169,35 @@ def test_a_figure_left_to_the_exit_does_not_crash_the_process():
     assert process.returncode == 0, (process.returncode, process.stderr[-3000:])
     assert "double_pendulum" in process.stdout
     assert process.stdout.rstrip().endswith("the exit handlers ran")
+
+
+def test_ctrl_c_before_any_command_ends_quietly(monkeypatch, capsys):
+    """A Ctrl+C in ``main``'s first steps (turning the fault handler on imported a module,
+    where a SIGINT sent at once landed) or as ``main`` returns is "stopped (Ctrl+C)" and
+    status 130, never a traceback."""
+    import explorer.cli as cli
+
+    def interrupted(*_args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_name_crashes", interrupted)
+    try:
+        assert cli.main(["list"]) == 130
+    except KeyboardInterrupt:  # not let through: it would stop the test session
+        pytest.fail("Ctrl+C escaped main")
+    assert capsys.readouterr().err == "stopped (Ctrl+C)\n"
+    monkeypatch.setattr(cli, "main", interrupted)
+    ended_qt = []
+    monkeypatch.setattr(cli, "_end_qt", ended_qt.append)  # this process may hold a window
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        with pytest.raises(SystemExit) as ended:
+            try:
+                cli.entry(["list"])
+            except KeyboardInterrupt:
+                pytest.fail("Ctrl+C escaped entry")
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # the status is decided
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert ended.value.code == 130 and ended_qt == [130]
+    assert capsys.readouterr().err == "stopped (Ctrl+C)\n"
