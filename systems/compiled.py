@@ -90,6 +90,14 @@ class CompiledSystem:
         return self._numeric[key]
 
     def _function(self, name: str):
+        kernels = self.kernels
+        if isinstance(kernels, llvm_kernels.LLVMKernels):
+            if name in kernels.functions:
+                return kernels.functions[name]
+        elif hasattr(kernels, name):
+            return system_function(getattr(kernels, name))
+        # the taylor family's, built on first use: its module only then (25 ms of a
+        # constrained scene's 50 ms when it opened again)
         from systems.taylor.compiled import BATCH_NAME
         from systems.taylor.compiled import NAME as TAYLOR
 
@@ -97,9 +105,7 @@ class CompiledSystem:
             return self.taylor().function
         if name == BATCH_NAME:
             return self.taylor().batch()[0]
-        if isinstance(self.kernels, llvm_kernels.LLVMKernels):
-            return self.kernels.functions[name]
-        return system_function(getattr(self.kernels, name))
+        raise KeyError(f"the system has no function {name!r}")
 
     def taylor(self):
         """The Taylor coefficients of the solution (``systems.taylor.compiled``): LLVM

@@ -521,28 +521,49 @@ class Numeric:
         self.holonomic = kinds == "holonomic"
         self.nonholonomic = kinds == "nonholonomic"
         self.unilateral = kinds == "unilateral"
-        params = tuple(mech.params[name] for name in compiled.parameter_names)
+        self._params = tuple(mech.params[name] for name in compiled.parameter_names)
         t, q, qd = mech.t, mech.q, mech.qdot
-
-        def lam(args, exprs):
-            return sympy.lambdify((*args, params), [as_expr(e) for e in exprs], modules="numpy")
-
         positions = [
             sympy.S.Zero if kind == "nonholonomic" else f
             for kind, f in zip(self.pieces.kinds, self.pieces.values, strict=True)
         ]
-        self._positions = lam((t, q), positions)
-        self._jacobian = lam((t, q), [*self.pieces.jacobian, *self.pieces.time_derivative])
-        self._mass = lam((t, q, qd), list(mech.mass_matrix))
-        self._forcing = lam((t, q, qd), list(mech.forcing))
-        self._gamma = lam((t, q, qd), self.pieces.gamma)
         form = mech.matrix_form
-        if form is None:
-            self._velocities = lam((t, q, mech.p), mech.velocities)
-        else:  # qdot solves M(q, t) qdot = p - a(q, t)
-            self._shift = lam((t, q), list(form.shift))
-            self._velocities = None
-        self._momenta = lam((t, q, qd), mech.momenta)
+        # each lambdified on first use (``_lambdified``), 2-3 ms apiece: opening a scene
+        # again needs two or three of the seven
+        self._sources = {
+            "positions": ((t, q), positions),
+            "jacobian": ((t, q), [*self.pieces.jacobian, *self.pieces.time_derivative]),
+            "mass": ((t, q, qd), list(mech.mass_matrix)),
+            "forcing": ((t, q, qd), list(mech.forcing)),
+            "gamma": ((t, q, qd), self.pieces.gamma),
+            # in matrix form qdot solves M(q, t) qdot = p - a(q, t): no expression
+            "velocities": None if form is not None else ((t, q, mech.p), mech.velocities),
+            "shift": ((t, q), list(form.shift)) if form is not None else None,
+            "momenta": ((t, q, qd), mech.momenta),
+        }
+        self._made: dict[str, object] = {}  # shared with ``bound_to``'s copies
+
+    def _lambdified(self, name: str):
+        """The numpy function of the expressions ``name`` of ``_sources`` (None where there
+        are none), made once for this system and its copies."""
+        if name not in self._made:
+            source = self._sources[name]
+            if source is not None:
+                args, exprs = source
+                source = sympy.lambdify(
+                    (*args, self._params), [as_expr(e) for e in exprs], modules="numpy"
+                )
+            self._made[name] = source
+        return self._made[name]
+
+    _positions = property(lambda self: self._lambdified("positions"))
+    _jacobian = property(lambda self: self._lambdified("jacobian"))
+    _mass = property(lambda self: self._lambdified("mass"))
+    _forcing = property(lambda self: self._lambdified("forcing"))
+    _gamma = property(lambda self: self._lambdified("gamma"))
+    _velocities = property(lambda self: self._lambdified("velocities"))
+    _shift = property(lambda self: self._lambdified("shift"))
+    _momenta = property(lambda self: self._lambdified("momenta"))
 
     def bound_to(self, compiled) -> Numeric:
         """The same functions with ``compiled``'s parameter values (nothing is lambdified

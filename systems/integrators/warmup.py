@@ -320,8 +320,9 @@ def copy_drivers(source: Path, target: Path) -> bool:
 
 def warm_numba() -> None:
     """Initialise numba's CPU target by compiling a trivial array function (no cache),
-    import what sympy imports at its first addition, then import the drivers' module and
-    load the loops every scene calls whatever its method (``preload_drivers``)."""
+    import what sympy imports at its first addition and its first lambdify, then import
+    the drivers' module and load the loops every scene calls whatever its method
+    (``preload_drivers``)."""
     if _warm.is_set():
         return
     from numba import njit
@@ -335,8 +336,10 @@ def warm_numba() -> None:
 
     _touch(np.zeros(2))
     # sympy imports sympy.tensor.tensor, and with it sympy.combinatorics (40 ms), at the
-    # first addition a process makes (Add.flatten): an import, paid here, not by the
-    # first scene derived
+    # first addition a process makes (Add.flatten), and its code printers at the first
+    # lambdify (a constrained scene's numpy constraints, ``constraints.Numeric``: 7 ms):
+    # imports paid here, not by the first scene derived or opened
+    import sympy.codegen.ast  # noqa: F401
     import sympy.tensor.tensor  # noqa: F401
 
     preload_drivers()

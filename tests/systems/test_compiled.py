@@ -1,3 +1,7 @@
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy
@@ -5,6 +9,8 @@ import sympy
 from systems.compiled import compile_system
 from systems.mechanics import derive
 from tests.systems.scenes import DRIVEN_DAMPED, HENON_HEILES, PENDULUM, PLANETARY, scene
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def numeric(mech, exprs, t, y, params):
@@ -105,3 +111,24 @@ p_b = 2.0
     y0 = compiled.initial_state()
     # p_a = 2 a_dot + b_dot, p_b = a_dot + 2 b_dot = 2  ->  b_dot = 0.75, p_a = 1.75
     np.testing.assert_allclose(y0, [0.0, 0.0, 1.75, 2.0], rtol=1e-10)
+
+
+def test_a_run_of_another_family_leaves_the_taylor_module_unimported():
+    """A scene's functions for a method other than taylor come from its kernels alone:
+    importing ``systems.taylor.compiled`` cost 25 ms of reopening a scene."""
+    script = (
+        "import sys\n"
+        "from systems.compiled import compile_system\n"
+        "from systems.mechanics import derive\n"
+        "from systems.scene import load_scene\n"
+        "from systems.simulation import precompile\n"
+        "compiled = compile_system(derive(load_scene('double_pendulum')),"
+        " ('rhs', 'hamiltonian', 'velocities'))\n"
+        "precompile(compiled, 'gauss_legendre6')\n"
+        "print(sorted(name for name in sys.modules if name.startswith('systems.taylor')))\n"
+    )
+    process = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=300
+    )
+    assert process.returncode == 0, process.stderr
+    assert process.stdout.strip() == "[]"
