@@ -25,7 +25,12 @@ and the command computed H at the rows once and the velocities at the last row o
 driver's: 0.62 -> 0.37 ms over the steps alone (thread CPU), 1.43-1.49x at load 5.7.
 H at the rows over vectors of four rows with glibc's libmvec cut its 0.34 ms to 0.08,
 but loading that code cost 1.4-2 ms a process (20-130 ms to compile it first): a loss
-for one run, so not kept. The drivers are warmed first in a child process
+for one run, so not kept. With the measured choice's taylor at eps (1 086 steps, 1.3-1.6
+ms) it is 1.42-1.52x (six runs, session 24): of the 0.7 ms more, H at the 10 001 rows
+0.31 ms (its three cosines alone 0.25 ms: the energy check, not the output), the rows
+in the driver 0.25 ms (24 ns a row at order 20), the sampler's Python 0.1 ms. Thirty
+repeats instead of five did not steady it: the spread is between processes. The
+drivers are warmed first in a child process
 (``warm_drivers``: about a minute on an empty cache, a second otherwise), as ``python
 main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the cache.
 Timings on a shared machine vary: read the numbers, not only PASS.
