@@ -285,25 +285,29 @@ def arc_keep(
     # the size of each coordinate about its trend, from at most ~1000 of the states
     sample = slice(None, None, max(1, k // 1024))
     ts, ys = t[sample], y[sample]
-    dt = ts - ts.mean()
-    spread = float((dt * dt).sum())
-    centred = ys - ys.mean(axis=0)
-    slope = (dt[:, None] * centred).sum(axis=0) / spread if spread > 0 else 0.0 * centred[0]
-    residual = centred - dt[:, None] * slope
-    size = residual.max(axis=0) - residual.min(axis=0)
-    scale = np.abs(ys).max(axis=0) + size
+    with np.errstate(over="ignore", invalid="ignore"):  # states that blew up: told below
+        dt = ts - ts.mean()
+        spread = float((dt * dt).sum())
+        centred = ys - ys.mean(axis=0)
+        slope = (dt[:, None] * centred).sum(axis=0) / spread if spread > 0 else 0.0 * centred[0]
+        residual = centred - dt[:, None] * slope
+        size = residual.max(axis=0) - residual.min(axis=0)
+        scale = np.abs(ys).max(axis=0) + size
+    if not (np.isfinite(size).all() and np.isfinite(scale).all()):
+        return keep  # too large to measure (a run blowing up, stopped after this block)
     used = np.flatnonzero(size > 1e-9 * np.maximum(scale, 1e-300))
     if not len(used):
         return keep
     previous = y[0] if before is None or not np.isfinite(before).all() else before
     squares = np.zeros(k)
-    for j in used:  # column by column: no (k, m) temporaries
-        column = y[:, j]
-        step = np.empty(k)
-        step[0] = column[0] - previous[j]
-        np.subtract(column[1:], column[:-1], out=step[1:])
-        step *= resolution / size[j]
-        squares += step * step
+    with np.errstate(over="ignore", invalid="ignore"):  # steps past 1e308: infinite, kept
+        for j in used:  # column by column: no (k, m) temporaries
+            column = y[:, j]
+            step = np.empty(k)
+            step[0] = column[0] - previous[j]
+            np.subtract(column[1:], column[:-1], out=step[1:])
+            step *= resolution / size[j]
+            squares += step * step
     mark = np.floor(np.cumsum(np.sqrt(squares, out=squares)))
     keep[0] = mark[0] >= 1
     keep[1:] = mark[1:] > mark[:-1]

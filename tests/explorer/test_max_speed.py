@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -776,3 +777,13 @@ def test_single_step_at_max_speed_advances_one_frame_of_1x(qtbot, pendulum):
             advance = main.last_t - before  # simulated time, not wall time
             one_frame_at_1x = settings.frame_seconds * 1.0  # simulated seconds at speed 1
             assert 0 < advance <= one_frame_at_1x + main.setting_value * 1.0001
+
+
+def test_arc_keep_keeps_a_block_that_blew_up_whole_and_quietly():
+    """States near the largest double (a run blowing up, stopped after the block) cannot
+    be measured: the block is kept whole, with no numpy overflow warning printed."""
+    t = np.linspace(0.0, 1.0, 2000)
+    y = np.column_stack([np.linspace(1e306, 1.7e308, 2000), -np.linspace(1e300, 1.7e308, 2000)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert arc_keep(t, y, None, 200.0).all()
