@@ -550,8 +550,9 @@ class Numeric:
             source = self._sources[name]
             if source is not None:
                 args, exprs = source
+                # numpy itself, not "numpy" (``systems.lambdified.lambdify``'s reason)
                 source = sympy.lambdify(
-                    (*args, self._params), [as_expr(e) for e in exprs], modules="numpy"
+                    (*args, self._params), [as_expr(e) for e in exprs], modules=[np]
                 )
             self._made[name] = source
         return self._made[name]
