@@ -90,7 +90,9 @@ def _end_qt(status: int) -> None:
     for stream in (sys.stdout, sys.stderr):
         with suppress(OSError, ValueError):
             stream.flush()
-    atexit.unregister(getattr(core, "__moduleShutdown"))
+    shutdown = getattr(core, "__moduleShutdown", None)  # PySide6's name for it
+    if shutdown is not None:
+        atexit.unregister(shutdown)
     atexit._run_exitfuncs()
     os._exit(status)
 

@@ -528,7 +528,7 @@ class Numeric:
             for kind, f in zip(self.pieces.kinds, self.pieces.values, strict=True)
         ]
         form = mech.matrix_form
-        # each lambdified on first use (``_lambdified``), 2-3 ms apiece: opening a scene
+        # each lambdified on first use (``_lambdified``), 1-3 ms apiece: opening a scene
         # again needs two or three of the seven
         self._sources = {
             "positions": ((t, q), positions),
