@@ -29,7 +29,10 @@ for one run, so not kept. With the measured choice's taylor at eps (1 086 steps,
 ms) it is 1.42-1.52x (six runs, session 24): of the 0.7 ms more, H at the 10 001 rows
 0.31 ms (its three cosines alone 0.25 ms: the energy check, not the output), the rows
 in the driver 0.25 ms (24 ns a row at order 20), the sampler's Python 0.1 ms. Thirty
-repeats instead of five did not steady it: the spread is between processes. The
+repeats instead of five did not steady it: the spread is between processes. With H over
+the rows written into the scene's own LLVM module, eight rows at a time with libmvec
+(``systems.llvm_kernels._RowsWriter``: 0.31 -> 0.08 ms, nothing more to load but the
+library, 0.2 ms), 1.23-1.36x (session 25). The
 drivers are warmed first in a child process
 (``warm_drivers``: about a minute on an empty cache, a second otherwise), as ``python
 main.py warm`` does once per installation; ``PHASE_EXPLORER_CACHE`` chooses the cache.

@@ -179,7 +179,23 @@ class CompiledSystem:
         self.require("hamiltonian")
         ts, Y = _batch(t, Y, 2 * self.n)
         out = np.empty(len(Y))
-        self._batch("batch_scalar", "hamiltonian", ts, Y, out)
+        rows = getattr(self.kernels, "rows", {}).get("hamiltonian")
+        if rows is None:
+            self._batch("batch_scalar", "hamiltonian", ts, Y, out)
+            return out
+        # several rows at a time in vector registers, the last ones padded to a whole
+        # vector: each state's H is the same whatever batch it came in
+        lanes = llvm_kernels.vector_target()[1]
+        count, width = Y.shape
+        whole, P = count - count % lanes, _address(self.parameters)
+        if whole:
+            rows(_address(ts), _address(Y), width, P, _address(out), whole // lanes)
+        if whole < count:
+            last_t, last_Y, last = np.empty(lanes), np.empty((lanes, width)), np.empty(lanes)
+            last_t[: count - whole], last_t[count - whole :] = ts[whole:], ts[-1]
+            last_Y[: count - whole], last_Y[count - whole :] = Y[whole:], Y[-1]
+            rows(_address(last_t), _address(last_Y), width, P, _address(last), 1)
+            out[whole:] = last[: count - whole]
         return out
 
     def velocities(self, t: np.ndarray | float, Y: np.ndarray) -> np.ndarray:
@@ -310,6 +326,10 @@ class CompiledSystem:
             )
         function = self._numeric[key]
         return lambda t, a, b: function(np.concatenate(([t], a, b, self.parameters)))
+
+
+def _address(array: np.ndarray) -> int:
+    return array.__array_interface__["data"][0]
 
 
 def _batch(t, Y, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -461,6 +481,8 @@ def _remembered(mechanics: Mechanics, kind: str, wanted: frozenset[str], compute
         sys.modules[__name__], constraints, llvm_kernels, calculus, matrix_solve
     )
     versions = f"numba {numba.__version__} llvmlite {llvmlite.__version__}"
+    if kind == "llvm":
+        versions += f" {llvm_kernels.vector_tag()}"
     tag = f"{kind} {code} {versions} {sorted(wanted)}"
     return derivation_cache.remembered(mechanics.scene, tag, compute)
 

@@ -23,6 +23,7 @@ projections and impacts are the drivers' own, given its straight-line ``PRIMITIV
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import ctypes.util
 import functools
 import signal
@@ -96,10 +97,20 @@ def _llvm():
 
     llvm.initialize_native_target()
     llvm.initialize_native_asmprinter()
-    path = ctypes.util.find_library("m")
+    path = _library("libm.so.6", "m")
     if path:
         llvm.load_library_permanently(path)
     return llvm
+
+
+def _library(soname: str, name: str) -> str | None:
+    """``soname`` if the dynamic loader finds it (glibc's names on Linux), else
+    ``ctypes.util.find_library(name)``, which runs ``ldconfig`` (1-3 ms a process)."""
+    try:
+        ctypes.CDLL(soname)
+    except OSError:
+        return ctypes.util.find_library(name)
+    return soname
 
 
 def _target_machine(host: bool = False):
@@ -383,6 +394,188 @@ class _Writer:
         return self.b.call(function, args)
 
 
+ROWS_PREFIX = "pe_rows_"
+"""``pe_rows_<name>``: a scalar function (``hamiltonian``) over rows, several at a time."""
+ROWS_NAMES = ("hamiltonian",)
+"""The functions written over rows too, where they have no velocity solve: H at every
+row of ``run``'s output, its energy check (0.31 ms of 10 001 rows on the double
+pendulum, most of it three cosines a row)."""
+_VECTOR_OPS = ("fabs", "sqrt", "copysign")
+"""LLVM intrinsics that are single instructions on vectors; the other functions are
+glibc's vector math library (``libmvec``) where it has them, else one call a lane."""
+
+
+@functools.cache
+def _vector_library() -> frozenset[str] | None:
+    """The names of glibc's vector math library (``libmvec``), loaded into the process
+    for the machine code; None where there is none (the rows are then not written)."""
+    path = _library("libmvec.so.1", "mvec")
+    if not path:
+        return None
+    try:
+        library = ctypes.CDLL(path)
+    except OSError:
+        return None
+    _llvm().load_library_permanently(path)
+    names = [*INTRINSICS, "exp", "pow", *LIBM]
+    letter, lanes = vector_target()[:2]
+    return frozenset(name for name in names if hasattr(library, _vector_name(letter, lanes, name)))
+
+
+_ROWS_TYPE = ctypes.CFUNCTYPE(
+    None,
+    ctypes.c_void_p,
+    ctypes.c_void_p,
+    ctypes.c_int64,
+    ctypes.c_void_p,
+    ctypes.c_void_p,
+    ctypes.c_int64,
+)
+
+
+def _vector_name(letter: str, lanes: int, name: str) -> str:
+    """libmvec's symbol (the x86-64 vector ABI's mangling) for ``lanes`` lanes."""
+    arguments = "vv" if name in ("pow", "atan2") else "v"
+    return f"_ZGV{letter}N{lanes}{arguments}_{name}"
+
+
+@functools.cache
+def vector_target() -> tuple[str, int, str, str]:
+    """(vector ABI letter, lanes, CPU, features) of the rows functions: eight lanes with
+    AVX-512, four with AVX2, else two (SSE). The CPU and features become the function's
+    own (the rest of the module is compiled for a generic x86-64): libmvec's wide
+    variants take their arguments in the wide registers."""
+    llvm = _llvm()
+    features = llvm.get_host_cpu_features().flatten()
+    enabled = set(features.split(","))
+    letter, lanes = (
+        ("e", 8) if "+avx512f" in enabled else ("d", 4) if "+avx2" in enabled else ("b", 2)
+    )
+    return letter, lanes, llvm.get_host_cpu_name(), features
+
+
+def vector_tag() -> str:
+    """What the written rows functions depend on beyond the expressions (for the key of
+    the remembered IR text)."""
+    library = _vector_library()
+    if library is None:
+        return "no rows"
+    return f"rows {vector_target()} {sorted(library)}"
+
+
+class _RowsWriter(_Writer):
+    """Writes ``pe_rows_<name>(ts, Y, width, P, out, blocks)`` of a scalar function
+    ``name(t, y, P)``: ``out[i] = name(ts[i], Y[i], P)`` for the first ``blocks * lanes``
+    rows of ``Y`` (``width`` doubles each), ``lanes`` rows at a time in vector registers,
+    with C's calling convention (pointers to the arrays' first doubles)."""
+
+    def __init__(self, module, spec: FunctionSpec, rename: dict, library: frozenset[str]):
+        from llvmlite import ir
+
+        self.ir = ir
+        self.module = module
+        self.spec = spec
+        self.rename = rename
+        self.library = library
+        self.letter, self.lanes, cpu, features = vector_target()
+        self.scalar = ir.DoubleType()
+        self.double = ir.VectorType(self.scalar, self.lanes)
+        pointer, i64 = self.scalar.as_pointer(), ir.IntType(64)
+        function_type = ir.FunctionType(
+            ir.VoidType(), [pointer, pointer, i64, pointer, pointer, i64]
+        )
+        self.function = ir.Function(module, function_type, name=ROWS_PREFIX + spec.name)
+        for argument, name in zip(
+            self.function.args, ("ts", "Y", "width", "P", "out", "blocks"), strict=True
+        ):
+            argument.name = name
+        # llvmlite's attribute set takes only enum attributes: these are string ones
+        set.add(self.function.attributes, f'"target-cpu"="{cpu}"')
+        set.add(self.function.attributes, f'"target-features"="{features}"')
+        self.names: dict[str, object] = {}
+        self.memo: dict = {}
+
+    def write(self) -> None:
+        ir, spec = self.ir, self.spec
+        i64 = ir.IntType(64)
+        ts, Y, width, P, out, blocks = self.function.args
+        entry = self.function.append_basic_block("entry")
+        loop = self.function.append_basic_block("loop")
+        done = self.function.append_basic_block("done")
+        b = self.b = ir.IRBuilder(entry)
+        splat: dict[str, object] = {}
+        for symbol, argument, index in spec.bindings:
+            if argument == "P":
+                value = b.load(b.gep(P, [ir.Constant(i64, index)]))
+                splat[symbol] = self._splat(value)
+        b.cbranch(b.icmp_signed(">", blocks, ir.Constant(i64, 0)), loop, done)
+        b.position_at_end(loop)
+        block = b.phi(i64, name="block")
+        first = b.mul(block, ir.Constant(i64, self.lanes), name="first")
+        vector_pointer = self.double.as_pointer()
+        for symbol, argument, index in spec.bindings:
+            if argument == "P":
+                self.names[symbol] = splat[symbol]
+            elif index is None:  # the time: one per row
+                pointer = b.bitcast(b.gep(ts, [first]), vector_pointer)
+                self.names[symbol] = b.load(pointer, align=8, name=symbol)
+            else:  # a state variable: column ``index`` of the rows
+                value = ir.Constant(self.double, ir.Undefined)
+                for lane in range(self.lanes):
+                    row = b.add(first, ir.Constant(i64, lane))
+                    at = b.add(b.mul(row, width), ir.Constant(i64, index))
+                    element = b.load(b.gep(Y, [at]))
+                    value = b.insert_element(value, element, ir.Constant(i64, lane))
+                self.names[symbol] = value
+        if spec.pre is not None:
+            names, exprs, _ = spec.pre
+            for name, value in zip(names, self._phase(exprs, None), strict=True):
+                self.names[name] = value
+        (result,) = self._phase(spec.exprs, None)
+        b.store(result, b.bitcast(b.gep(out, [first]), vector_pointer), align=8)
+        following = b.add(block, ir.Constant(i64, 1))
+        block.add_incoming(ir.Constant(i64, 0), entry)
+        block.add_incoming(following, loop)
+        b.cbranch(b.icmp_signed("<", following, blocks), loop, done)
+        b.position_at_end(done)
+        b.ret_void()
+
+    def const(self, value: float):
+        return self.ir.Constant(self.double, [float(value)] * self.lanes)
+
+    def _splat(self, value):
+        ir, b = self.ir, self.b
+        i64 = ir.IntType(64)
+        one = b.insert_element(ir.Constant(self.double, ir.Undefined), value, ir.Constant(i64, 0))
+        zeros = ir.Constant(ir.VectorType(ir.IntType(32), self.lanes), [0] * self.lanes)
+        return b.shuffle_vector(one, ir.Constant(self.double, ir.Undefined), zeros)
+
+    def _call(self, name: str, args: list):
+        ir, b = self.ir, self.b
+        base = name[len("llvm.") : -len(".f64")] if name.startswith("llvm.") else name
+        if base in _VECTOR_OPS:
+            symbol = f"llvm.{base}.v{self.lanes}f64"
+        elif base in self.library:
+            symbol = _vector_name(self.letter, self.lanes, base)
+        else:  # one call of the scalar function a lane
+            function = self._declare(name, self.scalar, len(args))
+            i64 = ir.IntType(64)
+            vector = ir.Constant(self.double, ir.Undefined)
+            for lane in range(self.lanes):
+                index = ir.Constant(i64, lane)
+                value = b.call(function, [b.extract_element(a, index) for a in args])
+                vector = b.insert_element(vector, value, index)
+            return vector
+        return b.call(self._declare(symbol, self.double, len(args)), args)
+
+    def _declare(self, name: str, kind, count: int):
+        function = self.module.globals.get(name)
+        if function is None:
+            function_type = self.ir.FunctionType(kind, [kind] * count)
+            function = self.ir.Function(self.module, function_type, name=name)
+        return function
+
+
 SOLVER_SIGNATURE = "void(float64[:, ::1], int64)"
 SOLVER_SYMBOL = "pe_solve_augmented"
 """The name under which the written IR calls the drivers' ``solve_augmented``: the IR
@@ -434,6 +627,13 @@ def write_ir(specs: Sequence[FunctionSpec], rename: dict) -> str:
     module = ir.Module(name="pe_system")
     for spec in specs:
         _Writer(module, spec, rename).write()
+    library = _vector_library()
+    for spec in specs:
+        if library is None or spec.name not in ROWS_NAMES or spec.solve is not None:
+            continue
+        if spec.pre is not None and spec.pre[2] is not None:
+            continue
+        _RowsWriter(module, spec, rename, library).write()
     return str(module)
 
 
@@ -519,6 +719,8 @@ class LLVMKernels:
         llvm = _llvm()
         if SOLVER_SYMBOL in ir_text:
             _bind_solver()
+        if ROWS_PREFIX in ir_text and _vector_library() is None:
+            raise Unsupported("the code calls glibc's vector math library, absent here")
         # the machine code is keyed by what made it: the text, and a level other than 3,
         # the host's own instructions (the key has the CPU and its features already) or
         # optimising some functions only
@@ -556,6 +758,13 @@ class LLVMKernels:
             for name in names
         }
         self._callers: dict[str, object] = {}
+        self.rows = {}
+        """``rows[name](ts, Y, width, P, out, blocks)``: ``_RowsWriter``'s function of
+        ``name`` (array arguments as addresses), where the text has one."""
+        for name in ROWS_NAMES:
+            if f'@"{ROWS_PREFIX}{name}"' in ir_text:
+                address = self._engine.get_function_address(ROWS_PREFIX + name)
+                self.rows[name] = _ROWS_TYPE(address)
 
     def __getattr__(self, name: str):
         functions = self.__dict__.get("functions", {})

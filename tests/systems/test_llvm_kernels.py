@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from systems import llvm_kernels
-from systems.compiled import compile_system
+from systems.compiled import compile_system, system_code
 from systems.mechanics import derive
 from systems.scene import load_scene, parse_scene
 from systems.simulation import run_to_end
@@ -54,6 +54,16 @@ def _same(a, b):
     np.testing.assert_allclose(a, b, rtol=4e-16, atol=0.0, equal_nan=True)
 
 
+def _hamiltonian_one_at_a_time(compiled, ts, Y):
+    """H row by row through the scalar function (not ``pe_rows_hamiltonian``)."""
+    return np.array(
+        [
+            compiled.kernels.hamiltonian(t, y, compiled.parameters)
+            for t, y in zip(ts, Y, strict=True)
+        ]
+    )
+
+
 @pytest.mark.parametrize("text", [EVERY_FUNCTION, SEPARABLE], ids=["every_function", "separable"])
 def test_llvm_functions_equal_numbas(text):
     mechanics = derive(parse_scene(text))
@@ -66,7 +76,7 @@ def test_llvm_functions_equal_numbas(text):
     ts = np.linspace(0.0, 3.0, len(Y))
     for t, y in zip(ts, Y, strict=True):
         _same(llvm.rhs(t, y), numba.rhs(t, y))
-    _same(llvm.hamiltonian(ts, Y), numba.hamiltonian(ts, Y))
+    _same(_hamiltonian_one_at_a_time(llvm, ts, Y), numba.hamiltonian(ts, Y))
     _same(llvm.velocities(ts, Y), numba.velocities(ts, Y))
     _same(llvm.momenta(ts, Y[:, :n], Y[:, n:]), numba.momenta(ts, Y[:, :n], Y[:, n:]))
     if "drawing" in wants:
@@ -228,3 +238,54 @@ def test_machine_code_is_kept_and_loaded_again(monkeypatch, capfd):
     _same(repaired.hamiltonian(ts, Y), first.hamiltonian(ts, Y))
     for t, y in zip(ts, Y, strict=True):
         _same(repaired.rhs(t, y), first.rhs(t, y))
+
+
+DRIVEN = """
+[system]
+coordinates = ["x"]
+parameters = { w = 1.3, a = 0.7 }
+lagrangian = "x_dot**2/2 - (1 + a*cos(w*t))*x**2/2 - abs(x)**3/3"
+[initial]
+x = 0.5
+"""
+
+
+@pytest.mark.skipif(llvm_kernels._vector_library() is None, reason="no glibc vector math library")
+@pytest.mark.parametrize("per_lane", [False, True], ids=["libmvec", "one_call_a_lane"])
+@pytest.mark.parametrize("text", [EVERY_FUNCTION, DRIVEN], ids=["every_function", "driven"])
+def test_h_over_rows_in_vector_registers_is_the_scalar_h_to_round_off(text, per_lane, monkeypatch):
+    """``pe_rows_hamiltonian``: H of several rows at a time (glibc's vector sin, cos, ...;
+    or, where the library lacks a function, the scalar one lane by lane), the last rows
+    padded to a whole vector; any number of rows, a time per row or one for all. Each
+    state's H is the same whatever batch it comes in."""
+    if per_lane:  # a libmvec without any of the functions: the text and its key change
+        monkeypatch.setattr(llvm_kernels, "_vector_library", lambda: frozenset())
+    mechanics = derive(parse_scene(text))
+    compiled = compile_system(mechanics, ("rhs", "hamiltonian"), backend="llvm")
+    assert "hamiltonian" in compiled.kernels.rows
+    assert ("_ZGV" in system_code(mechanics, ("hamiltonian",), backend="llvm").text) != per_lane
+    lanes = llvm_kernels.vector_target()[1]
+    Y = _states(compiled, count=5 * lanes + 3)
+    ts = np.linspace(0.0, 7.0, len(Y))
+    every = compiled.hamiltonian(ts, Y)
+    one = _hamiltonian_one_at_a_time(compiled, ts, Y)
+    np.testing.assert_allclose(every, one, rtol=1e-14, atol=1e-14 * np.max(np.abs(one)))
+    for start, stop in ((0, 1), (3, 4), (0, lanes - 1), (1, lanes + 1), (2, 4 * lanes + 1)):
+        np.testing.assert_array_equal(
+            compiled.hamiltonian(ts[start:stop], Y[start:stop]), every[start:stop]
+        )
+    at = compiled.hamiltonian(2.5, Y)
+    np.testing.assert_array_equal(at, [compiled.hamiltonian(2.5, y[None])[0] for y in Y])
+    one = _hamiltonian_one_at_a_time(compiled, np.full(len(Y), 2.5), Y)
+    np.testing.assert_allclose(at, one, rtol=1e-14, atol=1e-14 * np.max(np.abs(one)))
+    assert compiled.hamiltonian(0.0, Y[:0]).shape == (0,)
+
+
+def test_a_system_in_matrix_form_has_no_h_over_rows():
+    """H of a system in matrix form solves for the velocities first (a loop of the
+    drivers): it stays one row at a time."""
+    from systems.families import pendulum_chain
+
+    compiled = compile_system(derive(parse_scene(pendulum_chain(5))), ("rhs", "hamiltonian"))
+    assert compiled.mechanics.matrix_form is not None
+    assert compiled.kernels.rows == {}
