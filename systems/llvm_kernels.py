@@ -169,6 +169,7 @@ class _Writer:
         self.b = ir.IRBuilder(block)
         self.names: dict[str, object] = {}  # symbols and temporaries by name
         self.memo: dict = {}  # expression nodes of the current CSE
+        self.calls: set[str] = set()  # the functions called
         self.data: dict[str, object] = {}
         self.rows: dict[str, object] = {}  # a 2-D array's row length, in elements
         self.scalars: dict[str, object] = {}
@@ -386,6 +387,7 @@ class _Writer:
         return self._call("llvm.pow.f64", [self.value(base), self.value(exponent)])
 
     def _call(self, name: str, args: list):
+        self.calls.add(name)
         function = self.module.globals.get(name)
         if function is None:
             ir = self.ir
@@ -431,6 +433,11 @@ _ROWS_TYPE = ctypes.CFUNCTYPE(
     ctypes.c_void_p,
     ctypes.c_int64,
 )
+
+
+def _base_name(name: str) -> str:
+    """``cos`` of ``llvm.cos.f64``; a C function's name as it is."""
+    return name[len("llvm.") : -len(".f64")] if name.startswith("llvm.") else name
 
 
 def _vector_name(letter: str, lanes: int, name: str) -> str:
@@ -552,7 +559,7 @@ class _RowsWriter(_Writer):
 
     def _call(self, name: str, args: list):
         ir, b = self.ir, self.b
-        base = name[len("llvm.") : -len(".f64")] if name.startswith("llvm.") else name
+        base = _base_name(name)
         if base in _VECTOR_OPS:
             symbol = f"llvm.{base}.v{self.lanes}f64"
         elif base in self.library:
@@ -625,13 +632,20 @@ def write_ir(specs: Sequence[FunctionSpec], rename: dict) -> str:
     from llvmlite import ir
 
     module = ir.Module(name="pe_system")
+    calls = {}
     for spec in specs:
-        _Writer(module, spec, rename).write()
+        writer = _Writer(module, spec, rename)
+        writer.write()
+        calls[spec.name] = writer.calls
     library = _vector_library()
     for spec in specs:
         if library is None or spec.name not in ROWS_NAMES or spec.solve is not None:
             continue
         if spec.pre is not None and spec.pre[2] is not None:
+            continue
+        # arithmetic alone is a few nanoseconds a row: vectors would not repay the
+        # 10-20 ms that compiling them adds to a scene's first opening
+        if all(_base_name(name) in _VECTOR_OPS for name in calls[spec.name]):
             continue
         _RowsWriter(module, spec, rename, library).write()
     return str(module)
