@@ -211,7 +211,7 @@ counting (NRT). ``X_run`` is handed its scratch arrays (``spare``) instead."""
 def _numba_can_skip_nrt() -> bool:
     """Whether this numba's CPU target takes the (private) ``_nrt`` option; without it,
     kernels keep reference counting and are merely slower. Looked up, not compiled: this
-    runs on the way to a scene's first (interpreted) block."""
+    runs on the way to a scene's first block."""
     try:
         from numba.core.cpu import CPUTargetOptions
     except ImportError:
