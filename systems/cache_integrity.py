@@ -11,10 +11,11 @@ a sound file.
   pipe or a device; whatever is at an entry's path removed, a folder with its contents.
 - ``write_checked`` / ``read_checked``: a file whose first line holds the sha256 of the
   code version and the body that follow it; an entry that does not verify is deleted.
-- ``guard_numba_caches``: numba's per-function cache (an index ``.nbi`` and data files
-  ``.nbc`` in its ``__pycache__``; the index holds numba's version and the stamp of the
-  source file) gets a checksum file ``.nbsum`` written after each save and checked before
-  each load; an entry that does not verify or fails to load is deleted and compiled again.
+- ``guard_numba_caches``: numba's per-function cache (an index ``.nbi`` and a data file
+  ``.nbc`` per overload in its ``__pycache__``; the index holds numba's version and the
+  stamp of the source file) gets a checksum file ``.nbsum`` (one line per file) written
+  after each save; a load checks the index and the one data file it reads. An entry that
+  does not verify or fails to load is deleted and compiled again.
 - ``cache_root`` / ``usable_directory``: a cache directory that cannot be created or
   written (read-only, or a file in its place) is replaced for the session by a temporary
   one, with one warning line.
@@ -23,9 +24,12 @@ a sound file.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import glob
 import hashlib
 import os
+import pickle
+import re
 import shutil
 import stat
 import sys
@@ -168,30 +172,59 @@ def discard(path: Path, reason: str) -> None:
 # -- numba's on-disk cache ------------------------------------------------------------------
 
 
+SUMS_HEADER = b"phase-explorer-nbsum 2\n"
+"""First line of a ``.nbsum`` file: one line ``<sha256 hex> <file name>`` follows per file
+of the function (the index and each data file). A file without it is of the first
+format, one sha256 over all the files together (``HealingCache._legacy_checksum``)."""
+
+
+class _Damaged(Exception):
+    """Raised through numba's loader by ``HealingCache._load_data``: the data file does not
+    match its checksum (``reason``; "" when it has none). Not an ``OSError``, which numba's
+    loader takes for a file removed meanwhile and swallows."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
 class HealingCache:
     """numba's cache of one function, with checksums and a rebuild for damaged entries.
 
     Wraps the dispatcher's ``FunctionCache`` (every other attribute is the wrapped
-    cache's). ``save_overload`` records a sha256 of the function's index and data files
-    in a ``.nbsum`` file beside the index; ``load_overload`` first checks it and deletes
-    an entry that does not match, or that then fails to load, so numba compiles the
-    function again.
+    cache's). ``save_overload`` records a sha256 of each of the function's files (the
+    index and one data file per overload) in a ``.nbsum`` file beside the index;
+    ``load_overload`` first checks the index, and the one data file numba then reads
+    (through ``_load_data``, which takes the place of numba's reader of that cache), and
+    deletes an entry that does not match, or that then fails to load, so numba compiles
+    the function again. A loop with three overloads of 0.8 MB each hashed all three at
+    every load.
     """
 
     def __init__(self, cache, index: str):
         self._inner = cache
         self._index = Path(index)
         self._sums = Path(index[: -len(".nbi")] + ".nbsum")
+        cache_file = getattr(cache, "_cache_file", None)
+        # numba reads a data file by name through this method of its cache file: an
+        # unknown numba without it has every file checked before each load instead
+        self._per_file = callable(getattr(cache_file, "_load_data", None)) and callable(
+            getattr(cache_file, "_data_path", None)
+        )
+        if self._per_file:
+            cache_file._load_data = self._load_data
 
     def __getattr__(self, name: str):
         return getattr(self._inner, name)
 
     def load_overload(self, sig, target_context):
         """numba's compile result for ``sig`` from disk, or None to have it compiled."""
-        problem = self.verify()
+        problem = self.verify(index_only=self._per_file)
         if problem is None:
             try:
                 return self._inner.load_overload(sig, target_context)
+            except _Damaged as exc:
+                problem = exc.reason
             except Exception as exc:  # noqa: BLE001 - any failure to load means damage
                 problem = f"failed to load: {type(exc).__name__}"
         self.discard(problem)
@@ -205,20 +238,21 @@ class HealingCache:
         except OSError:
             self.discard("")  # a full disk or read-only folder: only a later miss
 
-    def verify(self) -> str | None:
-        """None if the entry is absent or matches its checksums, else why not ("" when it
-        merely has no checksum file: written by an older version, or interrupted)."""
+    def verify(self, index_only: bool = False) -> str | None:
+        """None if the entry is absent or its files match their checksums (only the
+        index's with ``index_only``), else why not ("" when it has no checksums: written
+        by an older version, or interrupted)."""
         if not os.path.lexists(self._index):
             return None
-        try:
-            recorded = read_file(self._sums)
-        except FileNotFoundError:
-            return ""
-        except NotAFile as exc:
-            return str(exc)
-        except OSError as exc:
-            return exc.strerror or type(exc).__name__
-        return None if recorded == self._checksum() else "checksum mismatch"
+        recorded = self._recorded()
+        if isinstance(recorded, str):
+            return recorded
+        paths = [self._index] if index_only else [self._index, *self._data_files()]
+        for path in paths:
+            problem = _mismatch(recorded, path)
+            if problem is not None:
+                return problem
+        return None
 
     def discard(self, reason: str) -> None:
         """Delete the function's index, data and checksum files; report a non-empty reason."""
@@ -227,12 +261,78 @@ class HealingCache:
         if reason:
             report(f"cache entry {self._index} was damaged ({reason}); rebuilding it")
 
+    def _load_data(self, name: str):
+        """numba's ``IndexDataCacheFile._load_data``: the data file ``name`` unpickled, once
+        it matches its checksum.
+
+        Raises
+        ------
+        _Damaged
+            If it does not (or has none, or something else is in its place).
+        FileNotFoundError
+            If there is no such file and none was recorded (numba then compiles).
+        """
+        path = Path(self._inner._cache_file._data_path(name))
+        recorded = self._recorded()
+        if isinstance(recorded, str):
+            raise _Damaged(recorded)
+        try:
+            data = read_file(path)
+        except FileNotFoundError:
+            if path.name in recorded:
+                raise _Damaged("checksum mismatch") from None
+            raise
+        except OSError as exc:
+            raise _Damaged(str(exc) if isinstance(exc, NotAFile) else "unreadable") from None
+        problem = _mismatch(recorded, path, data)
+        if problem is not None:
+            raise _Damaged(problem)
+        return pickle.loads(data)  # noqa: S301 - our own cache, checked just now
+
+    def _recorded(self) -> dict[str, bytes] | str:
+        """The recorded checksums by file name, or why there are none ("" for no file).
+
+        A file of the first format that matches the files on disk is rewritten in this
+        one (once per entry: nothing is compiled again)."""
+        try:
+            data = read_file(self._sums)
+        except FileNotFoundError:
+            return ""
+        except NotAFile as exc:
+            return str(exc)
+        except OSError as exc:
+            return exc.strerror or type(exc).__name__
+        if not data.startswith(SUMS_HEADER):
+            if data != self._legacy_checksum():
+                return "checksum mismatch"
+            data = self._checksum()
+            with contextlib.suppress(OSError):
+                write_atomic(self._sums, data)
+        recorded = {}
+        stem = re.escape(self._index.name[: -len(".nbi")].encode())
+        for line in data[len(SUMS_HEADER) :].splitlines():
+            found = re.fullmatch(rb"([0-9a-f]{64}) (" + stem + rb"(\.[0-9]+\.nbc|\.nbi))", line)
+            if found is None:  # a line cut or changed: not one this class writes
+                return "checksum mismatch"
+            recorded[found[2].decode()] = found[1]
+        return recorded
+
     def _data_files(self) -> list[Path]:
         stem = self._index.name[: -len(".nbi")]
         return sorted(self._index.parent.glob(f"{glob.escape(stem)}.*.nbc"))
 
     def _checksum(self) -> bytes:
-        """sha256 over the names and contents of the index and data files on disk."""
+        """The ``.nbsum`` file of the index and data files on disk."""
+        lines = [SUMS_HEADER]
+        for path in [self._index, *self._data_files()]:
+            try:
+                lines.append(_file_digest(read_file(path)) + b" " + path.name.encode() + b"\n")
+            except OSError:
+                pass  # not recorded: found damaged when numba reads it
+        return b"".join(lines)
+
+    def _legacy_checksum(self) -> bytes:
+        """The first format: one sha256 over the names and contents of all the files."""
         digest = hashlib.sha256()
         for path in [self._index, *self._data_files()]:
             digest.update(f"{path.name}\n".encode())
@@ -241,6 +341,25 @@ class HealingCache:
             except OSError:
                 digest.update(b"missing")
         return digest.hexdigest().encode() + b"\n"
+
+
+def _file_digest(data: bytes) -> bytes:
+    return hashlib.sha256(data).hexdigest().encode()
+
+
+def _mismatch(recorded: dict[str, bytes], path: Path, data: bytes | None = None) -> str | None:
+    """None if ``path`` (its bytes ``data`` if read already) matches its recorded checksum;
+    "" if it has none; else why not."""
+    if path.name not in recorded:
+        return "" if os.path.lexists(path) else None
+    if data is None:
+        try:
+            data = read_file(path)
+        except NotAFile as exc:
+            return str(exc)
+        except OSError:
+            return "checksum mismatch"
+    return None if _file_digest(data) == recorded[path.name] else "checksum mismatch"
 
 
 def guard_numba_caches(module: ModuleType) -> list[HealingCache]:

@@ -132,11 +132,73 @@ def stored_text(cache: Path, containing: bytes) -> Path:
         (SMALL, ".1.nbc", randomise),
         ("rhs", ".1.nbc", flip_a_byte),
         ("hamiltonian", ".nbi", empty),
+        (SMALL, ".nbsum", flip_a_byte),
     ],
 )
 def test_damaged_numba_files_are_rebuilt(cache, capsys, function, suffix, damage):
     damage(numba_file(cache, function, suffix))
     assert_healed(capsys, f".{function}-")
+
+
+def data_files_read(monkeypatch, capsys) -> list[Path]:
+    """The numba data files (``.nbc``) a run reads through the guards, once per read."""
+    read = []
+    original = cache_integrity.read_file
+
+    def recording(path):
+        read.append(Path(path))
+        return original(path)
+
+    with monkeypatch.context() as patched:
+        patched.setattr(cache_integrity, "read_file", recording)
+        assert run_once(capsys) == []
+    return [path for path in read if path.suffix == ".nbc"]
+
+
+def overloads(cache: Path, function: str) -> list[Path]:
+    return sorted((cache / "kernels" / "__pycache__").glob(f"*.{function}-*.nbc"))
+
+
+def test_loading_an_overload_checks_only_its_own_data_file(cache, capsys, monkeypatch):
+    # compose_run has three overloads (with and without sampled times and sections) of
+    # 0.2-0.9 MB each: the run loads two, and each load hashed all three
+    read = [p for p in data_files_read(monkeypatch, capsys) if p in overloads(cache, "compose_run")]
+    assert 0 < len(read) < len(overloads(cache, "compose_run")) == 3
+    assert len(set(read)) == len(read)
+
+
+def test_a_damaged_overload_is_found_when_it_is_loaded_and_only_then(cache, capsys, monkeypatch):
+    read = data_files_read(monkeypatch, capsys)
+    [unread, *_] = [p for p in overloads(cache, "compose_run") if p not in read]
+    randomise(unread)  # never read by this run: nothing to say, nothing rebuilt
+    assert run_once(capsys) == []
+    assert all(p.exists() for p in overloads(cache, "compose_run"))
+    [loaded, *_] = [p for p in read if p in overloads(cache, SMALL)]
+    flip_a_byte(loaded)
+    assert_healed(capsys, f".{SMALL}-")
+
+
+def _first_format(cache: Path, function: str) -> Path:
+    """Write ``function``'s checksums in the first format (one sha256 over every file)."""
+    index = numba_file(cache, function, ".nbi")
+    guard = HealingCache(None, str(index))
+    guard._sums.write_bytes(guard._legacy_checksum())
+    return guard._sums
+
+
+def test_checksums_of_the_first_format_are_rewritten_without_a_rebuild(cache, capsys):
+    sums = _first_format(cache, SMALL)
+    data = {p: p.stat().st_mtime_ns for p in sums.parent.glob(f"*.{SMALL}-*.nb[ci]")}
+    assert run_once(capsys) == []
+    assert sums.read_bytes().startswith(cache_integrity.SUMS_HEADER)
+    assert {p: p.stat().st_mtime_ns for p in data} == data  # loaded, not compiled again
+    assert run_once(capsys) == []
+
+
+def test_a_damaged_entry_under_checksums_of_the_first_format_is_rebuilt(cache, capsys):
+    _first_format(cache, SMALL)
+    flip_a_byte(numba_file(cache, SMALL, ".1.nbc"))
+    assert_healed(capsys, f".{SMALL}-")
 
 
 def test_a_numba_entry_that_verifies_but_fails_to_load_is_rebuilt(cache, capsys):
