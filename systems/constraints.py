@@ -51,6 +51,7 @@ way; the momenta are then p(q, qdot).
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import random
 from collections.abc import Sequence
@@ -59,6 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from systems import lambdified
 from systems.classification import NO_CONSTRAINTS, Constraints
 from systems.expressions import as_expr
 from systems.mechanics import DerivationError
@@ -501,6 +503,16 @@ def _assign(
 # -- numpy, for diagnostics and the initial state -----------------------------------------
 
 
+@functools.cache
+def _numeric_tag() -> str:
+    """The tag of ``Numeric``'s remembered functions: what writes their source (the
+    expressions are the scene's, whose key names the code that derives them)."""
+    from systems import derivation_cache
+
+    code = derivation_cache.code_hash(lambdified)
+    return f"numeric {code} sympy {sympy.__version__} numpy {np.__version__}"
+
+
 class Numeric:
     """The constraints of a compiled system evaluated with numpy, many states at once.
 
@@ -528,8 +540,8 @@ class Numeric:
             for kind, f in zip(self.pieces.kinds, self.pieces.values, strict=True)
         ]
         form = mech.matrix_form
-        # each lambdified on first use (``_lambdified``), 1-3 ms apiece: opening a scene
-        # again needs two or three of the seven
+        # each lambdified on first use (``_lambdified``), 1-3 ms apiece, and remembered on
+        # disk: opening a scene again needs two to four of the eight
         self._sources = {
             "positions": ((t, q), positions),
             "jacobian": ((t, q), [*self.pieces.jacobian, *self.pieces.time_derivative]),
@@ -545,17 +557,33 @@ class Numeric:
 
     def _lambdified(self, name: str):
         """The numpy function of the expressions ``name`` of ``_sources`` (None where there
-        are none), made once for this system and its copies."""
+        are none), made once for this system and its copies, and kept on disk with the
+        derivation (``derivation_cache.remembered_value``: its source text, compiled again
+        in 0.1 ms where sympy's printing took 1-3 ms)."""
         if name not in self._made:
             source = self._sources[name]
             if source is not None:
+                from systems import derivation_cache
+
                 args, exprs = source
-                # numpy itself, not "numpy" (``systems.lambdified.lambdify``'s reason)
-                source = sympy.lambdify(
-                    (*args, self._params), [as_expr(e) for e in exprs], modules=[np]
+                source = derivation_cache.remembered_value(
+                    f"{self._key} {name}",
+                    _numeric_tag(),
+                    lambda: lambdified.lambdify(
+                        (*args, self._params), [as_expr(e) for e in exprs], modules="numpy"
+                    ),
                 )
             self._made[name] = source
         return self._made[name]
+
+    @functools.cached_property
+    def _key(self) -> str:
+        """What names this system's functions on disk (the scene's key: a quarter of a
+        millisecond, once)."""
+        from systems import derivation_cache
+
+        scene = derivation_cache.scene_key(self.compiled.mechanics.scene)
+        return f"constraints.Numeric {scene} {' '.join(map(str, self._params))}"
 
     _positions = property(lambda self: self._lambdified("positions"))
     _jacobian = property(lambda self: self._lambdified("jacobian"))

@@ -372,6 +372,22 @@ def test_the_numpy_constraints_are_lambdified_as_they_are_needed(compiled):
     assert set(numeric._made) == set(other._made) >= {"positions", "mass", "forcing", "gamma"}
 
 
+def test_a_scene_opened_again_takes_its_numpy_constraints_from_the_disk(compiled, monkeypatch):
+    """sympy prints each function once per scene (1-3 ms apiece, on the way to a reopened
+    scene's first block): a new process, here a new ``Numeric``, compiles the source text
+    remembered with the derivation, and projects to the same bits."""
+    off = compiled.initial_state() + np.array([0.01, -0.02, 0.03, 0.01])
+    projected = constraints.Numeric(compiled).project(0.0, off)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("lambdified again")
+
+    monkeypatch.setattr(sympy, "lambdify", refused)
+    again = constraints.Numeric(compiled)
+    assert np.array_equal(again.project(0.0, off), projected)
+    assert {"positions", "jacobian", "mass", "momenta"} <= set(again._made)
+
+
 def test_other_parameter_values_are_used_without_lambdifying_again(compiled):
     longer = compiled.with_parameters({"l": 2.0})
     assert longer.constraints()._positions is compiled.constraints()._positions
