@@ -383,6 +383,12 @@ class SystemCode:
     seconds: float = 0.0
 
 
+NAMES_LINE = "; functions: "
+"""The first line of a system's LLVM IR text (a comment to LLVM): the names of its
+functions, so that a text read from the disk needs no symbolic work (the functions'
+specifications took 3 ms of the rolling disk's reopening: its constraints' rows)."""
+
+
 def system_code(
     mechanics: Mechanics,
     wanted: Iterable[str] = ("rhs", "hamiltonian"),
@@ -420,16 +426,19 @@ def system_code(
         raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
     if backend != "numba":
         writer = _KernelWriter(mechanics)
-        specs = writer.specs(wanted)
+
+        def write() -> str:
+            specs = writer.specs(wanted)
+            names = " ".join(spec.name for spec in specs)
+            return f"{NAMES_LINE}{names}\n" + llvm_kernels.write_ir(specs, writer.rename)
+
         try:
-            text = _remembered(
-                mechanics, "llvm", wanted, lambda: llvm_kernels.write_ir(specs, writer.rename)
-            )
+            text = _remembered(mechanics, "llvm", wanted, write)
         except llvm_kernels.Unsupported:
             if backend == "llvm":
                 raise
         else:
-            names = tuple(spec.name for spec in specs)
+            names = tuple(text[len(NAMES_LINE) : text.index("\n")].split())
             return SystemCode(wanted, "llvm", text, names, time.perf_counter() - start)
     text = _remembered(
         mechanics, "kernel source", wanted, lambda: _KernelWriter(mechanics).source(wanted)

@@ -367,11 +367,11 @@ impacts are the drivers' (``systems/integrators/kernels.py``), the same for ever
 def sizes(mechanics) -> np.ndarray:
     """The drivers' ``sizes`` (int64, (4,)): the number of constraints, of holonomic ones,
     of bilateral ones, and the index of the parameter ``restitution`` (-1 without)."""
-    pieces = rows(mechanics)
-    kh = sum(kind == "holonomic" for kind in pieces.kinds)
-    kb = kh + sum(kind == "nonholonomic" for kind in pieces.kinds)
+    number = counts(mechanics.scene)  # not ``rows``: a reopened scene needs no rows
+    kh = number["holonomic"]
+    kb = kh + number["nonholonomic"]
     index = restitution_index(mechanics.scene)
-    return np.array([pieces.k, kh, kb, -1 if index is None else index], dtype=np.int64)
+    return np.array([sum(number.values()), kh, kb, -1 if index is None else index], np.int64)
 
 
 def _primitive_parts(mechanics):
@@ -525,24 +525,39 @@ class Numeric:
     def __init__(self, compiled):
         self.compiled = compiled
         mech = compiled.mechanics
-        self.n, self.pieces = mech.n, rows(mech)
-        if self.pieces is None:
+        if not constrained(mech.scene):
             raise ValueError("the scene has no constraints")
-        self.k = self.pieces.k
-        kinds = np.array(self.pieces.kinds)
+        self.n = mech.n
+        kinds = np.array(
+            [kind for kind, number in counts(mech.scene).items() for _ in range(number)]
+        )
+        self.k = len(kinds)
         self.holonomic = kinds == "holonomic"
         self.nonholonomic = kinds == "nonholonomic"
         self.unilateral = kinds == "unilateral"
         self._params = tuple(mech.params[name] for name in compiled.parameter_names)
+        self._made: dict[str, object] = {}  # shared with ``bound_to``'s copies
+
+    @functools.cached_property
+    def pieces(self) -> Rows:
+        """The constraints' rows (``rows``): symbolic work (3 ms of the rolling disk's),
+        done only where a function is lambdified or an error names a constraint."""
+        return rows(self.compiled.mechanics)
+
+    @functools.cached_property
+    def _sources(self) -> dict:
+        """The expressions of each numpy function, by name, with their arguments (None: no
+        expression). Each is lambdified on first use (``_lambdified``), 1-3 ms apiece, and
+        remembered on disk: opening a scene again needs two to four of the eight and
+        none of these expressions."""
+        mech = self.compiled.mechanics
         t, q, qd = mech.t, mech.q, mech.qdot
         positions = [
             sympy.S.Zero if kind == "nonholonomic" else f
             for kind, f in zip(self.pieces.kinds, self.pieces.values, strict=True)
         ]
         form = mech.matrix_form
-        # each lambdified on first use (``_lambdified``), 1-3 ms apiece, and remembered on
-        # disk: opening a scene again needs two to four of the eight
-        self._sources = {
+        return {
             "positions": ((t, q), positions),
             "jacobian": ((t, q), [*self.pieces.jacobian, *self.pieces.time_derivative]),
             "mass": ((t, q, qd), list(mech.mass_matrix)),
@@ -553,7 +568,6 @@ class Numeric:
             "shift": ((t, q), list(form.shift)) if form is not None else None,
             "momenta": ((t, q, qd), mech.momenta),
         }
-        self._made: dict[str, object] = {}  # shared with ``bound_to``'s copies
 
     def _lambdified(self, name: str):
         """The numpy function of the expressions ``name`` of ``_sources`` (None where there
@@ -561,20 +575,25 @@ class Numeric:
         derivation (``derivation_cache.remembered_value``: its source text, compiled again
         in 0.1 ms where sympy's printing took 1-3 ms)."""
         if name not in self._made:
-            source = self._sources[name]
-            if source is not None:
-                from systems import derivation_cache
+            from systems import derivation_cache
 
-                args, exprs = source
-                source = derivation_cache.remembered_value(
-                    f"{self._key} {name}",
-                    _numeric_tag(),
-                    lambda: lambdified.lambdify(
-                        (*args, self._params), [as_expr(e) for e in exprs], modules="numpy"
-                    ),
+            # the expressions are only looked at (``_sources``) where none is on disk
+            matrix_form = self.compiled.mechanics.matrix_form is not None
+            absent = name == ("velocities" if matrix_form else "shift")
+            self._made[name] = (
+                None
+                if absent
+                else derivation_cache.remembered_value(
+                    f"{self._key} {name}", _numeric_tag(), lambda: self._lambdify(name)
                 )
-            self._made[name] = source
+            )
         return self._made[name]
+
+    def _lambdify(self, name: str) -> lambdified.Lambdified:
+        args, exprs = self._sources[name]
+        return lambdified.lambdify(
+            (*args, self._params), [as_expr(e) for e in exprs], modules="numpy"
+        )
 
     @functools.cached_property
     def _key(self) -> str:

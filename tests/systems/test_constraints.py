@@ -383,9 +383,22 @@ def test_a_scene_opened_again_takes_its_numpy_constraints_from_the_disk(compiled
         raise AssertionError("lambdified again")
 
     monkeypatch.setattr(sympy, "lambdify", refused)
+    monkeypatch.setattr(constraints, "rows", refused)  # nor the rows' derivatives (3 ms)
     again = constraints.Numeric(compiled)
     assert np.array_equal(again.project(0.0, off), projected)
     assert {"positions", "jacobian", "mass", "momenta"} <= set(again._made)
+    assert "pieces" not in vars(again) and "_sources" not in vars(again)
+
+
+@pytest.mark.parametrize("name", ["cartesian_pendulum", "rolling_disk", "bouncing_ball"])
+def test_the_drivers_sizes_are_counted_from_the_scene(name):
+    mechanics = derive(load_scene(name))
+    kinds = constraints.rows(mechanics).kinds
+    holonomic = kinds.count("holonomic")
+    bilateral = holonomic + kinds.count("nonholonomic")
+    index = constraints.restitution_index(mechanics.scene)
+    expected = [len(kinds), holonomic, bilateral, -1 if index is None else index]
+    assert constraints.sizes(mechanics).tolist() == expected
 
 
 def test_other_parameter_values_are_used_without_lambdifying_again(compiled):

@@ -192,8 +192,10 @@ def test_code_written_in_a_worker_is_machine_code_here(name):
 
 
 def test_the_written_code_is_remembered_per_scene(monkeypatch):
-    """A scene opened again skips the writing: its IR comes from the disk cache."""
-    from systems.compiled import system_code
+    """A scene opened again skips the writing: its IR comes from the disk cache, and so
+    do its functions' names (no specification of them: symbolic work, 3 ms of the
+    rolling disk's reopening)."""
+    from systems.compiled import _KernelWriter, system_code
 
     # a scene of its own: another test of this process may have written the catalogue's
     mechanics = derive(parse_scene(SEPARABLE.replace("k = 1.5", "k = 1.625")))
@@ -203,6 +205,7 @@ def test_the_written_code_is_remembered_per_scene(monkeypatch):
         raise AssertionError("written again")
 
     monkeypatch.setattr(llvm_kernels, "write_ir", refuse)
+    monkeypatch.setattr(_KernelWriter, "specs", refuse)
     again = system_code(mechanics, ("rhs", "hamiltonian"))
     assert again.text == first.text and again.names == first.names
     with pytest.raises(AssertionError, match="written again"):
