@@ -230,9 +230,8 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     are compiled without reference counting (``_nrt=False``): every array they unpack
     from a tuple or hand on would otherwise cost an atomic increment and decrement, about
     100 ns a leapfrog step, four times the step itself. numba compiles a callee with its
-    caller's flags, so a function that calls an allocating one (the constrained steps
-    call the saddle-point solves) keeps reference counting too. With
-    ``reference_counting`` every function keeps it (a system function that allocates:
+    caller's flags, so a function that calls an allocating one keeps reference counting
+    too. With ``reference_counting`` every function keeps it (a system function that allocates:
     the velocity solve of a system in matrix form). Steps and samples (``*_step``,
     ``*_sample``) are inlined into their callers (``inline='always'``).
     """

@@ -1847,6 +1847,17 @@ def taylor_sample_rows(fns, prev, state, times, lo, hi, P, coef, work, swork, st
 # constraints k, of holonomic ones, of bilateral ones (holonomic and nonholonomic), and
 # the index of the parameter ``restitution`` in P, -1 without one). The state y = (q, p)
 # has n = len(y) // 2 coordinates; the saddle-point systems are m = n + k square.
+# ``sc`` is their scratch (``c_scratch``), held in the constrained families' work: the
+# helpers the stepping loops call allocate nothing, so they and the loops are compiled
+# without reference counting (``codegen.jit_wrappers``), and each evaluation of ``c_rhs``
+# no longer allocates its saddle-point system.
+
+
+def c_scratch(k, n):
+    """The scratch of the constrained helpers: (W (m, m + 1), R (k, n + 1), four
+    n-vectors, seven k-vectors), m = n + k. Which helper uses which row is written at
+    its start; a helper never holds a row across a call that uses it."""
+    return (np.empty((n + k, n + k + 1)), np.empty((k, n + 1)), np.empty((4, n)), np.empty((7, k)))
 
 
 def c_solve(W, m, r):
@@ -1915,13 +1926,12 @@ def c_lambda(cs, t, y, P, act, W):
     c_solve(W, m, 1)
 
 
-def c_rhs(cs, t, y, P, act, out):
+def c_rhs(cs, t, y, P, act, out, sc):
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
-    W = np.empty((m, m + 1))
+    W, R = sc[0], sc[1]
     c_lambda(cs, t, y, P, act, W)
-    R = np.empty((k, n + 1))
     cs[2](t, y, P, R)
     cs[0](t, y, P, out)
     for i in range(n):
@@ -1932,12 +1942,10 @@ def c_rhs(cs, t, y, P, act, out):
 
 
 def c_bilateral_rhs(cs, t, y, P, out):
-    n = y.shape[0] // 2
-    k = cs[8][0]
-    n + k
-    act = np.empty(k)
+    sc = c_scratch(cs[8][0], y.shape[0] // 2)
+    act = sc[3][6]
     c_bilateral(cs, act)
-    c_rhs(cs, t, y, P, act, out)
+    c_rhs(cs, t, y, P, act, out, sc)
 
 
 def c_normal_speeds(cs, t, y, P, qd, R, out):
@@ -1952,22 +1960,20 @@ def c_normal_speeds(cs, t, y, P, qd, R, out):
         out[i] = acc
 
 
-def c_contacts(cs, t, y, P, act):
+def c_contacts(cs, t, y, P, act, sc):
     """act for the state y: the bilateral rows, and the unilateral rows it touches (g and
-    the normal velocity at zero) where the contact pushes (lambda <= 0)."""
+    the normal velocity at zero) where the contact pushes (lambda <= 0). Uses W, R, n-row
+    0 and k-rows 0-1 of ``sc``."""
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
     c_bilateral(cs, act)
     if cs[8][2] == k:
         return
-    g = np.empty(k)
+    W, R, qd, g, v = sc[0], sc[1], sc[2][0], sc[3][0], sc[3][1]
     cs[1](t, y, P, g)
-    qd = np.empty(n)
     cs[4](t, y, P, qd)
-    R = np.empty((k, n + 1))
     cs[2](t, y, P, R)
-    v = np.empty(k)
     c_normal_speeds(cs, t, y, P, qd, R, v)
     qscale = 1.0
     vscale = 1.0
@@ -1979,7 +1985,6 @@ def c_contacts(cs, t, y, P, act):
         if abs(g[i]) <= CONTACT_GAP * qscale and abs(v[i]) <= CONTACT_SPEED * vscale:
             act[i] = 1.0
             touching += 1
-    W = np.empty((m, m + 1))
     while touching > 0:
         c_lambda(cs, t, y, P, act, W)
         pulling = False
@@ -1997,9 +2002,9 @@ def c_multipliers(cs, t, y, P, out):
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
-    act = np.empty(k)
-    c_contacts(cs, t, y, P, act)
-    W = np.empty((m, m + 1))
+    sc = c_scratch(k, n)
+    act, W = sc[3][6], sc[0]
+    c_contacts(cs, t, y, P, act, sc)
     c_lambda(cs, t, y, P, act, W)
     for j in range(k):
         out[j] = W[n + j, m]
@@ -2021,14 +2026,13 @@ def c_constraint_values(cs, t, y, P, out):
             out[i] = v[i]
 
 
-def c_metric(cs, t, y, P, R, use, top, r, out):
+def c_metric(cs, t, y, P, R, use, top, r, out, W):
     """out = x of [[M, R_u^T], [R_u, 0]] [x; mu] = [M top; r_u] over the rows with
     use > 0: x = top - M^-1 R_u^T (R_u M^-1 R_u^T)^-1 (R_u top - r_u), the point of
-    R_u x = r_u nearest to ``top`` in the kinetic metric."""
+    R_u x = r_u nearest to ``top`` in the kinetic metric (W: its saddle-point system)."""
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
-    W = np.empty((m, m + 1))
     cs[3](t, y, P, W)
     for i in range(n):
         acc = 0.0
@@ -2054,19 +2058,16 @@ def c_metric(cs, t, y, P, R, use, top, r, out):
         out[i] = W[i, m]
 
 
-def c_project(cs, t, y, P, act):
+def c_project(cs, t, y, P, act, sc):
     """Move y = (q, p) onto the position rows (holonomic, and the acting contacts) and
-    every acting velocity row, in place; False if Newton's iteration did not converge."""
+    every acting velocity row, in place; False if Newton's iteration did not converge.
+    Uses W, R, n-rows 0-3 and k-rows 0-1 of ``sc``."""
     n = y.shape[0] // 2
     k = cs[8][0]
     n + k
-    qd = np.empty(n)
+    W, R, pos, use = sc[0], sc[1], sc[3][0], sc[3][1]
+    qd, dq, zero, p = sc[2][0], sc[2][1], sc[2][2], sc[2][3]
     cs[4](t, y, P, qd)
-    pos = np.empty(k)
-    R = np.empty((k, n + 1))
-    dq = np.empty(n)
-    zero = np.empty(n)
-    use = np.empty(k)
     npos = 0
     for i in range(n):
         zero[i] = 0.0
@@ -2082,7 +2083,7 @@ def c_project(cs, t, y, P, act):
         for _ in range(PROJECTION_ITERATIONS):
             cs[1](t, y, P, pos)
             cs[2](t, y, P, R)
-            c_metric(cs, t, y, P, R, use, zero, pos, dq)
+            c_metric(cs, t, y, P, R, use, zero, pos, dq, W)
             size = 0.0
             scale = 1.0
             for i in range(n):
@@ -2098,22 +2099,18 @@ def c_project(cs, t, y, P, act):
     cs[2](t, y, P, R)
     for i in range(k):
         pos[i] = -R[i, n]
-    c_metric(cs, t, y, P, R, act, qd, pos, dq)
-    p = np.empty(n)
+    c_metric(cs, t, y, P, R, act, qd, pos, dq, W)
     cs[5](t, y, dq, P, p)
     for i in range(n):
         y[n + i] = p[i]
     return converged
 
 
-def c_project_bilateral(cs, t, y, P):
+def c_project_bilateral(cs, t, y, P, sc):
     """Move y = (q, p) onto Phi(q, t) = 0 and the bilateral velocity rows, in place."""
-    n = y.shape[0] // 2
-    k = cs[8][0]
-    n + k
-    act = np.empty(k)
+    act = sc[3][6]
     c_bilateral(cs, act)
-    return c_project(cs, t, y, P, act)
+    return c_project(cs, t, y, P, act, sc)
 
 
 def c_restitution(cs, P):
@@ -2123,10 +2120,10 @@ def c_restitution(cs, P):
     return max(P[cs[8][3]], 0.0)
 
 
-def c_event_values(cs, t, y, P, act, out):
+def c_event_values(cs, t, y, P, act, out, sc):
     """out[i] for the unilateral rows: g (a free row) or -lambda (an acting contact);
     inf for the bilateral rows. A negative value means the state went through a wall or
-    a contact pulls."""
+    a contact pulls. Uses W and k-row 0 of ``sc``."""
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
@@ -2134,7 +2131,7 @@ def c_event_values(cs, t, y, P, act, out):
         out[i] = math.inf
     if cs[8][2] == k:
         return
-    g = np.empty(k)
+    W, g = sc[0], sc[3][0]
     cs[1](t, y, P, g)
     contact = False
     for i in range(cs[8][2], k):
@@ -2143,14 +2140,13 @@ def c_event_values(cs, t, y, P, act, out):
         else:
             out[i] = g[i]
     if contact:
-        W = np.empty((m, m + 1))
         c_lambda(cs, t, y, P, act, W)
         for i in range(cs[8][2], k):
             if act[i] > 0.0:
                 out[i] = -W[n + i, m]
 
 
-def c_switch(cs, t, y, P, act, which):
+def c_switch(cs, t, y, P, act, which, sc):
     """At the located event of row ``which``: release it if it is an acting contact (its
     multiplier reached zero); otherwise Newton's restitution law on it (and on every other
     free row as close, g <= its g, that approaches), jointly and keeping every acting row:
@@ -2159,7 +2155,8 @@ def c_switch(cs, t, y, P, act, which):
     normal acceleration of the free motion after the impact: e = 0, or the end of a Zeno
     sequence of ever lower bounces) makes the contact a resting one instead (normal
     velocity 0, act = 1). Contacts that would pull are then released, one at a time.
-    Returns False if nothing changed."""
+    Returns False if nothing changed. Uses W, R, n-rows 0, 1, 3 and k-rows 0-5 of
+    ``sc``."""
     n = y.shape[0] // 2
     k = cs[8][0]
     m = n + k
@@ -2167,20 +2164,15 @@ def c_switch(cs, t, y, P, act, which):
         act[which] = 0.0
         return True
     e = c_restitution(cs, P)
-    qd = np.empty(n)
+    W, R, qd, new, p = sc[0], sc[1], sc[2][0], sc[2][1], sc[2][3]
+    g, v, use, target, hit, gamma = sc[3][0], sc[3][1], sc[3][2], sc[3][3], sc[3][4], sc[3][5]
     cs[4](t, y, P, qd)
-    g = np.empty(k)
     cs[1](t, y, P, g)
-    R = np.empty((k, n + 1))
     cs[2](t, y, P, R)
-    v = np.empty(k)
     c_normal_speeds(cs, t, y, P, qd, R, v)
     qscale = 1.0
     for j in range(n):
         qscale = max(qscale, abs(y[j]))
-    use = np.empty(k)
-    target = np.empty(k)
-    hit = np.empty(k)
     level = max(g[which], 0.0)
     changed = False
     for i in range(k):
@@ -2196,16 +2188,12 @@ def c_switch(cs, t, y, P, act, which):
             changed = True
     if not changed:
         return False
-    new = np.empty(n)
-    c_metric(cs, t, y, P, R, use, qd, target, new)
-    p = np.empty(n)
+    c_metric(cs, t, y, P, R, use, qd, target, new, W)
     cs[5](t, y, new, P, p)
     for i in range(n):
         y[n + i] = p[i]
     # how high each rebound would rise: v+**2 / (2 |a_n|) with the free motion's a_n
-    W = np.empty((m, m + 1))
     c_lambda(cs, t, y, P, act, W)
-    gamma = np.empty(k)
     cs[7](t, y, P, gamma)
     resting = False
     for i in range(cs[8][2], k):
@@ -2219,7 +2207,7 @@ def c_switch(cs, t, y, P, act, which):
                 target[i] = -R[i, n]
                 resting = True
     if resting:
-        c_metric(cs, t, y, P, R, use, qd, target, new)
+        c_metric(cs, t, y, P, R, use, qd, target, new, W)
         cs[5](t, y, new, P, p)
         for i in range(n):
             y[n + i] = p[i]
@@ -2248,7 +2236,7 @@ def c_switch(cs, t, y, P, act, which):
 # driver never sees the penetrated state.
 
 
-def _c_stages(fns, t, y, P, act, h, tableau, buffers, stages):
+def _c_stages(fns, t, y, P, act, h, tableau, buffers, stages, sc):
     """``_rk_stages`` on the constrained ``c_rhs`` with the rows ``act``."""
     A, c = tableau
     K, Yst = buffers
@@ -2259,16 +2247,16 @@ def _c_stages(fns, t, y, P, act, h, tableau, buffers, stages):
             for j in range(i):
                 acc += A[i, j] * K[j, k]
             Yst[k] = y[k] + h * acc
-        c_rhs(fns, t + c[i] * h, Yst, P, act, K[i])
+        c_rhs(fns, t + c[i] * h, Yst, P, act, K[i], sc)
 
 
 def cdop853_work(coef, m):
     S = coef[1].shape[0]
     k = coef[5][0]
     # K, ynew, ys, y at the left end of an event's bracket, act, act0, mask (the rows
-    # watched for an event: value >= 0 at the start of the step), event values, flags
-    # [step kept (the driver zeroes it when it undoes one), last rejected, K[0] valid,
-    # contacts known, 1 + the row of an event to apply next]
+    # watched for an event: value >= 0 at the start of the step), event values, the
+    # helpers' scratch, flags [step kept (the driver zeroes it when it undoes one), last
+    # rejected, K[0] valid, contacts known, 1 + the row of an event to apply next]
     return (
         np.empty((S + 1, m)),
         np.empty(m),
@@ -2278,6 +2266,7 @@ def cdop853_work(coef, m):
         np.empty(k),
         np.empty(k),
         np.empty(k),
+        c_scratch(k, m // 2),
         np.zeros(5),
     )
 
@@ -2286,12 +2275,12 @@ def _c_trial(fns, t, y, P, act, h, coef, work):
     """ynew = the DOP853 step of size h from y (K[0] = f(t, y) already), not projected;
     returns the error norm."""
     A, B, C, E3, E5, _sizes, rtol, atol, _hmax = coef
-    K, ynew, ys = work[0], work[1], work[2]
+    K, ynew, ys, sc = work[0], work[1], work[2], work[8]
     S = B.shape[0]
-    _c_stages(fns, t, y, P, act, h, (A, C), (K, ys), (1, S))
+    _c_stages(fns, t, y, P, act, h, (A, C), (K, ys), (1, S), sc)
     for k in range(y.shape[0]):
         ynew[k] = y[k] + h * _rk_sum(K, B, k)
-    c_rhs(fns, t + h, ynew, P, act, K[S])
+    c_rhs(fns, t + h, ynew, P, act, K[S], sc)
     return _dop853_norm(K, E5, E3, h, y, ynew, rtol, atol)
 
 
@@ -2311,17 +2300,17 @@ def _c_locate(fns, t, y, P, h, coef, work):
     the largest step size a found with value >= 0 (regula falsi, Illinois), its state in
     ``ynew``. Returns (a, the event's row, evaluations). ``mask`` (in ``work[6]``) holds the
     rows whose value was >= 0 at the start of the step."""
-    K, ynew, ys, ya, act, act0, mask, values, flags = work
+    K, ynew, ys, ya, act, act0, mask, values, sc, flags = work
     S = coef[1].shape[0]
     evals = 0
-    c_event_values(fns, t, y, P, act, values)
+    c_event_values(fns, t, y, P, act, values, sc)
     fa, _ = _c_first(values, mask)
     fa = max(fa, 0.0)
     for k in range(y.shape[0]):
         ya[k] = y[k]
     a = 0.0
     b = h
-    c_event_values(fns, t + h, ynew, P, act, values)
+    c_event_values(fns, t + h, ynew, P, act, values, sc)
     fb, which = _c_first(values, mask)
     tol = 1e-15 * max(fa, -fb)
     side = 0
@@ -2336,11 +2325,11 @@ def _c_locate(fns, t, y, P, h, coef, work):
             s = 0.5 * (a + b)
         _c_trial(fns, t, y, P, act, s, coef, work)
         evals += S
-        if not c_project(fns, t + s, ynew, P, act) or not _finite(ynew):
+        if not c_project(fns, t + s, ynew, P, act, sc) or not _finite(ynew):
             b = s  # no good state there: look before it
             side = 0
             continue
-        c_event_values(fns, t + s, ynew, P, act, values)
+        c_event_values(fns, t + s, ynew, P, act, values, sc)
         fs, row = _c_first(values, mask)
         if fs < 0.0:
             b = s
@@ -2375,12 +2364,12 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     a chord across it). Steps are at most ``hmax``, as in ``dop853_step``.
     """
     A, B, C, E3, E5, sizes, rtol, atol, hmax = coef
-    K, ynew, ys, ya, act, act0, mask, values, flags = work
+    K, ynew, ys, ya, act, act0, mask, values, sc, flags = work
     t = clock[CLOCK_T]
     evals = 0
     if flags[0] == 0.0:  # the start, or the driver undid the last step
         if flags[3] == 0.0:
-            c_contacts(fns, t, y, P, act)
+            c_contacts(fns, t, y, P, act, sc)
             flags[3] = 1.0
         else:
             for i in range(act.shape[0]):
@@ -2393,13 +2382,13 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     if flags[4] != 0.0:  # the event the last step ended at: applied here, at the same t
         which = int(flags[4]) - 1
         flags[4] = 0.0
-        c_switch(fns, t, y, P, act, which)
+        c_switch(fns, t, y, P, act, which, sc)
         for k in range(y.shape[0]):
             comp[k] = 0.0
         flags[2] = 0.0
         return STATUS_RUNNING, evals
     if flags[2] == 0.0:  # K[0] is f at the start of the step
-        c_rhs(fns, t, y, P, act, K[0])
+        c_rhs(fns, t, y, P, act, K[0], sc)
         evals += 1
         flags[2] = 1.0
     S = B.shape[0]
@@ -2423,17 +2412,17 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
     factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
     if flags[1] != 0.0:
         factor = min(1.0, factor)
-    if not c_project(fns, t + h, ynew, P, act):
+    if not c_project(fns, t + h, ynew, P, act, sc):
         return STATUS_NOT_CONVERGED, evals
     following = min(h * factor, hmax)
     if sizes[1] < sizes[0]:  # unilateral rows
-        c_event_values(fns, t + h, ynew, P, act, values)
+        c_event_values(fns, t + h, ynew, P, act, values, sc)
         event = False
         for i in range(act.shape[0]):
             if values[i] < 0.0:
                 event = True
         if event:
-            c_event_values(fns, t, y, P, act, mask)
+            c_event_values(fns, t, y, P, act, mask, sc)
             for i in range(act.shape[0]):
                 mask[i] = 1.0 if mask[i] >= 0.0 and mask[i] < math.inf else 0.0
             _, first = _c_first(values, mask)
@@ -2444,7 +2433,7 @@ def cdop853_step(fns, y, comp, clock, P, coef, work):
                 last = False
                 if h > 0.0:
                     flags[4] = which + 1.0  # the next call applies it
-                elif not c_switch(fns, t, ynew, P, act, which):
+                elif not c_switch(fns, t, ynew, P, act, which, sc):
                     return STATUS_NOT_CONVERGED, evals  # an event at once that changes nothing
     for k in range(y.shape[0]):
         y[k] = ynew[k]
@@ -2467,44 +2456,45 @@ def cdop853_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
     the sample is as accurate; an event ends a step, so no sample crosses one."""
     yprev, _, kprev = prev
     ys = scratch[0]
-    K, ynew, act = swork[0], swork[1], swork[4]
+    K, ynew, act, sc = swork[0], swork[1], swork[4], swork[8]
     t0 = kprev[CLOCK_T]
     evals = 0
     if first:
         act0 = work[5]
         for i in range(act.shape[0]):
             act[i] = act0[i]
-        c_rhs(fns, t0, yprev, P, act, K[0])
+        c_rhs(fns, t0, yprev, P, act, K[0], sc)
         evals += 1
     _c_trial(fns, t0, yprev, P, act, s - t0, coef, swork)
     evals += coef[1].shape[0]
     for k in range(ys.shape[0]):
         ys[k] = ynew[k]
-    if not c_project(fns, s, ys, P, act):
+    if not c_project(fns, s, ys, P, act, sc):
         return STATUS_NOT_CONVERGED, evals
     return STATUS_RUNNING, evals
 
 
 def cerk_work(coef, m):
     s = coef[0].shape[0]
-    return (np.empty((s, m)), np.empty(m), np.empty(coef[4][0]), np.zeros(1))
+    k = coef[4][0]
+    return (np.empty((s, m)), np.empty(m), np.empty(k), c_scratch(k, m // 2), np.zeros(1))
 
 
 def cerk_step(fns, y, comp, clock, P, coef, work):
     """A fixed explicit Runge-Kutta step on the equations with the multipliers of the
     bilateral constraints (the registry refuses unilateral ones), then the projection."""
     A, b, c, kahan, _sizes = coef
-    K, Yst, act, _ = work
+    K, Yst, act, sc, _ = work
     s = b.shape[0]
     m = y.shape[0]
     t = clock[CLOCK_T]
     h = clock[CLOCK_H]
     c_bilateral(fns, act)
-    _c_stages(fns, t, y, P, act, h, (A, c), (K, Yst), (0, s))
+    _c_stages(fns, t, y, P, act, h, (A, c), (K, Yst), (0, s), sc)
     for k in range(m):
         _add(y, comp, k, h * _rk_sum(K, b, k), kahan)
     _tick_fixed(clock)
-    if not c_project_bilateral(fns, clock[CLOCK_T], y, P):
+    if not c_project_bilateral(fns, clock[CLOCK_T], y, P, sc):
         return STATUS_NOT_CONVERGED, s
     for k in range(m):
         comp[k] = 0.0
