@@ -14,10 +14,10 @@ wrapper-address protocol).
 Only what the scene language produces is written: numbers, symbols, sums, products,
 powers and the functions of ``INTRINSICS`` and ``LIBM``; anything else raises
 ``Unsupported`` and ``systems.compiled`` compiles the scene's functions with numba
-instead. Loops are not written: a system in matrix form calls the drivers'
-``solve_augmented`` (``FunctionSpec.solve``), and a constrained scene's multipliers,
-projections and impacts are the drivers' own, given its straight-line ``PRIMITIVES``
-(``systems.constraints``).
+instead. The only loop written is H over rows in vector registers (``_RowsWriter``): a
+system in matrix form calls the drivers' ``solve_augmented`` (``FunctionSpec.solve``),
+and a constrained scene's multipliers, projections and impacts are the drivers' own,
+given its straight-line ``PRIMITIVES`` (``systems.constraints``).
 """
 
 from __future__ import annotations
