@@ -6,10 +6,235 @@ with Gauss-Legendre 4 >= 5e5 steps/s; an ensemble of 1000 pendulums uses both co
 
 from __future__ import annotations
 
+import argparse
+import io
+import json
+import math
 import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-from _common import best_time, compiled_scene, report
+from _common import ROOT, best_time, cache_env, compiled_scene, report
+
+INLINED = "ecd846c^"
+"""The last commit whose loops numba compiled per scene with the system inlined (the next
+one, ecd846c, made the drivers take the scene's functions as first-class functions)."""
+RATIO_TARGET = 0.85
+"""Issue 23: no family slower than this fraction of the inlined kernels' steps/s."""
+SECONDS = 0.4
+"""Length of one timed call of a loop, at the faster of the two trees."""
+
+
+@dataclass(frozen=True)
+class Case:
+    family: str
+    method: str
+    scene: str
+    value: float  # dt, ds or tol
+
+    @property
+    def key(self) -> str:
+        return f"{self.method}/{self.scene}"
+
+
+# Families present at both commits, on representative systems (taylor came later).
+CASES = (
+    Case("composition", "leapfrog", "simple_pendulum", 1e-3),
+    Case("composition", "yoshida4", "simple_pendulum", 1e-3),
+    Case("composition", "yoshida4", "henon_heiles", 1e-2),
+    Case("runge_kutta", "rk4", "simple_pendulum", 1e-3),
+    Case("runge_kutta", "rk4", "double_pendulum", 1e-3),
+    Case("gauss", "gauss_legendre4", "double_pendulum", 1e-3),
+    Case("dop853", "dop853", "double_pendulum", 1e-10),
+    Case("logh", "logh_yoshida4", "kepler_cartesian", 1e-3),
+    Case("gauss_tt", "gauss_legendre4_tt", "kepler_cartesian", 1e-3),
+    Case("constrained", "constrained_dop853", "cartesian_pendulum", 1e-10),
+    Case("constrained", "constrained_dop853", "rolling_disk", 1e-10),
+    Case("constrained_fixed", "constrained_rk4", "cartesian_pendulum", 1e-3),
+)
+
+# One trajectory's loop in a child process, driven over stdin/stdout one request at a time,
+# the same script in either tree (the runners' API is the same at both commits):
+# prepare (derive, compile the scene and run a few steps: numba compiles or loads the
+# loop), then time: a new runner from the scene's start, outside the clock, and one call of
+# its compiled loop for ``steps`` steps keeping 64 states (``runner.advance``).
+CHILD = r"""
+import gc, json, math, os, sys, time
+sys.path.insert(0, os.getcwd())
+reply = os.fdopen(os.dup(1), "w", buffering=1)
+os.dup2(2, 1)  # whatever the code prints goes to stderr
+import numpy as np
+from systems.compiled import compile_system
+from systems.integrators import get_stepper
+from systems.integrators.registry import make_runner
+from systems.mechanics import derive
+from systems.scene import load_scene
+from systems.simulation import required_wants
+
+cases = {}
+for line in sys.stdin:
+    request = json.loads(line)
+    if request["op"] == "quit":
+        break
+    key = request["key"]
+    if request["op"] == "prepare":
+        start = time.perf_counter()
+        wants = required_wants(request["method"]) | {"hamiltonian"}
+        compiled = compile_system(derive(load_scene(request["scene"])), wants)
+        stepper = get_stepper(request["method"])
+        case = cases[key] = (compiled, stepper, compiled.initial_state(0.0), request["value"])
+        built = time.perf_counter()
+        make_runner(compiled, stepper, case[2], 0.0, math.inf, case[3], None).advance(4, 64)
+        reply.write(json.dumps({"build": built - start,
+                                "loop": time.perf_counter() - built}) + "\n")
+        continue
+    compiled, stepper, y0, value = cases[key]
+    runner = make_runner(compiled, stepper, y0, 0.0, math.inf, value, None)
+    gc.collect()
+    gc.disable()
+    start, cpu = time.perf_counter(), time.thread_time()
+    out = runner.advance(request["steps"], 64)
+    wall, cpu = time.perf_counter() - start, time.thread_time() - cpu
+    gc.enable()
+    reply.write(json.dumps({"wall": wall, "cpu": cpu, "steps": out.steps, "evals": out.evals,
+                            "code": int(out.code), "t": runner.t,
+                            "y": [float(v) for v in runner.y]}) + "\n")
+"""
+
+
+class Child:
+    """A child process running ``CHILD`` in ``tree`` with the cache ``cache`` (None: the
+    environment's)."""
+
+    def __init__(self, tree: Path, cache: Path | None):
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", CHILD], cwd=tree, env=cache_env(cache), text=True,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        )  # fmt: skip
+
+    def ask(self, **request) -> dict:
+        self.process.stdin.write(json.dumps(request) + "\n")
+        self.process.stdin.flush()
+        line = self.process.stdout.readline()
+        if not line:
+            self.process.kill()
+            raise RuntimeError(self.process.stderr.read()[-3000:])
+        return json.loads(line)
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            try:
+                self.process.stdin.write('{"op": "quit"}\n')
+                self.process.stdin.flush()
+                self.process.wait(timeout=30)
+            except (OSError, subprocess.TimeoutExpired):
+                self.process.kill()
+                self.process.wait()
+
+
+def old_tree(into: Path) -> str | None:
+    """Extract ``INLINED`` into ``into`` (``git archive``); the reason if it cannot."""
+    if shutil.which("git") is None:
+        return "git is not installed"
+    try:
+        archive = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", "--format=tar", INLINED],
+            capture_output=True, check=True, timeout=120,
+        )  # fmt: skip
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
+        stderr = getattr(exc, "stderr", b"") or b""
+        return f"git archive {INLINED} failed: {stderr.decode(errors='replace').strip() or exc}"
+    with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+        tar.extractall(into, filter="data")
+    return None
+
+
+def measure(old: Child, new: Child, case: Case, rounds: int) -> dict:
+    """Best steps/s of ``case`` in both trees: ``rounds`` timed calls each, alternating
+    which tree goes first."""
+    request = dict(key=case.key, method=case.method, scene=case.scene, value=case.value)
+    prepared = {"old": old.ask(op="prepare", **request), "new": new.ask(op="prepare", **request)}
+    probe = 20_000
+    rates = []
+    for child in (old, new):
+        r = child.ask(op="time", key=case.key, steps=probe)
+        rates.append(r["steps"] / r["wall"])
+    steps = max(probe, math.ceil(SECONDS * max(rates)))
+    best = {"old": math.inf, "new": math.inf}
+    cpu = {"old": math.inf, "new": math.inf}
+    last = {}
+    for i in range(rounds):
+        order = (("old", old), ("new", new)) if i % 2 == 0 else (("new", new), ("old", old))
+        for name, child in order:
+            r = child.ask(op="time", key=case.key, steps=steps)
+            best[name] = min(best[name], r["wall"])
+            cpu[name] = min(cpu[name], r["cpu"])
+            last[name] = r
+    same = last["old"]["steps"] == last["new"]["steps"]
+    y_old, y_new = np.array(last["old"]["y"]), np.array(last["new"]["y"])
+    scale = max(1.0, float(np.max(np.abs(y_old))))
+    return {
+        "steps": last["new"]["steps"],
+        "old": last["old"]["steps"] / best["old"],
+        "new": last["new"]["steps"] / best["new"],
+        "old_cpu": last["old"]["steps"] / cpu["old"],
+        "new_cpu": last["new"]["steps"] / cpu["new"],
+        "same_steps": same,
+        "state_gap": float(np.max(np.abs(y_old - y_new))) / scale,
+        "evals": (last["old"]["evals"], last["new"]["evals"]),
+        "compile": prepared["old"]["loop"] + prepared["old"]["build"],
+    }
+
+
+def compare(rounds: int = 5, cases=CASES) -> bool:
+    """steps/s of each case now and with the inlined kernels of ``INLINED``; one PASS/MISS
+    line per case (ratio now / inlined >= ``RATIO_TARGET``). Skipped (True) when the old
+    tree cannot be had."""
+    print(f"  against the inlined kernels of {INLINED} (ratio = now / inlined, target >= "
+          f"{RATIO_TARGET}); taylor did not exist then: no row")  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="pe-inlined-") as tmp:
+        tree = Path(tmp) / "tree"
+        tree.mkdir()
+        why = old_tree(tree)
+        if why is not None:
+            print(f"  skipped: {why}")
+            return True
+        old = Child(tree, Path(tmp) / "cache")
+        new = Child(ROOT, None)
+        results = []
+        try:
+            for case in cases:
+                print(f"  {case.method} on {case.scene}: compiling the inlined loop "
+                      "(seconds to tens of seconds) ...", flush=True)  # fmt: skip
+                results.append((case, measure(old, new, case, rounds)))
+                r = results[-1][1]
+                print(f"    {r['old']:.3g} -> {r['new']:.3g} steps/s "
+                      f"({r['new'] / r['old']:.2f}x; compiled in {r['compile']:.1f} s)",
+                      flush=True)  # fmt: skip
+        finally:
+            old.close()
+            new.close()
+    head = f"  {'family':<18}{'method':<20}{'scene':<19}{'steps':>10}"
+    print(head + f"{'inlined/s':>11}{'now/s':>11}{'ratio':>7}{'cpu':>7}  same")
+    ok = True
+    for case, r in results:
+        ratio, cpu = r["new"] / r["old"], r["new_cpu"] / r["old_cpu"]
+        same = "yes" if r["same_steps"] and r["state_gap"] < 1e-9 else f"{r['state_gap']:.1g}"
+        print(f"  {case.family:<18}{case.method:<20}{case.scene:<19}{r['steps']:>10}"
+              f"{r['old']:>11.3g}{r['new']:>11.3g}{ratio:>7.2f}{cpu:>7.2f}  {same}")  # fmt: skip
+    for case, r in results:
+        ratio = r["new"] / r["old"]
+        ok &= report(
+            f"{case.method} on {case.scene}, now / inlined steps/s", ratio,
+            f">= {RATIO_TARGET}", ratio >= RATIO_TARGET,
+        )  # fmt: skip
+    return ok
 
 
 def single(compiled, method: str, steps: int, dt: float) -> float:
@@ -24,7 +249,7 @@ def single(compiled, method: str, steps: int, dt: float) -> float:
     return steps / best_time(go)
 
 
-def main() -> bool:
+def main(inlined: bool = True, rounds: int = 5) -> bool:
     import numba
 
     from systems.simulation import ensemble
@@ -57,8 +282,23 @@ def main() -> bool:
         "ensemble speed-up, threads vs one", speedup, f">= {0.75 * min(cores, 2):.2g} (both cores)",
         speedup >= 0.75 * min(cores, 2),
     )  # fmt: skip
+    if inlined:
+        ok &= compare(rounds)
     return ok
 
 
 if __name__ == "__main__":
-    raise SystemExit(0 if main() else 1)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--no-inlined",
+        action="store_true",
+        help=f"skip the comparison with the inlined kernels of {INLINED}",
+    )
+    parser.add_argument("--rounds", type=int, default=5, help="timed calls per tree and case")
+    parser.add_argument("--only", help="comparison only, of the cases whose method/scene "
+                        "contains this text")  # fmt: skip
+    args = parser.parse_args()
+    if args.only is not None:
+        chosen = tuple(c for c in CASES if args.only in c.key)
+        raise SystemExit(0 if compare(args.rounds, chosen) else 1)
+    raise SystemExit(0 if main(not args.no_inlined, args.rounds) else 1)
