@@ -2,6 +2,67 @@
 
 Targets (issue 3): pendulum leapfrog >= 2e7 steps/s for one trajectory; double pendulum
 with Gauss-Legendre 4 >= 5e5 steps/s; an ensemble of 1000 pendulums uses both cores.
+
+Issue 23: steps/s per family against the inlined kernels, no family below 0.85x. Until
+ecd846c numba compiled each method's stepping loop per scene with the system functions
+inlined; since then the loops are compiled once and call the scene's functions through
+function pointers. ``compare`` extracts ``INLINED`` (ecd846c^, ``git archive``) into a
+temporary directory and runs the same small script (``CHILD``) in two child processes,
+one in that tree with a cache of its own, one in this tree with the environment's
+cache: each derives the scene, builds its ``Run``'s runner (``make_runner``, the same API
+at both commits) and runs a few steps, which compiles the old loop (1-6 s a scene and
+family) or loads the new one; then each timed call is a new runner from the scene's start
+(built outside the clock) and one call of its compiled loop, ``runner.advance(steps,
+64)``: one trajectory, fixed steps, 64 states kept (so the same output stride), no
+stream, no interpreted twin, no Python between steps. ``steps`` is the same in both trees
+and makes the faster one take about ``SECONDS``; best of ``--rounds`` (5) calls per tree,
+the trees alternating, which one goes first alternating too, one process working at a
+time. Both must end on the same state (the 'end state' column: bitwise in every row
+today). Rows: families present at both commits on representative scenes; taylor came
+after ecd846c (no row). Skipped, not failed, without git or without that commit.
+
+2026-11-29, two-core AMD EPYC VM, load average 0.6-0.9 before each run,
+``python benchmarks/throughput.py`` (two runs, and one of the comparison alone with
+``--only "" --rounds 3``; the rates are the last run's, the ratios' range all three):
+
+    family             method              scene               inlined/s  now/s    ratio
+    composition        leapfrog            simple_pendulum     3.63e7     2.91e7   0.78-0.80
+    composition        yoshida4            simple_pendulum     1.44e7     1.08e7   0.75-0.76
+    composition        yoshida4            henon_heiles        1.99e7     1.72e7   0.86
+    runge_kutta        rk4                 simple_pendulum     1.03e7     1.06e7   1.03-1.07
+    runge_kutta        rk4                 double_pendulum     4.11e6     4.09e6   0.96-1.00
+    gauss              gauss_legendre4     double_pendulum     7.45e5     8.20e5   1.08-1.10
+    dop853 (tol 1e-10) dop853              double_pendulum     9.06e5     8.87e5   0.98-1.01
+    logh               logh_yoshida4       kepler_cartesian    6.74e6     6.00e6   0.88-0.89
+    gauss_tt           gauss_legendre4_tt  kepler_cartesian    7.96e5     9.40e5   1.16-1.20
+    constrained        constrained_dop853  cartesian_pendulum  4.79e5     4.26e5   0.89-1.02
+    constrained        constrained_dop853  rolling_disk        2.87e5     2.48e5   0.86-0.93
+    constrained_fixed  constrained_rk4     cartesian_pendulum  1.06e6     1.14e6   1.08-1.27
+
+Misses: the composition family on the simple pendulum (leapfrog 27.5 -> 34.4 ns a step,
+yoshida4 69 -> 93 ns), where a step computes almost nothing but a sine; Henon-Heiles
+(polynomial, same calls) is at the edge, 0.86. The loss is a cost per call of the scene's
+functions, 4-5 ns on the pendulum whichever function is called: compose_step's body in
+a loop of its own, the same numba-compiled grad_kinetic and grad_potential called
+directly (numba globals, inlined by LLVM: ecd846c^'s way) or through their function
+pointers, takes 24.3 ns against 34.7 a leapfrog step (the LLVM backend's pointers 34.0),
+61.8 against 93.2 a yoshida4 step; one pointer call inlined back gives 29.1-29.2 ns,
+whether it is the sine (grad_potential) or a division (grad_kinetic); Henon-Heiles's
+yoshida4 step 42.6 against 57.4 ns (2.5 ns a call). The loop's machine
+code shows why: each indirect call pushes 15-17 words on the stack (the arrays y, P and
+out as numba's seven-word structure, by value), tests the pointer or the returned status,
+and afterwards reloads y, its Kahan terms and the result from memory, which the inlined
+step need not. The other families do more between calls (a tableau's stage sums, the
+collocation's iterations, DOP853's error norm, the projections) and are within noise of
+the inlined kernels or faster: the call's cost there is small and was repaid by later
+work on the loops (allocation-free, no reference counting, steps inlined: 89cd12c, rk4
+9.5e6 -> 1.03e7 steps/s; the constrained loops in 0877b17). docs/internals.md
+("Compiled once, per scene only the system") names the remedy not done yet: linking a
+scene's LLVM functions into a copy of the driver's IR.
+
+Read the numbers, not only PASS: the rows within a few per cent of 0.85 (henon_heiles,
+logh, the constrained ones) pass or miss with the machine's load; the ``cpu`` column is
+the same ratio from the thread's CPU time, a check that preemption did not decide it.
 """
 
 from __future__ import annotations
