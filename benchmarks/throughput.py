@@ -41,24 +41,28 @@ after ecd846c (no row). Skipped, not failed, without git or without that commit.
 
 Misses: the composition family on the simple pendulum (leapfrog 27.5 -> 34.4 ns a step,
 yoshida4 69 -> 93 ns), where a step computes almost nothing but a sine; Henon-Heiles
-(polynomial, same calls) is at the edge, 0.86. The loss is a cost per call of the scene's
-functions, 4-5 ns on the pendulum whichever function is called: compose_step's body in
-a loop of its own, the same numba-compiled grad_kinetic and grad_potential called
-directly (numba globals, inlined by LLVM: ecd846c^'s way) or through their function
-pointers, takes 24.3 ns against 34.7 a leapfrog step (the LLVM backend's pointers 34.0),
-61.8 against 93.2 a yoshida4 step; one pointer call inlined back gives 29.1-29.2 ns,
-whether it is the sine (grad_potential) or a division (grad_kinetic); Henon-Heiles's
-yoshida4 step 42.6 against 57.4 ns (2.5 ns a call). The loop's machine
-code shows why: each indirect call pushes 15-17 words on the stack (the arrays y, P and
-out as numba's seven-word structure, by value), tests the pointer or the returned status,
-and afterwards reloads y, its Kahan terms and the result from memory, which the inlined
-step need not. The other families do more between calls (a tableau's stage sums, the
-collocation's iterations, DOP853's error norm, the projections) and are within noise of
-the inlined kernels or faster: the call's cost there is small and was repaid by later
-work on the loops (allocation-free, no reference counting, steps inlined: 89cd12c, rk4
-9.5e6 -> 1.03e7 steps/s; the constrained loops in 0877b17). docs/internals.md
-("Compiled once, per scene only the system") names the remedy not done yet: linking a
-scene's LLVM functions into a copy of the driver's IR.
+(polynomial, same calls) is at the edge, 0.86. The loss is a cost per call of the
+scene's functions, 4-5 ns on the pendulum whichever function is called: compose_step's
+body in a loop of its own, the same numba-compiled grad_kinetic and grad_potential
+called directly (numba globals, inlined by LLVM: ecd846c^'s way) or through their
+function pointers, takes 24.3 ns against 34.7 a leapfrog step (the LLVM backend's
+pointers 34.0), 61.8 against 93.2 a yoshida4 step; one pointer call inlined back gives
+29.1-29.2 ns, whether it is the sine (grad_potential) or a division (grad_kinetic);
+Henon-Heiles's yoshida4 step 42.6 against 57.4 ns (2.5 ns a call). The loop's machine
+code: each indirect call pushes 15-17 words on the stack (the arrays y, P and out as
+numba's seven-word structure, by value), tests the pointer or the returned status, and
+afterwards reloads y, its Kahan terms and the result from memory, which the inlined step
+need not. The structures are not what costs: the same functions taking the arrays' data
+pointers (``CPointer(float64)``, one word each) through the same function values made a
+leapfrog step 34.1 ns against 34.7, a yoshida4 step 90.6 against 93.2 (session 25,
+``/tmp/s25/ptr.py``); the call that cannot be inlined is. The other families do more
+between calls (a tableau's stage sums, the collocation's iterations, DOP853's error
+norm, the projections) and are within noise of the inlined kernels or faster: the call's
+cost there is small and was repaid by later work on the loops (allocation-free, no
+reference counting, steps inlined: 89cd12c, rk4 9.5e6 -> 1.03e7 steps/s; the constrained
+loops in 0877b17). docs/internals.md ("Compiled once, per scene only the system") names
+the remedy not done yet: linking a scene's LLVM functions into a copy of the driver's
+IR.
 
 Read the numbers, not only PASS: the rows within a few per cent of 0.85 (henon_heiles,
 logh, the constrained ones) pass or miss with the machine's load; the ``cpu`` column is
