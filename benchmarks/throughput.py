@@ -54,8 +54,8 @@ numba's seven-word structure, by value), tests the pointer or the returned statu
 afterwards reloads y, its Kahan terms and the result from memory, which the inlined step
 need not. The structures are not what costs: the same functions taking the arrays' data
 pointers (``CPointer(float64)``, one word each) through the same function values made a
-leapfrog step 34.1 ns against 34.7, a yoshida4 step 90.6 against 93.2 (session 25,
-``/tmp/s25/ptr.py``); the call that cannot be inlined is. The other families do more
+leapfrog step 34.1 ns against 34.7, a yoshida4 step 90.6 against 93.2 (session
+25); the call that cannot be inlined is. The other families do more
 between calls (a tableau's stage sums, the collocation's iterations, DOP853's error
 norm, the projections) and are within noise of the inlined kernels or faster: the call's
 cost there is small and was repaid by later work on the loops (allocation-free, no
