@@ -57,6 +57,9 @@ class CompiledSystem:
     wanted: frozenset[str]
     point_names: tuple[str, ...] = ()
     build_seconds: float = 0.0
+    hidden: frozenset[str] = frozenset()
+    """System functions this value does not offer though its kernels have them
+    (``without``)."""
     _numeric: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -66,7 +69,8 @@ class CompiledSystem:
     def __reduce__(self):
         # machine code does not cross between processes: the worker compiles it again
         # (``systems.processes``), a fraction of a second
-        return (_compiled_again, (self.mechanics, tuple(sorted(self.wanted)), self.parameters))
+        wanted = tuple(sorted(self.wanted))
+        return (_compiled_again, (self.mechanics, wanted, self.parameters, tuple(self.hidden)))
 
     def with_parameters(self, values: Sequence[float] | dict[str, float]) -> CompiledSystem:
         """The same kernels with other parameter values (no recompilation)."""
@@ -81,6 +85,22 @@ class CompiledSystem:
             array = np.asarray(values, dtype=float).copy()
         return dataclasses.replace(self, parameters=array)
 
+    def offers(self, name: str) -> bool:
+        """Whether the kernels have the system function ``name`` (``SIGNATURES``): the
+        LLVM backend's ``compose_stages``, say, which the numba backend does not write."""
+        if name in self.hidden:
+            return False
+        kernels = self.kernels
+        if isinstance(kernels, llvm_kernels.LLVMKernels):
+            return name in kernels.functions
+        return hasattr(kernels, name)
+
+    def without(self, *names: str) -> CompiledSystem:
+        """The same kernels, not offering the system functions ``names``: the drivers then
+        take the path they take where a backend does not write them (the warm-up
+        compiles both; tests compare them)."""
+        return dataclasses.replace(self, hidden=self.hidden | frozenset(names), _numeric={})
+
     def functions(self, names: Sequence[str]) -> tuple:
         """The system functions ``names`` as the drivers take them (``fns``: numba
         first-class function values)."""
@@ -90,6 +110,8 @@ class CompiledSystem:
         return self._numeric[key]
 
     def _function(self, name: str):
+        if name in self.hidden:
+            raise KeyError(f"the system has no function {name!r}")
         kernels = self.kernels
         if isinstance(kernels, llvm_kernels.LLVMKernels):
             if name in kernels.functions:
@@ -350,9 +372,12 @@ def default_backend() -> str:
     return os.environ.get("PHASE_EXPLORER_KERNELS", "auto").strip().lower() or "auto"
 
 
-def _compiled_again(mechanics: Mechanics, wanted: tuple[str, ...], parameters) -> CompiledSystem:
+def _compiled_again(
+    mechanics: Mechanics, wanted: tuple[str, ...], parameters, hidden: tuple[str, ...] = ()
+) -> CompiledSystem:
     """A ``CompiledSystem`` unpickled in another process: compiled there again."""
-    return compile_system(mechanics, wanted).with_parameters(parameters)
+    compiled = compile_system(mechanics, wanted).with_parameters(parameters)
+    return compiled.without(*hidden) if hidden else compiled
 
 
 @dataclass(frozen=True)
@@ -604,10 +629,16 @@ class _KernelWriter:
             gradient = calculus.Calculus(scene.symbols.values()).gradient
             specs.append(Spec("kinetic", ("y", "P"), pu, (T,), returns=True))
             specs.append(Spec("potential", ("t", "y", "P"), qu, (V,), returns=True))
-            specs.append(Spec("grad_kinetic", ("y", "P", "out"), pu, tuple(gradient(T, mech.p))))
-            specs.append(
-                Spec("grad_potential", ("t", "y", "P", "out"), qu, tuple(gradient(V, mech.q)))
+            grad_kinetic = Spec("grad_kinetic", ("y", "P", "out"), pu, tuple(gradient(T, mech.p)))
+            grad_potential = Spec(
+                "grad_potential", ("t", "y", "P", "out"), qu, tuple(gradient(V, mech.q))
             )
+            specs += [grad_kinetic, grad_potential]
+            # a composition step's stages with both gradients inline: one call a step
+            # (``kernels.composef_step``); the numba backend has no such function
+            stages = llvm_kernels.stages_spec(grad_kinetic, grad_potential)
+            if stages is not None:
+                specs.append(stages)
         if "drawing" in wanted:
             exprs = []
             for name, _, _ in scene.drawing.points if scene.drawing else ():

@@ -14,7 +14,10 @@ wrapper-address protocol).
 Only what the scene language produces is written: numbers, symbols, sums, products,
 powers and the functions of ``INTRINSICS`` and ``LIBM``; anything else raises
 ``Unsupported`` and ``systems.compiled`` compiles the scene's functions with numba
-instead. The only loop written is H over rows in vector registers (``_RowsWriter``): a
+instead. The only loops written are H over rows in vector registers (``_RowsWriter``)
+and a composition step's stages with both separable gradients inline
+(``_StagesWriter``, ``compose_stages``: one call a step of the drivers'
+``composef_step``, bitwise ``compose_step``'s two calls a stage): a
 system in matrix form calls the drivers' ``solve_augmented`` (``FunctionSpec.solve``),
 and a constrained scene's multipliers, projections and impacts are the drivers' own,
 given its straight-line ``PRIMITIVES`` (``systems.constraints``).
@@ -78,6 +81,9 @@ class FunctionSpec:
     pre : (names, exprs, solve) or None
         Symbols set before ``exprs`` are written, each to its expression (a CSE of their
         own; with ``solve``, by the velocity solve instead).
+    parts : tuple of FunctionSpec
+        ``compose_stages`` (``STAGES``): the specs of ``grad_kinetic`` and
+        ``grad_potential`` it writes inline (``_StagesWriter``).
     """
 
     name: str
@@ -88,6 +94,7 @@ class FunctionSpec:
     solve: tuple | None = None
     targets: tuple | None = None
     pre: tuple | None = None
+    parts: tuple = ()
 
 
 @functools.cache
@@ -396,6 +403,120 @@ class _Writer:
         return self.b.call(function, args)
 
 
+STAGES = "compose_stages"
+"""A composition step's stages with the separable gradients inline (``_StagesWriter``)."""
+STAGES_ARGUMENTS = ("t", "h", "y", "comp", "P", "F", "G", "kick", "drift", "kahan")
+
+
+def stages_spec(grad_kinetic: FunctionSpec, grad_potential: FunctionSpec) -> FunctionSpec | None:
+    """The spec of ``compose_stages`` with these gradients written inline; None where one
+    solves for the velocities first or sets symbols of its own (not a separable system's)."""
+    parts = (grad_kinetic, grad_potential)
+    if any(part.solve is not None or part.pre is not None for part in parts):
+        return None
+    return FunctionSpec(STAGES, STAGES_ARGUMENTS, (), (), parts=parts)
+
+
+class _StagesWriter(_Writer):
+    """Writes ``compose_stages(t, h, y, comp, P, F, G, kick, drift, kahan)``: the loop
+    ``for j in range(ns + 1)`` of ``systems.integrators.kernels.compose_step`` (kick p
+    with F, drift q with G = dT/dp, tau += a, F = dV/dq at tau), in place on ``y``,
+    ``comp`` (Kahan terms where ``kahan`` is not 0), ``F`` and ``G``: the same operations
+    in the same order as the numba-compiled step calling ``grad_kinetic`` and
+    ``grad_potential`` (whose specs are ``spec.parts``, each written with its own
+    common-subexpression elimination), so the results are bitwise that step's. The
+    drivers call it once a step (``composef_step``) instead of two functions a stage."""
+
+    def write(self) -> None:
+        ir, b = self.ir, self.b
+        i64 = ir.IntType(64)
+        kinetic, potential = self.spec.parts
+        n = len(kinetic.exprs)
+        if len(potential.exprs) != n:
+            raise Unsupported("the gradients of T and V differ in length")
+        h, kahan = self.scalars["h"], self.scalars["kahan"]
+        F, G = self.data["F"], self.data["G"]
+        kick, drift = self.data["kick"], self.data["drift"]
+        stages = b.extract_value(self.function.args[8], [5, 0], name="ns")
+        compensated = b.icmp_signed("!=", kahan, ir.Constant(i64, 0), name="compensated")
+        # the parameters, read once: the drivers never pass P as one of the other arrays
+        parameters = {}
+        for symbol, argument, index in (*kinetic.bindings, *potential.bindings):
+            if argument == "P" and symbol not in parameters:
+                pointer = b.gep(self.data["P"], [ir.Constant(i64, index)])
+                parameters[symbol] = b.load(pointer, name=symbol)
+        entry = b.block
+        loop = self.function.append_basic_block("stage")
+        drifting = self.function.append_basic_block("drift")
+        done = self.function.append_basic_block("done")
+        b.branch(loop)
+        b.position_at_end(loop)
+        j = b.phi(i64, name="j")
+        tau = b.phi(self.double, name="tau")
+        # a = kick[j] * h; y[n + k] += -a * F[k]
+        a = b.fmul(b.load(b.gep(kick, [j])), h, name="a")
+        minus_a = b.fneg(a)
+        self._adds(compensated, [n + k for k in range(n)],
+                   lambda k: b.fmul(minus_a, b.load(b.gep(F, [ir.Constant(i64, k)]))))  # fmt: skip
+        b.cbranch(b.icmp_signed("<", j, stages), drifting, done)
+        b.position_at_end(drifting)
+        # a = drift[j] * h; G = dT/dp; y[k] += a * G[k]; tau += a; F = dV/dq(tau)
+        a = b.fmul(b.load(b.gep(drift, [j])), h, name="a")
+        velocities = self._gradient(kinetic, G, parameters, None)
+        self._adds(compensated, list(range(n)), lambda k: b.fmul(a, velocities[k]))
+        later = b.fadd(tau, a, name="tau")
+        self._gradient(potential, F, parameters, later)
+        following = b.add(j, ir.Constant(i64, 1))
+        last = b.block
+        b.branch(loop)
+        j.add_incoming(ir.Constant(i64, 0), entry)
+        j.add_incoming(following, last)
+        tau.add_incoming(self.scalars["t"], entry)
+        tau.add_incoming(later, last)
+        b.position_at_end(done)
+        b.ret(ir.Constant(self.result_type, None))
+
+    def _adds(self, compensated, indices: list, increment) -> None:
+        """``_add(y, comp, i, increment(k), kahan)`` of the kernels for each index ``i =
+        indices[k]`` in order: Kahan-compensated in one branch, plain in the other."""
+        ir, b = self.ir, self.b
+        i64 = ir.IntType(64)
+        y, comp = self.data["y"], self.data["comp"]
+        with b.if_else(compensated) as (kahan, plain):
+            with kahan:
+                for k, i in enumerate(indices):
+                    d = increment(k)
+                    x, c = b.gep(y, [ir.Constant(i64, i)]), b.gep(comp, [ir.Constant(i64, i)])
+                    dd = b.fsub(d, b.load(c))
+                    s = b.fadd(b.load(x), dd)
+                    b.store(b.fsub(b.fsub(s, b.load(x)), dd), c)
+                    b.store(s, x)
+            with plain:
+                for k, i in enumerate(indices):
+                    d = increment(k)
+                    x = b.gep(y, [ir.Constant(i64, i)])
+                    b.store(b.fadd(b.load(x), d), x)
+
+    def _gradient(self, spec: FunctionSpec, out, parameters: dict, t) -> list:
+        """``spec``'s values (a gradient of T or V) at the state in ``y`` now and the time
+        ``t``, stored into ``out``; returns them."""
+        ir, b = self.ir, self.b
+        i64 = ir.IntType(64)
+        self.names = {}
+        for symbol, argument, index in spec.bindings:
+            if argument == "P":
+                self.names[symbol] = parameters[symbol]
+            elif index is None:
+                self.names[symbol] = t
+            else:
+                pointer = b.gep(self.data["y"], [ir.Constant(i64, index)])
+                self.names[symbol] = b.load(pointer, name=symbol)
+        values = self._phase(spec.exprs, None)
+        for i, value in enumerate(values):
+            b.store(value, b.gep(out, [ir.Constant(i64, i)]))
+        return values
+
+
 ROWS_PREFIX = "pe_rows_"
 """``pe_rows_<name>``: a scalar function (``hamiltonian``) over rows, several at a time."""
 ROWS_NAMES = ("hamiltonian",)
@@ -634,7 +755,7 @@ def write_ir(specs: Sequence[FunctionSpec], rename: dict) -> str:
     module = ir.Module(name="pe_system")
     calls = {}
     for spec in specs:
-        writer = _Writer(module, spec, rename)
+        writer = (_StagesWriter if spec.name == STAGES else _Writer)(module, spec, rename)
         writer.write()
         calls[spec.name] = writer.calls
     library = _vector_library()
