@@ -257,6 +257,46 @@ def compose_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
     return compose_step(fns, scratch[0], scratch[1], scratch[2], P, coef, swork)
 
 
+# The same compositions with the stage loop in the scene's own code: ``fns =
+# (grad_potential, compose_stages)``, the second written by the LLVM backend
+# (``systems.llvm_kernels``) with both gradients inline, so a step makes one call of the
+# scene's code instead of two per stage (4-5 ns each on the pendulum: a call through a
+# function pointer cannot be inlined). ``compose_stages(tau, h, y, comp, P, F, G, kick,
+# drift, kahan)`` is ``compose_step``'s loop ``for j in range(ns + 1)``, the same
+# operations in the same order: the results are bitwise compose_step's.
+
+
+def composef_work(coef, m):
+    return compose_work(coef, m)
+
+
+def composef_step(fns, y, comp, clock, P, coef, work):
+    """``compose_step`` with its stages in one call of the scene's ``compose_stages``."""
+    grad_potential, compose_stages = fns
+    kick, drift, kahan = coef
+    F, G, valid = work
+    tau = clock[CLOCK_T]
+    evals = 0
+    if valid[0] == 0.0:
+        grad_potential(tau, y, P, F)
+        evals += 1
+        valid[0] = 1.0
+    compose_stages(tau, clock[CLOCK_H], y, comp, P, F, G, kick, drift, 1 if kahan else 0)
+    _tick_fixed(clock)
+    return STATUS_RUNNING, evals + drift.shape[0]
+
+
+def composef_sample_work(coef, m):
+    return compose_work(coef, m)
+
+
+def composef_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
+    """As ``compose_sample``, with ``composef_step``."""
+    _restart(prev, s, scratch)
+    swork[-1][0] = 0.0
+    return composef_step(fns, scratch[0], scratch[1], scratch[2], P, coef, swork)
+
+
 # -- logarithmic-Hamiltonian compositions (Mikkola-Tanikawa, Preto-Tremaine) ---------------
 
 

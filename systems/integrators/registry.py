@@ -70,6 +70,12 @@ class Family:
     applies: Callable
     wants: frozenset[str] = frozenset()
     functions: tuple[str, ...] = ("rhs",)
+    fused: tuple[str, tuple[str, ...]] | None = None
+    """(kernel, functions): a second instantiation of the family's loops whose step calls
+    these system functions instead (the composition's ``composef``: its stages in one
+    call of the scene's ``compose_stages``), taken by a single trajectory's runner
+    wherever the compiled system offers them all (the LLVM backend), bitwise the same
+    results; ensembles and the chaos maps keep ``kernel``."""
     symplectic: bool = False
     needs_separable: bool = False
     time_transformed: bool = False
@@ -90,6 +96,16 @@ class Family:
     @property
     def run_kernel(self) -> str | None:
         return None if self.kernel is None else f"{self.kernel}_run"
+
+    def loops_for(self, compiled) -> tuple[str, tuple[str, ...]]:
+        """(kernel, system functions) a single trajectory of ``compiled`` runs with: the
+        ``fused`` ones where ``compiled`` offers their functions, else ``kernel`` and
+        ``functions`` (also for a system that does not say, a chaos map's tangent
+        system)."""
+        offers = getattr(compiled, "offers", None)
+        if self.fused is not None and offers and all(offers(name) for name in self.fused[1]):
+            return self.fused
+        return self.kernel, self.functions
 
     @property
     def ensemble_kernel(self) -> str | None:
@@ -464,6 +480,7 @@ FAMILIES: dict[str, Family] = {
             applies=_splitting_applies,
             wants=frozenset({"separable"}),
             functions=("grad_kinetic", "grad_potential"),
+            fused=("composef", ("grad_potential", "compose_stages")),
             symplectic=True,
             needs_separable=True,
             ensemble=True,

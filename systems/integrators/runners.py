@@ -96,9 +96,13 @@ class KernelRunner:
         family = stepper.family
         self.coef = self._coefficients(t0)
         drivers = driver_module()
-        allocate = _as_python(getattr(drivers, f"{family.kernel}_work"))
+        # the family's loops, or their fused instance where the system offers its function
+        self.kernel, functions = (
+            (family.kernel, ()) if family.constrained else family.loops_for(compiled)
+        )
+        allocate = _as_python(getattr(drivers, f"{self.kernel}_work"))
         self.work = allocate(self.coef, self.m)
-        sample_work = _as_python(getattr(drivers, f"{family.kernel}_sample_work"))
+        sample_work = _as_python(getattr(drivers, f"{self.kernel}_sample_work"))
         self.spare = (  # the loop's scratch (its ``spare``: it allocates nothing itself)
             (np.empty(self.m), np.empty(self.m), np.empty(CLOCK_SIZE)),
             sample_work(self.coef, self.m),
@@ -107,8 +111,8 @@ class KernelRunner:
         if family.constrained:
             self.fns = compiled.constraint_functions()
         else:
-            self.fns = compiled.functions(family.functions)
-        self.loop = getattr(drivers, family.run_kernel)
+            self.fns = compiled.functions(functions)
+        self.loop = getattr(drivers, f"{self.kernel}_run")
         self._entries = {}  # the loop's machine code for this run's argument types
         self.sampled = 0  # sample times the last call answered (one row each)
         # the start of the last step a call with samples took (y, comp, clock; nan time:

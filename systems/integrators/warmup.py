@@ -211,18 +211,24 @@ def warm_part(names: list[str], progress=None, systems: dict | None = None) -> N
 
 def _warm_family(systems: dict, method: str) -> None:
     """Compile (or load) the loops of ``method``'s family: with and without a section,
-    the sampling loop (Sampler: run --out, export) and, where it has them, ensembles."""
+    the sampling loop (Sampler: run --out, export) and, where it has them, ensembles;
+    a family with ``fused`` loops both those (the warm-up system is the LLVM backend's)
+    and its own (a system without the fused function: the numba backend's)."""
     from systems.integrators.registry import STEPPERS
     from systems.simulation import Run, ensemble, precompile
 
     stepper = STEPPERS[method]
     family = stepper.family
     compiled = systems["constrained" if family.constrained else "free"]
-    for section in (None, (1, 0.0, 1)):
-        precompile(compiled, stepper.name, section=section)
-    setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
-    run = Run(compiled, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
-    run.advance(0.01, samples=np.array([5e-3]))
+    variants = [compiled]
+    if family.fused is not None:  # its fused loops (the LLVM backend's), and its own
+        variants.append(compiled.without(*set(family.fused[1]) - set(family.functions)))
+    for system in variants:
+        for section in (None, (1, 0.0, 1)):
+            precompile(system, stepper.name, section=section)
+        setting = {} if stepper.setting == "tol" else {"dt": 1e-3}
+        run = Run(system, method=stepper.name, t_end=1e-2, energy_tolerance=None, **setting)
+        run.advance(0.01, samples=np.array([5e-3]))
     if family.ensemble or family.adaptive_ensemble:
         Y0 = np.repeat(compiled.initial_state()[None], 2, axis=0)
         ensemble(compiled, Y0, method=stepper.name, t_end=1e-3, dt=1e-3, samples=1)
