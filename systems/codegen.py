@@ -72,9 +72,10 @@ SIGNATURES: dict[str, str] = {
     "grad_kinetic": f"void({_V}, {_V}, {_V})",
     "grad_potential": f"void({_F}, {_V}, {_V}, {_V})",
     # a composition step's stages with both gradients inline (the LLVM backend's only):
-    # (tau, h, y, comp, P, F, G, kick, drift, kahan), ``compose_step``'s loop over the
-    # stages, in place on y, comp, F and G (``systems.integrators.kernels.composef_step``)
-    "compose_stages": f"void({_F}, {_F}, {_V}, {_V}, {_V}, {_V}, {_V}, {_V}, {_V}, int64)",
+    # (tau, h, y, comp, P, F, G, kick, drift, ns, kahan), ``compose_step``'s loop over
+    # the stages, in place on y, comp, F and G (``kernels.composef_step``); the arrays as
+    # the addresses of their data (``arr.ctypes.data``), ns = len(drift)
+    "compose_stages": f"void({_F}, {_F}, {', '.join(['uintp'] * 7)}, int64, int64)",
     "drawing": f"void({_F}, {_V}, {_V}, {_M})",
     "c_free_rhs": f"void({_F}, {_V}, {_V}, {_V})",
     "c_positions": f"void({_F}, {_V}, {_V}, {_V})",

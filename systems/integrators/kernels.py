@@ -262,8 +262,10 @@ def compose_sample(fns, prev, state, s, P, coef, work, swork, scratch, first):
 # (``systems.llvm_kernels``) with both gradients inline, so a step makes one call of the
 # scene's code instead of two per stage (4-5 ns each on the pendulum: a call through a
 # function pointer cannot be inlined). ``compose_stages(tau, h, y, comp, P, F, G, kick,
-# drift, kahan)`` is ``compose_step``'s loop ``for j in range(ns + 1)``, the same
-# operations in the same order: the results are bitwise compose_step's.
+# drift, ns, kahan)`` (the arrays as the addresses of their data: seven of numba's array
+# structures by value were 392 bytes copied a call) is ``compose_step``'s loop ``for j
+# in range(ns + 1)``, the same operations in the same order: the results are bitwise
+# compose_step's.
 
 
 def composef_work(coef, m):
@@ -281,9 +283,13 @@ def composef_step(fns, y, comp, clock, P, coef, work):
         grad_potential(tau, y, P, F)
         evals += 1
         valid[0] = 1.0
-    compose_stages(tau, clock[CLOCK_H], y, comp, P, F, G, kick, drift, 1 if kahan else 0)
+    ns = drift.shape[0]
+    compose_stages(
+        tau, clock[CLOCK_H], y.ctypes.data, comp.ctypes.data, P.ctypes.data, F.ctypes.data,
+        G.ctypes.data, kick.ctypes.data, drift.ctypes.data, ns, 1 if kahan else 0,
+    )  # fmt: skip
     _tick_fixed(clock)
-    return STATUS_RUNNING, evals + drift.shape[0]
+    return STATUS_RUNNING, evals + ns
 
 
 def composef_sample_work(coef, m):

@@ -2,6 +2,8 @@
 compile of the same expressions computes, for every function the scene language has, and
 the drivers run them like numba's."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -180,7 +182,8 @@ def test_code_written_in_a_worker_is_machine_code_here(name):
     source = parse_scene(pendulum_chain(3)) if name == "chain" else load_scene(name)
     mechanics, code = processes.run(build_code, source, cpu_seconds=120.0)
     assert code.backend == "llvm"
-    assert "inttoptr" not in code.text
+    # no address as a constant (compose_stages turns its arguments into pointers)
+    assert re.search(r"inttoptr \(?i64 -?\d", code.text) is None
     assert (llvm_kernels.SOLVER_SYMBOL in code.text) == (mechanics.matrix_form is not None)
     here = compile_system(mechanics, wants_for(mechanics), backend="numba")
     there = load_system(mechanics, code)
