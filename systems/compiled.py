@@ -454,8 +454,9 @@ def system_code(
 
         def write() -> str:
             specs = writer.specs(wanted)
-            names = " ".join(spec.name for spec in specs)
-            return f"{NAMES_LINE}{names}\n" + llvm_kernels.write_ir(specs, writer.rename)
+            text = llvm_kernels.write_ir(specs, writer.rename)
+            names = " ".join(llvm_kernels.written(text, [spec.name for spec in specs]))
+            return f"{NAMES_LINE}{names}\n" + text
 
         try:
             text = _remembered(mechanics, "llvm", wanted, write)

@@ -144,3 +144,15 @@ def test_an_llvm_compiled_separable_scene_steps_with_one_call_a_step():
     other = make_runner(numba, STEPPERS["yoshida4"], numba.initial_state(), 0.0, math.inf,
                         1e-3, None)  # fmt: skip
     assert other.kernel == "compose" and other.loop is drivers.compose_run
+
+
+def test_large_gradients_keep_two_calls_a_stage():
+    """``compose_stages`` only where the gradients are small (``STAGES_MAX_INSTRUCTIONS``):
+    a 32-particle FPU chain's fused steps were slower than the calls, and doubled its
+    compile."""
+    compiled = compile_system(derive(load_scene("fpu_chain")), WANTS)
+    assert isinstance(compiled.kernels, LLVMKernels)
+    assert not compiled.offers(STAGES) and compiled.offers("grad_potential")
+    runner = make_runner(compiled, STEPPERS["leapfrog"], compiled.initial_state(), 0.0,
+                         math.inf, 1e-3, None)  # fmt: skip
+    assert runner.kernel == "compose"
