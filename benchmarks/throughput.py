@@ -21,51 +21,54 @@ time. Both must end on the same state (the 'end state' column: bitwise in every 
 today). Rows: families present at both commits on representative scenes; taylor came
 after ecd846c (no row). Skipped, not failed, without git or without that commit.
 
-2026-11-29, two-core AMD EPYC VM, load average 0.6-0.9 before each run,
-``python benchmarks/throughput.py`` (two runs, and one of the comparison alone with
-``--only "" --rounds 3``; the rates are the last run's, the ratios' range all three):
+2026-11-29, two-core AMD EPYC VM, load average 1.1-1.5 before each run, after the fused
+composition loops (``composef``, below): ``python benchmarks/throughput.py`` once, and the
+composition rows again with ``--only leapfrog`` and ``--only yoshida4/`` (``--rounds 3``);
+the rates are the full run's, the ratios' range both:
 
     family             method              scene               inlined/s  now/s    ratio
-    composition        leapfrog            simple_pendulum     3.63e7     2.91e7   0.78-0.80
-    composition        yoshida4            simple_pendulum     1.44e7     1.08e7   0.75-0.76
-    composition        yoshida4            henon_heiles        1.99e7     1.72e7   0.86
-    runge_kutta        rk4                 simple_pendulum     1.03e7     1.06e7   1.03-1.07
-    runge_kutta        rk4                 double_pendulum     4.11e6     4.09e6   0.96-1.00
-    gauss              gauss_legendre4     double_pendulum     7.45e5     8.20e5   1.08-1.10
-    dop853 (tol 1e-10) dop853              double_pendulum     9.06e5     8.87e5   0.98-1.01
-    logh               logh_yoshida4       kepler_cartesian    6.74e6     6.00e6   0.88-0.89
-    gauss_tt           gauss_legendre4_tt  kepler_cartesian    7.96e5     9.40e5   1.16-1.20
-    constrained        constrained_dop853  cartesian_pendulum  4.79e5     4.26e5   0.89-1.02
-    constrained        constrained_dop853  rolling_disk        2.87e5     2.48e5   0.86-0.93
-    constrained_fixed  constrained_rk4     cartesian_pendulum  1.06e6     1.14e6   1.08-1.27
+    composition        leapfrog            simple_pendulum     3.66e7     4.05e7   1.11
+    composition        yoshida4            simple_pendulum     1.44e7     1.63e7   1.12-1.13
+    composition        yoshida4            henon_heiles        1.99e7     1.97e7   0.99-1.00
+    runge_kutta        rk4                 simple_pendulum     1.03e7     1.06e7   1.03
+    runge_kutta        rk4                 double_pendulum     4.13e6     4.11e6   1.00
+    gauss              gauss_legendre4     double_pendulum     7.26e5     8.29e5   1.14
+    dop853 (tol 1e-10) dop853              double_pendulum     8.62e5     8.95e5   1.04
+    logh               logh_yoshida4       kepler_cartesian    6.72e6     5.88e6   0.88
+    gauss_tt           gauss_legendre4_tt  kepler_cartesian    7.93e5     9.39e5   1.18
+    constrained        constrained_dop853  cartesian_pendulum  4.49e5     4.41e5   0.98
+    constrained        constrained_dop853  rolling_disk        2.82e5     2.47e5   0.88
+    constrained_fixed  constrained_rk4     cartesian_pendulum  1.06e6     1.14e6   1.08
 
-Misses: the composition family on the simple pendulum (leapfrog 27.5 -> 34.4 ns a step,
-yoshida4 69 -> 93 ns), where a step computes almost nothing but a sine; Henon-Heiles
-(polynomial, same calls) is at the edge, 0.86. The loss is a cost per call of the
-scene's functions, 4-5 ns on the pendulum whichever function is called: compose_step's
-body in a loop of its own, the same numba-compiled grad_kinetic and grad_potential
-called directly (numba globals, inlined by LLVM: ecd846c^'s way) or through their
-function pointers, takes 24.3 ns against 34.7 a leapfrog step (the LLVM backend's
-pointers 34.0), 61.8 against 93.2 a yoshida4 step; one pointer call inlined back gives
-29.1-29.2 ns, whether it is the sine (grad_potential) or a division (grad_kinetic);
-Henon-Heiles's yoshida4 step 42.6 against 57.4 ns (2.5 ns a call). The loop's machine
-code: each indirect call pushes 15-17 words on the stack (the arrays y, P and out as
-numba's seven-word structure, by value), tests the pointer or the returned status, and
-afterwards reloads y, its Kahan terms and the result from memory, which the inlined step
-need not. The structures are not what costs: the same functions taking the arrays' data
-pointers (``CPointer(float64)``, one word each) through the same function values made a
-leapfrog step 34.1 ns against 34.7, a yoshida4 step 90.6 against 93.2 (session
-25); the call that cannot be inlined is. The other families do more
-between calls (a tableau's stage sums, the collocation's iterations, DOP853's error
-norm, the projections) and are within noise of the inlined kernels or faster: the call's
-cost there is small and was repaid by later work on the loops (allocation-free, no
-reference counting, steps inlined: 89cd12c, rk4 9.5e6 -> 1.03e7 steps/s; the constrained
-loops in 0877b17). docs/internals.md ("Compiled once, per scene only the system") names
-the remedy not done yet: linking a scene's LLVM functions into a copy of the driver's
-IR.
+Before them (the former table's three runs, and one more under load the same day):
+leapfrog on the simple pendulum 0.78-0.81x (27.5 -> 34.4 ns a step), yoshida4
+0.74-0.76x (69 -> 93 ns), on Henon-Heiles 0.84-0.86x; the other rows as above within a
+few per cent (their code did not change). The loss was a cost
+per call of the scene's functions, 4-5 ns on the pendulum whichever function is called:
+compose_step's body in a loop of its own, the same numba-compiled grad_kinetic and
+grad_potential called directly (numba globals, inlined by LLVM: ecd846c^'s way) or through
+their function pointers, takes 24.3 ns against 34.7 a leapfrog step, 61.8 against 93.2 a
+yoshida4 step; Henon-Heiles's yoshida4 step 42.6 against 57.4 ns (2.5 ns a call). Each
+indirect call pushes numba's array structures (seven words each) on the stack, tests the
+pointer or the returned status, and afterwards reloads y, its Kahan terms and the result
+from memory, which the inlined step need not; passing data pointers instead made no
+difference with two calls a stage (34.1 against 34.7 ns): the call that cannot be
+inlined is the cost. The remedy: the LLVM backend writes the scene's ``compose_stages``,
+the step's whole stage loop with both gradients inline (``systems.llvm_kernels``), and a
+single trajectory's runner takes the fused loops ``composef_*`` that call it once a step,
+bitwise the same states (the 'end state' column; ``tests/systems/integrators/
+test_fused_compose.py``). Its arrays go as data addresses: seven array structures by
+value (392 bytes a call) made the fused leapfrog step slower than two calls (37.9
+against 34.4 ns); as addresses 24.7 ns, yoshida4 61.8 (thread CPU, 2e6 and 1e6 steps,
+best of 5). Only for small gradients (``STAGES_MAX_INSTRUCTIONS``: a 32-particle FPU
+chain's fused steps were slower). The other families do more between calls (a tableau's
+stage sums, the collocation's iterations, DOP853's error norm, the projections) and are
+within noise of the inlined kernels or faster: the call's cost there is small and was
+repaid by later work on the loops (allocation-free, no reference counting, steps
+inlined: 89cd12c, rk4 9.5e6 -> 1.03e7 steps/s; the constrained loops in 0877b17).
 
-Read the numbers, not only PASS: the rows within a few per cent of 0.85 (henon_heiles,
-logh, the constrained ones) pass or miss with the machine's load; the ``cpu`` column is
+Read the numbers, not only PASS: the rows within a few per cent of 0.85 (logh, the
+constrained ones) pass or miss with the machine's load; the ``cpu`` column is
 the same ratio from the thread's CPU time, a check that preemption did not decide it.
 """
 
