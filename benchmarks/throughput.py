@@ -40,6 +40,15 @@ the rates are the full run's, the ratios' range both:
     constrained        constrained_dop853  rolling_disk        2.82e5     2.47e5   0.88
     constrained_fixed  constrained_rk4     cartesian_pendulum  1.06e6     1.14e6   1.08
 
+The rolling disk's constrained_dop853 measured 0.83-0.93x over six runs that day, at the
+line. Its saddle-point solve (``c_solve``, m = 6) took 168 ns with m known at run time,
+134 with m a constant: ``c_lambda`` now solves m = 2..6 with m a constant (``c_solve``
+inlined, LLVM unrolls it), as the kernels inlined per scene had it. Then, with
+``--only constrained --rounds 5`` twice: cartesian_pendulum 4.79e5 -> 4.89e5 steps/s
+(1.02x; 0.86-0.93x before), rolling_disk 2.94e5 -> 2.84e5 (0.97-1.00x), constrained_rk4
+1.12-1.20x; the same end states, bitwise. It costs the rolling disk's reopen 5 ms of
+loading (0.029 -> 0.035 s, target 0.05).
+
 Before them (the former table's three runs, and one more under load the same day):
 leapfrog on the simple pendulum 0.78-0.81x (27.5 -> 34.4 ns a step), yoshida4
 0.74-0.76x (69 -> 93 ns), on Henon-Heiles 0.84-0.86x; the other rows as above within a

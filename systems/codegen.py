@@ -269,12 +269,13 @@ def jit_wrappers(source: str, *, reference_counting: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
-INLINED = ("_taylor_h", "_taylor_lane_sum", "_taylor_lane_samples")
+INLINED = ("_taylor_h", "_taylor_lane_sum", "_taylor_lane_samples", "c_solve")
 """Helpers inlined into their callers like the steps: ``taylor_step``'s rule for h,
 shared with the batch loop (called, it cost the step 15-40 ns: Hénon–Heiles 0.069 ->
 0.084 us outside the coefficient function, Kepler 0.073 -> 0.111); a batch lane's sum
 and samples, shared by the ensemble's and the orbit diagram's loops (called, they cost
-the 400-start Hénon–Heiles ensemble 25%: 0.23 -> 0.30 s)."""
+the 400-start Hénon–Heiles ensemble 25%: 0.23 -> 0.30 s); the constrained solve, so that
+``c_lambda``'s calls for small sizes have m a constant."""
 
 FUSED = ("_taylor_horner", "_taylor_horner4", "_taylor_horner4x2", "_taylor_lanes")
 """Generated functions compiled with ``fastmath={"contract"}``: each multiply and add a
